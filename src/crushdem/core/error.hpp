@@ -1,0 +1,28 @@
+// Error types shared by every module. A ConfigError always names the key (or file), the value
+// that was given and what was expected, so that a user can fix the input without reading code.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace crushdem {
+
+/// Invalid user input: configuration keys, files, arguments. Thrown before anything runs.
+class ConfigError : public std::runtime_error {
+ public:
+  explicit ConfigError(const std::string& what) : std::runtime_error(what) {}
+};
+
+/// Builds the standard message "key 'K' = V: expected E".
+inline std::string bad_value(const std::string& key, const std::string& value,
+                             const std::string& expected) {
+  return "key '" + key + "' = " + value + ": expected " + expected;
+}
+
+/// A state the engine cannot continue from (lost particle, NaN force, ...).
+class RuntimeFailure : public std::runtime_error {
+ public:
+  explicit RuntimeFailure(const std::string& what) : std::runtime_error(what) {}
+};
+
+}  // namespace crushdem
