@@ -1,0 +1,46 @@
+// One contact's response, assembled from the pure parts (normal law, viscous damping, Mindlin
+// tangential with Coulomb cap), in the manner of LAMMPS `pair granular`. The same function
+// serves grain-grain and grain-wall contacts; only the geometry passed in differs.
+#pragma once
+
+#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/contact/damping.hpp"
+#include "crushdem/contact/tangential.hpp"
+#include "crushdem/core/types.hpp"
+
+namespace crushdem {
+
+struct ContactResponse {
+  Vec3 force;        // total force on body 1 [N]
+  Vec3 F_t;          // new elastic tangential force on body 1 (the history to keep) [N]
+  Vec3 tangential;   // total tangential force on body 1 (elastic + viscous) [N]
+  double F_n = 0.0;  // elastic normal force magnitude [N]
+  double k_n = 0.0;  // tangent normal stiffness [N/m]
+};
+
+/// n: unit normal from body 1 towards body 2; v_rel: velocity of body 1 relative to body 2 at
+/// the contact point; F_t_old: stored tangential force on body 1; mu: friction of this contact.
+template <class Law>
+CD_HD inline ContactResponse contact_response(const Law& law, double delta, double R_star,
+                                              double m_eff, Vec3 n, Vec3 v_rel, Vec3 F_t_old,
+                                              double mu, const ContactParams& p, double dt) {
+  ContactResponse r;
+  const NormalForce nf = law(delta, R_star);
+  r.F_n = nf.F_n;
+  r.k_n = nf.k_n;
+  const double v_n = dot(v_rel, n);  // > 0 while approaching
+  const Vec3 v_t = v_rel - v_n * n;
+  r.F_t = mindlin_tangential(F_t_old, n, dt * v_t, p.tangential_ratio * nf.k_n, mu, nf.F_n);
+  double F_normal = nf.F_n;
+  Vec3 F_damp_t{};
+  if (p.viscous.alpha_n > 0.0) {
+    const double eta_n = viscous_coefficient(p.viscous.alpha_n, m_eff, nf.k_n);
+    F_normal += eta_n * v_n;
+    F_damp_t = (-p.viscous.tangential_factor * eta_n) * v_t;
+  }
+  r.tangential = r.F_t + F_damp_t;
+  r.force = (-F_normal) * n + r.tangential;
+  return r;
+}
+
+}  // namespace crushdem

@@ -1,0 +1,38 @@
+// Smooth Hertz normal contact (model-notes 1.1).
+//
+//   F_n = (4/3) E* sqrt(R*) delta^(3/2),   k_n = dF_n/d delta = 2 E* sqrt(R* delta)
+//
+// with R* = R1 R2 / (R1 + R2) (R* = R against a plane) and E* = G / (1 - nu) for two grains of
+// the same material. Hertz, H. (1882), J. reine angew. Math. 92; Johnson, Contact Mechanics (1985).
+#pragma once
+
+#include <cmath>
+
+#include "crushdem/core/types.hpp"
+
+namespace crushdem {
+
+/// Normal force and tangent stiffness of a contact.
+struct NormalForce {
+  double F_n = 0.0;  // [N], >= 0
+  double k_n = 0.0;  // [N/m], dF_n/d delta
+};
+
+/// E* for two grains of one material from the shear modulus G and Poisson's ratio nu.
+CD_HD inline double effective_modulus(double G, double nu) { return G / (1.0 - nu); }
+
+CD_HD inline NormalForce hertz_normal(double delta, double R_star, double E_star) {
+  if (delta <= 0.0) return {};
+  const double k_n = 2.0 * E_star * std::sqrt(R_star * delta);
+  return {k_n * delta * (2.0 / 3.0), k_n};
+}
+
+/// Normal-law evaluator for smooth Hertz (template argument of the contact kernels).
+struct HertzLaw {
+  double E_star = 0.0;
+  CD_HD NormalForce operator()(double delta, double R_star) const {
+    return hertz_normal(delta, R_star, E_star);
+  }
+};
+
+}  // namespace crushdem

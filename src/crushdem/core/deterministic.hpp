@@ -1,0 +1,44 @@
+// Reductions whose result does not depend on the number of threads.
+// Results must be bit-identical on 1 and 2 threads (a last-bit difference changes which grain
+// breaks first), so sums over particles are taken in fixed-size blocks whose partial sums are
+// added in block order, never in thread order.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+namespace crushdem {
+
+inline constexpr std::size_t kReductionBlock = 1024;
+
+/// Sum f(i) for i in [0, n) with a thread-count independent summation order.
+template <class F>
+double deterministic_sum(std::size_t n, F&& f) {
+  const std::size_t nblocks = (n + kReductionBlock - 1) / kReductionBlock;
+  std::vector<double> partial(nblocks, 0.0);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nblocks); ++b) {
+    const std::size_t lo = static_cast<std::size_t>(b) * kReductionBlock;
+    const std::size_t hi = lo + kReductionBlock < n ? lo + kReductionBlock : n;
+    double s = 0.0;
+    for (std::size_t i = lo; i < hi; ++i) s += f(i);
+    partial[static_cast<std::size_t>(b)] = s;
+  }
+  double total = 0.0;
+  for (double p : partial) total += p;
+  return total;
+}
+
+/// Maximum of f(i) over [0, n) (max is order independent; parallel for speed).
+template <class F>
+double parallel_max(std::size_t n, double init, F&& f) {
+  double m = init;
+#pragma omp parallel for schedule(static) reduction(max : m)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
+    const double v = f(static_cast<std::size_t>(i));
+    if (v > m) m = v;
+  }
+  return m;
+}
+
+}  // namespace crushdem

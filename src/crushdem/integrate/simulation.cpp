@@ -1,0 +1,616 @@
+#include "crushdem/integrate/simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <tuple>
+
+#include "crushdem/contact/contact_kernel.hpp"
+#include "crushdem/core/deterministic.hpp"
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+namespace {
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+using Idx = std::ptrdiff_t;
+
+}  // namespace
+
+void DampingConfig::validate() const {
+  if (!(local_alpha >= 0.0 && local_alpha < 1.0)) {
+    throw ConfigError(bad_value("damping.local_alpha", num(local_alpha), "a value in [0, 1)"));
+  }
+}
+
+void TimestepConfig::validate() const {
+  if (!(dt >= 0.0) || !std::isfinite(dt)) {
+    throw ConfigError(bad_value("timestep.dt", num(dt), "a step >= 0 in s (0 = automatic)"));
+  }
+  if (!(rayleigh_fraction > 0.0 && rayleigh_fraction <= 1.0)) {
+    throw ConfigError(
+        bad_value("timestep.rayleigh_fraction", num(rayleigh_fraction), "a value in (0, 1]"));
+  }
+  if (!(safety > 0.0 && safety <= 1.0)) {
+    throw ConfigError(bad_value("timestep.safety", num(safety), "a value in (0, 1]"));
+  }
+  if (update_interval == 0) {
+    throw ConfigError(bad_value("timestep.update_interval", "0", "a positive number of steps"));
+  }
+}
+
+void NeighborConfig::validate() const {
+  if (!(skin >= 0.0) || !std::isfinite(skin)) {
+    throw ConfigError(bad_value("neighbor.skin", num(skin), "a skin >= 0 in m (0 = automatic)"));
+  }
+}
+
+void SimulationConfig::validate() const {
+  material.validate();
+  contact.validate();
+  damping.validate();
+  timestep.validate();
+  neighbor.validate();
+  for (int k = 0; k < kNumWalls; ++k) {
+    walls[static_cast<std::size_t>(k)].validate(std::string("walls.") + wall_name(k));
+  }
+  for (int a = 0; a < 3; ++a) {
+    const double lo = walls[static_cast<std::size_t>(2 * a)].position;
+    const double hi = walls[static_cast<std::size_t>(2 * a + 1)].position;
+    if (!(hi > lo)) {
+      throw ConfigError(bad_value(std::string("walls.") + wall_name(2 * a + 1) + ".position",
+                                  num(hi), std::string("a position above walls.") +
+                                               wall_name(2 * a) + ".position = " + num(lo)));
+    }
+  }
+}
+
+Simulation::Simulation(const SimulationConfig& cfg) : cfg_(cfg) {
+  cfg_.validate();
+  cp_ = make_contact_params(cfg_.material, cfg_.contact);
+  walls_ = Walls(cfg_.walls);
+  skin_ = cfg_.neighbor.skin;
+  if (cfg_.timestep.dt > 0.0) {
+    dt_ = cfg_.timestep.dt;
+    dt_fixed_ = true;
+  }
+}
+
+ParticleId Simulation::add_particle(Vec3 position, double radius, Vec3 velocity,
+                                    Vec3 angular_velocity) {
+  NewParticle np;
+  np.position = position;
+  np.velocity = velocity;
+  np.angular_velocity = angular_velocity;
+  np.radius = radius;
+  np.density = cfg_.material.density;
+  TopologyChange ch;
+  ch.add.push_back(np);
+  return apply_topology(ch).front();
+}
+
+// --- contact history keyed by ids --------------------------------------------------------------
+
+void Simulation::capture_history() {
+  if (history_saved_ || !nl_valid_) return;
+  saved_pairs_.clear();
+  saved_walls_.clear();
+  for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
+    if (ft_x_[e] == 0.0 && ft_y_[e] == 0.0 && ft_z_[e] == 0.0) continue;
+    const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
+    if (ia < ib) {
+      saved_pairs_.push_back({ia, ib, ft_x_[e], ft_y_[e], ft_z_[e]});
+    } else {
+      saved_pairs_.push_back({ib, ia, -ft_x_[e], -ft_y_[e], -ft_z_[e]});
+    }
+  }
+  std::sort(saved_pairs_.begin(), saved_pairs_.end(),
+            [](const PairHistory& u, const PairHistory& v) {
+              return std::tie(u.a, u.b) < std::tie(v.a, v.b);
+            });
+  for (std::size_t e = 0; e < wc_.size(); ++e) {
+    if (wc_.ft_x[e] == 0.0 && wc_.ft_y[e] == 0.0 && wc_.ft_z[e] == 0.0) continue;
+    saved_walls_.push_back(
+        {p_.id[wc_.particle[e]], wc_.wall[e], wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]});
+  }
+  std::sort(saved_walls_.begin(), saved_walls_.end(),
+            [](const WallHistory& u, const WallHistory& v) {
+              return std::tie(u.id, u.wall) < std::tie(v.id, v.wall);
+            });
+  history_saved_ = true;
+}
+
+std::vector<ParticleId> Simulation::apply_topology(const TopologyChange& change) {
+  capture_history();  // read with the old indices, before the arrays are compacted
+  auto ids = p_.apply(change);
+  nl_valid_ = false;
+  forces_valid_ = false;
+  dt_valid_ = false;
+  return ids;
+}
+
+void Simulation::invalidate() {
+  capture_history();
+  nl_valid_ = false;
+  forces_valid_ = false;
+  dt_valid_ = false;
+}
+
+void Simulation::rebuild_neighbors() {
+  capture_history();
+  const std::size_t N = p_.size();
+  if (skin_ <= 0.0 && N > 0) {
+    skin_ = 0.5 * *std::min_element(p_.radius.begin(), p_.radius.end());
+  }
+  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_));
+
+  // A grain entirely outside a wall has escaped: the state is no longer a valid sample.
+  for (std::size_t i = 0; i < N; ++i) {
+    const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    for (int k = 0; k < kNumWalls; ++k) {
+      const double pos = walls_.position(k);
+      const double dist = wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)];
+      if (!(dist > -p_.radius[i])) {
+        throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) + " left the box through wall " +
+                             wall_name(k) + " at t = " + num(time_) + " s");
+      }
+    }
+  }
+
+  nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
+  const std::size_t M = nl_.neighbors.size();
+  for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
+  for (auto* a : {&rf_x_, &rf_y_, &rf_z_, &rt_x_, &rt_y_, &rt_z_}) a->resize(M);
+  touching_.assign(M, 0);
+
+  // Wall candidates, sorted by particle index (CSR).
+  std::vector<std::uint32_t> wp;
+  std::vector<std::uint8_t> ww;
+  wall_offsets_.assign(N + 1, 0);
+  for (std::size_t i = 0; i < N; ++i) {
+    const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    for (int k = 0; k < kNumWalls; ++k) {
+      const double pos = walls_.position(k);
+      const double dist = wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)];
+      if (dist - p_.radius[i] < skin_) {
+        wp.push_back(static_cast<std::uint32_t>(i));
+        ww.push_back(static_cast<std::uint8_t>(k));
+      }
+    }
+    wall_offsets_[i + 1] = static_cast<std::uint32_t>(wp.size());
+  }
+  wc_.resize(wp.size());
+  wc_.particle = std::move(wp);
+  wc_.wall = std::move(ww);
+
+  // Restore tangential history by ids.
+  if (history_saved_) {
+    if (!saved_pairs_.empty()) {
+#pragma omp parallel for schedule(static)
+      for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
+        const auto e = static_cast<std::size_t>(ee);
+        const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
+        const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
+        auto it = std::lower_bound(saved_pairs_.begin(), saved_pairs_.end(), PairHistory{a, b, 0, 0, 0},
+                                   [](const PairHistory& u, const PairHistory& v) {
+                                     return std::tie(u.a, u.b) < std::tie(v.a, v.b);
+                                   });
+        if (it != saved_pairs_.end() && it->a == a && it->b == b) {
+          const double s = ia == a ? 1.0 : -1.0;
+          ft_x_[e] = s * it->x;
+          ft_y_[e] = s * it->y;
+          ft_z_[e] = s * it->z;
+          touching_[e] = 1;  // makes the force pass clear it if the pair has separated
+        }
+      }
+    }
+    for (std::size_t e = 0; e < wc_.size(); ++e) {
+      const WallHistory key{p_.id[wc_.particle[e]], wc_.wall[e], 0, 0, 0};
+      auto it = std::lower_bound(saved_walls_.begin(), saved_walls_.end(), key,
+                                 [](const WallHistory& u, const WallHistory& v) {
+                                   return std::tie(u.id, u.wall) < std::tie(v.id, v.wall);
+                                 });
+      if (it != saved_walls_.end() && it->id == key.id && it->wall == key.wall) {
+        wc_.ft_x[e] = it->x;
+        wc_.ft_y[e] = it->y;
+        wc_.ft_z[e] = it->z;
+      }
+    }
+    saved_pairs_.clear();
+    saved_walls_.clear();
+    history_saved_ = false;
+  }
+  walls_.reset_displacements();
+  nl_valid_ = true;
+}
+
+// --- forces ------------------------------------------------------------------------------------
+
+template <class Law>
+void Simulation::pair_forces(const Law& law) {
+  const std::size_t N = p_.size();
+  const double h = dt_;
+  const ContactParams cp = cp_;
+  const auto* off = nl_.offsets.data();
+  const auto* nb = nl_.neighbors.data();
+  const double *X = p_.x.data(), *Y = p_.y.data(), *Z = p_.z.data(), *R = p_.radius.data();
+  const double *VX = p_.vx.data(), *VY = p_.vy.data(), *VZ = p_.vz.data();
+  const double *WX = p_.wx.data(), *WY = p_.wy.data(), *WZ = p_.wz.data();
+  const double* IM = p_.inv_mass.data();
+  double *ftx = ft_x_.data(), *fty = ft_y_.data(), *ftz = ft_z_.data();
+  double *rfx = rf_x_.data(), *rfy = rf_y_.data(), *rfz = rf_z_.data();
+  double *rtx = rt_x_.data(), *rty = rt_y_.data(), *rtz = rt_z_.data();
+  std::uint8_t* touch = touching_.data();
+  double *FX = p_.fx.data(), *FY = p_.fy.data(), *FZ = p_.fz.data();
+  double *TX = p_.tx.data(), *TY = p_.ty.data(), *TZ = p_.tz.data();
+
+#pragma omp parallel for schedule(static, 64)
+  for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    const Vec3 xi{X[i], Y[i], Z[i]};
+    const Vec3 vi{VX[i], VY[i], VZ[i]};
+    const Vec3 wi{WX[i], WY[i], WZ[i]};
+    const double ri = R[i];
+    Vec3 F{}, T{};
+    for (auto e = off[i]; e < off[i + 1]; ++e) {
+      const auto j = nb[e];
+      const Vec3 dx{X[j] - xi.x, Y[j] - xi.y, Z[j] - xi.z};
+      const double d2 = dot(dx, dx);
+      const double rsum = ri + R[j];
+      if (d2 >= rsum * rsum) {
+        if (touch[e]) {
+          touch[e] = 0;
+          ftx[e] = fty[e] = ftz[e] = 0.0;
+        }
+        continue;
+      }
+      const double dist = std::sqrt(d2);
+      const Vec3 n = (1.0 / dist) * dx;
+      const double delta = rsum - dist;
+      const double R_star = ri * R[j] / rsum;
+      const double a_i = ri - 0.5 * delta, a_j = R[j] - 0.5 * delta;
+      const Vec3 wj{WX[j], WY[j], WZ[j]};
+      const Vec3 v_rel =
+          Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
+      const double m_eff = 1.0 / (IM[i] + IM[j]);
+      const ContactResponse c = contact_response(law, delta, R_star, m_eff, n, v_rel,
+                                                 Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
+      ftx[e] = c.F_t.x;
+      fty[e] = c.F_t.y;
+      ftz[e] = c.F_t.z;
+      touch[e] = 1;
+      const Vec3 tn = cross(n, c.tangential);
+      F += c.force;
+      T += a_i * tn;
+      rfx[e] = -c.force.x;
+      rfy[e] = -c.force.y;
+      rfz[e] = -c.force.z;
+      rtx[e] = a_j * tn.x;
+      rty[e] = a_j * tn.y;
+      rtz[e] = a_j * tn.z;
+    }
+    FX[i] = F.x;
+    FY[i] = F.y;
+    FZ[i] = F.z;
+    TX[i] = T.x;
+    TY[i] = T.y;
+    TZ[i] = T.z;
+  }
+}
+
+template <class Law>
+void Simulation::wall_forces(const Law& law) {
+  const std::size_t M = wc_.size();
+  const double h = dt_;
+  const ContactParams cp = cp_;
+  std::array<Vec3, kNumWalls> n_out{};
+  std::array<double, kNumWalls> pos{}, vel{};
+  for (int k = 0; k < kNumWalls; ++k) {
+    n_out[static_cast<std::size_t>(k)] = walls_.outward_normal(k);
+    pos[static_cast<std::size_t>(k)] = walls_.position(k);
+    vel[static_cast<std::size_t>(k)] = walls_.state(k).velocity;
+  }
+#pragma omp parallel for schedule(static)
+  for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
+    const auto e = static_cast<std::size_t>(ee);
+    const std::size_t i = wc_.particle[e];
+    const int k = wc_.wall[e];
+    const auto ks = static_cast<std::size_t>(k);
+    const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    const double dist = wall_is_low(k) ? c[wall_axis(k)] - pos[ks] : pos[ks] - c[wall_axis(k)];
+    const double delta = p_.radius[i] - dist;
+    if (delta <= 0.0) {
+      wc_.ft_x[e] = wc_.ft_y[e] = wc_.ft_z[e] = 0.0;
+      wc_.fx[e] = wc_.fy[e] = wc_.fz[e] = wc_.tx[e] = wc_.ty[e] = wc_.tz[e] = 0.0;
+      wc_.F_n[e] = wc_.k_n[e] = wc_.delta[e] = 0.0;
+      continue;
+    }
+    const Vec3 n = n_out[ks];
+    const Vec3 w{p_.wx[i], p_.wy[i], p_.wz[i]};
+    const Vec3 v_rel = Vec3{p_.vx[i], p_.vy[i], p_.vz[i]} + cross(w, dist * n) - vel[ks] * n *
+                       (wall_is_low(k) ? -1.0 : 1.0);
+    const ContactResponse r =
+        contact_response(law, delta, p_.radius[i], p_.mass[i], n, v_rel,
+                         Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]}, cp.mu_wall, cp, h);
+    wc_.ft_x[e] = r.F_t.x;
+    wc_.ft_y[e] = r.F_t.y;
+    wc_.ft_z[e] = r.F_t.z;
+    const Vec3 t = dist * cross(n, r.tangential);
+    wc_.fx[e] = r.force.x;
+    wc_.fy[e] = r.force.y;
+    wc_.fz[e] = r.force.z;
+    wc_.tx[e] = t.x;
+    wc_.ty[e] = t.y;
+    wc_.tz[e] = t.z;
+    wc_.F_n[e] = -dot(r.force, n);
+    wc_.k_n[e] = r.k_n;
+    wc_.delta[e] = delta;
+  }
+  // Wall totals in entry order (deterministic; wall entries are few).
+  for (int k = 0; k < kNumWalls; ++k) {
+    WallState& s = walls_.state(k);
+    s.normal_force = 0.0;
+    s.force = {};
+    s.stiffness = 0.0;
+  }
+  for (std::size_t e = 0; e < M; ++e) {
+    WallState& s = walls_.state(wc_.wall[e]);
+    s.normal_force += wc_.F_n[e];
+    s.force -= Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
+    s.stiffness += wc_.k_n[e];
+  }
+}
+
+void Simulation::gather_and_damp() {
+  const std::size_t N = p_.size();
+  const double alpha = cfg_.damping.local_alpha;
+#pragma omp parallel for schedule(static, 256)
+  for (Idx jj = 0; jj < static_cast<Idx>(N); ++jj) {
+    const auto j = static_cast<std::size_t>(jj);
+    Vec3 F{p_.fx[j], p_.fy[j], p_.fz[j]};
+    Vec3 T{p_.tx[j], p_.ty[j], p_.tz[j]};
+    for (auto k = nl_.rev_offsets[j]; k < nl_.rev_offsets[j + 1]; ++k) {
+      const auto e = nl_.rev_entries[k];
+      if (!touching_[e]) continue;
+      F += Vec3{rf_x_[e], rf_y_[e], rf_z_[e]};
+      T += Vec3{rt_x_[e], rt_y_[e], rt_z_[e]};
+    }
+    for (auto e = wall_offsets_[j]; e < wall_offsets_[j + 1]; ++e) {
+      F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
+      T += Vec3{wc_.tx[e], wc_.ty[e], wc_.tz[e]};
+    }
+    if (alpha > 0.0) {
+      // PFC local damping: opposes the motion with a fraction of the unbalanced force.
+      auto damp = [alpha](double f, double v) {
+        return v > 0.0 ? f - alpha * std::abs(f) : (v < 0.0 ? f + alpha * std::abs(f) : f);
+      };
+      F = {damp(F.x, p_.vx[j]), damp(F.y, p_.vy[j]), damp(F.z, p_.vz[j])};
+      T = {damp(T.x, p_.wx[j]), damp(T.y, p_.wy[j]), damp(T.z, p_.wz[j])};
+    }
+    p_.fx[j] = F.x;
+    p_.fy[j] = F.y;
+    p_.fz[j] = F.z;
+    p_.tx[j] = T.x;
+    p_.ty[j] = T.y;
+    p_.tz[j] = T.z;
+  }
+}
+
+void Simulation::compute_forces() {
+  if (!nl_valid_) rebuild_neighbors();
+  if (dt_ <= 0.0) dt();
+  if (cfg_.contact.law == NormalLaw::Hertz) {
+    pair_forces(HertzLaw{cp_.E_star});
+    wall_forces(HertzLaw{cp_.E_star});
+  } else {
+    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp});
+    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw});
+  }
+  gather_and_damp();
+  forces_valid_ = true;
+}
+
+// --- time integration --------------------------------------------------------------------------
+
+void Simulation::half_kick() {
+  const double hh = 0.5 * dt_;
+  const std::size_t N = p_.size();
+#pragma omp parallel for schedule(static)
+  for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    const double a = hh * p_.inv_mass[i], b = hh * p_.inv_inertia[i];
+    p_.vx[i] += a * p_.fx[i];
+    p_.vy[i] += a * p_.fy[i];
+    p_.vz[i] += a * p_.fz[i];
+    p_.wx[i] += b * p_.tx[i];
+    p_.wy[i] += b * p_.ty[i];
+    p_.wz[i] += b * p_.tz[i];
+  }
+}
+
+void Simulation::step(std::uint64_t n) {
+  for (std::uint64_t s = 0; s < n; ++s) {
+    dt();
+    if (!forces_valid_) compute_forces();
+    half_kick();
+    const std::size_t N = p_.size();
+    const double h = dt_;
+#pragma omp parallel for schedule(static)
+    for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      p_.x[i] += h * p_.vx[i];
+      p_.y[i] += h * p_.vy[i];
+      p_.z[i] += h * p_.vz[i];
+    }
+    walls_.move(h);
+    const double d = nl_.max_displacement(p_);
+    if (2.0 * d > skin_ || d + walls_.max_displacement_since_build() > skin_) {
+      nl_valid_ = false;
+    }
+    compute_forces();
+    half_kick();
+    walls_.update_velocities(h);
+    time_ += h;
+    ++steps_;
+  }
+}
+
+double Simulation::rayleigh_dt() const {
+  if (p_.size() == 0) return std::numeric_limits<double>::infinity();
+  const double r_min = *std::min_element(p_.radius.begin(), p_.radius.end());
+  const double G = cfg_.material.shear_modulus, nu = cfg_.material.poisson_ratio;
+  return kPi * r_min * std::sqrt(cfg_.material.density / G) / (0.1631 * nu + 0.8766);
+}
+
+double Simulation::stiffness_dt() const {
+  // min_i sqrt(m_i / sum k_i) over grains with contacts, k = k_n + k_t of each contact.
+  const std::size_t N = p_.size();
+  if (!nl_valid_ || N == 0) return std::numeric_limits<double>::infinity();
+  std::vector<double> ksum(N, 0.0);
+  const double kt_ratio = 1.0 + cp_.tangential_ratio;
+  auto law_k = [&](double delta, double R_star, bool wall) {
+    if (cfg_.contact.law == NormalLaw::Hertz) return hertz_normal(delta, R_star, cp_.E_star).k_n;
+    return rough_hertz_normal(delta, R_star, cp_.E_star, wall ? cp_.rough_pw : cp_.rough_pp).k_n;
+  };
+  for (std::size_t i = 0; i < N; ++i) {
+    for (auto e = nl_.offsets[i]; e < nl_.offsets[i + 1]; ++e) {
+      const auto j = nl_.neighbors[e];
+      const double dx = p_.x[j] - p_.x[i], dy = p_.y[j] - p_.y[i], dz = p_.z[j] - p_.z[i];
+      const double delta = p_.radius[i] + p_.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (delta <= 0.0) continue;
+      const double k = kt_ratio * law_k(delta, p_.radius[i] * p_.radius[j] /
+                                                   (p_.radius[i] + p_.radius[j]), false);
+      ksum[i] += k;
+      ksum[j] += k;
+    }
+  }
+  for (std::size_t e = 0; e < wc_.size(); ++e) {
+    const std::size_t i = wc_.particle[e];
+    const int k = wc_.wall[e];
+    const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    const double pos = walls_.position(k);
+    const double delta =
+        p_.radius[i] - (wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)]);
+    if (delta > 0.0) ksum[i] += kt_ratio * law_k(delta, p_.radius[i], true);
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < N; ++i) {
+    if (ksum[i] > 0.0) best = std::min(best, std::sqrt(p_.mass[i] / ksum[i]));
+  }
+  return best;
+}
+
+double Simulation::dt() {
+  if (dt_fixed_) return dt_;
+  if (!dt_valid_ || steps_ - dt_computed_at_ >= cfg_.timestep.update_interval) {
+    if (!nl_valid_ && p_.size() > 0) rebuild_neighbors();
+    double h = cfg_.timestep.rayleigh_fraction * rayleigh_dt();
+    h = std::min(h, cfg_.timestep.safety * stiffness_dt());
+    if (!std::isfinite(h)) h = 1e-6;  // no particles: any value works
+    dt_ = h;
+    dt_valid_ = true;
+    dt_computed_at_ = steps_;
+  }
+  return dt_;
+}
+
+void Simulation::set_dt(double dt) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    throw ConfigError(bad_value("timestep.dt", num(dt), "a positive time step in s"));
+  }
+  dt_ = dt;
+  dt_fixed_ = true;
+}
+
+// --- measurements ------------------------------------------------------------------------------
+
+double Simulation::kinetic_energy() const {
+  return deterministic_sum(p_.size(), [&](std::size_t i) {
+    const double v2 = p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i] + p_.vz[i] * p_.vz[i];
+    const double w2 = p_.wx[i] * p_.wx[i] + p_.wy[i] * p_.wy[i] + p_.wz[i] * p_.wz[i];
+    return 0.5 * p_.mass[i] * v2 + 0.5 / p_.inv_inertia[i] * w2;
+  });
+}
+
+std::size_t Simulation::num_contacts() const {
+  std::size_t n = 0;
+  if (!forces_valid_) return 0;
+  for (auto t : touching_) n += t;
+  return n;
+}
+
+std::vector<ContactRecord> Simulation::contacts() const {
+  std::vector<ContactRecord> out;
+  if (!forces_valid_) return out;
+  for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
+    if (!touching_[e]) continue;
+    const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
+    const Vec3 dx{p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
+    const double dist = norm(dx);
+    ContactRecord c;
+    c.id_i = p_.id[i];
+    c.id_j = p_.id[j];
+    c.delta = p_.radius[i] + p_.radius[j] - dist;
+    c.normal = (1.0 / dist) * dx;
+    const double R_star = p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]);
+    c.F_n = cfg_.contact.law == NormalLaw::Hertz
+                ? hertz_normal(c.delta, R_star, cp_.E_star).F_n
+                : rough_hertz_normal(c.delta, R_star, cp_.E_star, cp_.rough_pp).F_n;
+    c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
+    out.push_back(c);
+  }
+  for (std::size_t e = 0; e < wc_.size(); ++e) {
+    if (wc_.delta[e] <= 0.0) continue;
+    ContactRecord c;
+    c.id_i = p_.id[wc_.particle[e]];
+    c.id_j = wc_.wall[e];
+    c.is_wall = true;
+    c.delta = wc_.delta[e];
+    c.normal = walls_.outward_normal(wc_.wall[e]);
+    const double r = p_.radius[wc_.particle[e]];
+    c.F_n = cfg_.contact.law == NormalLaw::Hertz
+                ? hertz_normal(c.delta, r, cp_.E_star).F_n
+                : rough_hertz_normal(c.delta, r, cp_.E_star, cp_.rough_pw).F_n;
+    c.F_t = {wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]};
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::array<double, 9> Simulation::love_weber_stress() const {
+  std::array<double, 9> s{};
+  if (!forces_valid_) return s;
+  const double V = walls_.volume();
+  // sum over contacts of f (force on j, or on the wall) times l (branch vector i -> j / contact)
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      const double pair = deterministic_sum(nl_.neighbors.size(), [&](std::size_t e) {
+        if (!touching_[e]) return 0.0;
+        const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
+        const double f[3] = {rf_x_[e], rf_y_[e], rf_z_[e]};
+        const double l[3] = {p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
+        return f[a] * l[b];
+      });
+      double wall = 0.0;
+      for (std::size_t e = 0; e < wc_.size(); ++e) {
+        if (wc_.delta[e] <= 0.0) continue;
+        const Vec3 n = walls_.outward_normal(wc_.wall[e]);
+        const double dist = p_.radius[wc_.particle[e]] - wc_.delta[e];
+        const double f[3] = {-wc_.fx[e], -wc_.fy[e], -wc_.fz[e]};
+        const double l[3] = {dist * n.x, dist * n.y, dist * n.z};
+        wall += f[a] * l[b];
+      }
+      s[static_cast<std::size_t>(3 * a + b)] = (pair + wall) / V;
+    }
+  }
+  return s;
+}
+
+}  // namespace crushdem

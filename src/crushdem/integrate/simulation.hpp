@@ -1,0 +1,155 @@
+// The time-stepping engine: particles, neighbour list, contacts, walls and the integrator.
+//
+// One step (velocity Verlet, model-notes 1.4):
+//   1. half kick   v += dt/2 F/m,  w += dt/2 T/I      (forces of the previous step)
+//   2. drift       x += dt v;  walls move
+//   3. rebuild the neighbour list if anything moved more than half the skin
+//   4. forces      grain-grain (half list, fixed-order gather) and grain-wall
+//   5. local damping  F_j -= alpha |F_j| sign(v_j), per component, forces and torques
+//   6. half kick;  servo walls choose their velocity for the next step
+// Particles are inserted or removed only in apply_topology(), between steps. Experiments
+// compose a Simulation with controllers; they never subclass it.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/neighbor/neighbor_list.hpp"
+#include "crushdem/particles/particle_store.hpp"
+#include "crushdem/walls/walls.hpp"
+
+namespace crushdem {
+
+struct DampingConfig {
+  double local_alpha = 0.7;  // alpha_d of PFC local damping (CHOICE); 0 turns it off
+  void validate() const;
+};
+
+struct TimestepConfig {
+  double dt = 0.0;                 // fixed step [s]; 0 = automatic
+  double rayleigh_fraction = 0.2;  // automatic: dt <= fraction * Rayleigh time of the smallest grain
+  double safety = 0.3;             // automatic: dt <= safety * min_i sqrt(m_i / sum k_i)
+  std::uint64_t update_interval = 1000;  // automatic: steps between re-evaluations
+  void validate() const;
+};
+
+struct NeighborConfig {
+  double skin = 0.0;         // Verlet skin [m]; 0 = 0.5 * smallest radius at the first build
+  bool sort_particles = true;  // reorder particles in cell order at each rebuild (cache locality)
+  void validate() const;
+};
+
+struct SimulationConfig {
+  MaterialConfig material;
+  ContactConfig contact;
+  DampingConfig damping;
+  TimestepConfig timestep;
+  NeighborConfig neighbor;
+  std::array<WallConfig, kNumWalls> walls{};
+  void validate() const;  // throws ConfigError naming the key
+};
+
+/// A grain-grain or grain-wall contact as seen from outside (for output and Python).
+struct ContactRecord {
+  ParticleId id_i = 0;
+  ParticleId id_j = 0;  // for a wall contact: the wall index 0..5
+  bool is_wall = false;
+  double delta = 0.0;   // overlap [m]
+  double F_n = 0.0;     // elastic normal force [N]
+  Vec3 normal;          // unit normal from i towards j (or into the wall)
+  Vec3 F_t;             // tangential force on i [N]
+};
+
+class Simulation {
+ public:
+  explicit Simulation(const SimulationConfig& cfg);
+
+  const SimulationConfig& config() const { return cfg_; }
+  ParticleStore& particles() { return p_; }
+  const ParticleStore& particles() const { return p_; }
+  Walls& walls() { return walls_; }
+  const Walls& walls() const { return walls_; }
+  const NeighborList& neighbors() const { return nl_; }
+  const ContactParams& contact_params() const { return cp_; }
+
+  /// Adds one grain with the configured density; returns its id.
+  ParticleId add_particle(Vec3 position, double radius, Vec3 velocity = {},
+                          Vec3 angular_velocity = {});
+  /// The explicit topology phase: removals and insertions, then a forced neighbour rebuild.
+  std::vector<ParticleId> apply_topology(const TopologyChange& change);
+
+  void step(std::uint64_t n = 1);
+  double time() const { return time_; }
+  std::uint64_t step_count() const { return steps_; }
+  /// The step the next call to step() uses (computes it if automatic).
+  double dt();
+  void set_dt(double dt);  // fixes the step (overrides automatic)
+
+  /// Touching contacts at the current state (grain-grain then grain-wall).
+  std::vector<ContactRecord> contacts() const;
+  /// Number of grain-grain contacts with positive overlap.
+  std::size_t num_contacts() const;
+  double kinetic_energy() const;
+
+  /// Love-Weber stress tensor over the box volume, row-major 3x3 [Pa] (compression positive).
+  std::array<double, 9> love_weber_stress() const;
+
+  /// Forces (and neighbour list) are recomputed before the next step; call after editing
+  /// positions or radii from outside.
+  void invalidate();
+  /// Computes forces for the current state without moving anything (for inspection).
+  void compute_forces();
+
+  /// Time-step estimates (exposed for tests and reporting).
+  double rayleigh_dt() const;
+  double stiffness_dt() const;
+
+ private:
+  struct PairHistory {
+    ParticleId a, b;  // a < b
+    double x, y, z;   // tangential force on a
+  };
+  struct WallHistory {
+    ParticleId id;
+    int wall;
+    double x, y, z;
+  };
+  void capture_history();
+  void rebuild_neighbors();
+  template <class Law>
+  void pair_forces(const Law& law);
+  template <class Law>
+  void wall_forces(const Law& law);
+  void gather_and_damp();
+  void half_kick();
+
+  SimulationConfig cfg_;
+  ContactParams cp_;
+  ParticleStore p_;
+  NeighborList nl_;
+  Walls walls_;
+  WallContacts wc_;
+  // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.
+  std::vector<double> ft_x_, ft_y_, ft_z_;
+  std::vector<double> rf_x_, rf_y_, rf_z_, rt_x_, rt_y_, rt_z_;
+  std::vector<std::uint8_t> touching_;
+  std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
+  std::vector<PairHistory> saved_pairs_;
+  std::vector<WallHistory> saved_walls_;
+  bool history_saved_ = false;
+  double skin_ = 0.0;
+  double dt_ = 0.0;
+  bool dt_fixed_ = false;
+  std::uint64_t dt_computed_at_ = 0;
+  bool dt_valid_ = false;
+  bool forces_valid_ = false;
+  bool nl_valid_ = false;
+  double time_ = 0.0;
+  std::uint64_t steps_ = 0;
+};
+
+}  // namespace crushdem

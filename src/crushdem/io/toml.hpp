@@ -1,0 +1,74 @@
+// A small, strict TOML 1.0 reader and writer for configuration files. It exists because no TOML
+// library is available to the build; it covers everything a config file needs except dates and
+// times, which are rejected with a clear error instead of being misread.
+//
+// Values are plain data: copying a Value copies the whole subtree (the shared_ptr only exists to
+// make the recursive type legal), so a copied table never aliases the original.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace crushdem::toml {
+
+enum class Type { String, Integer, Float, Boolean, Array, Table };
+
+struct Value;
+/// Sorted keys, so that serialization and iteration order are deterministic.
+using Table = std::map<std::string, Value>;
+
+struct Value {
+  Type type = Type::Table;
+  std::string str;
+  std::int64_t integer = 0;
+  double real = 0.0;
+  bool boolean = false;
+  std::vector<Value> array;
+  /// Non-null when type == Table. A default-constructed Value is an empty table ready to fill.
+  std::shared_ptr<Table> table = std::make_shared<Table>();
+  /// 1-based source line where the value was defined (0 if built in code); lets config readers
+  /// point at the offending line when a value parses but is semantically wrong.
+  int line = 0;
+
+  Value() = default;
+  Value(const Value& other);  // deep copy, see the file comment
+  Value& operator=(const Value& other);
+  Value(Value&&) noexcept = default;
+  Value& operator=(Value&&) noexcept = default;
+  ~Value() = default;
+
+  static Value make_string(std::string s);
+  static Value make_integer(std::int64_t i);
+  static Value make_float(double d);
+  static Value make_bool(bool b);
+  static Value make_array(std::vector<Value> elements);
+  static Value make_table(Table t = {});
+
+  /// Integer or Float.
+  bool is_number() const;
+  /// Integer converted to double, or Float; throws std::logic_error for any other type.
+  double as_number() const;
+};
+
+/// Structural equality: same type and content, `line` ignored, NaN equal to NaN (so that a
+/// round trip through serialize() compares equal).
+bool operator==(const Value& a, const Value& b);
+
+/// "string", "integer", "float", "boolean", "array", "table".
+const char* type_name(Type t);
+
+/// Parses a TOML document. Errors throw crushdem::ConfigError("SOURCE:LINE: what is wrong").
+Table parse(std::string_view text, const std::string& source_name = "<string>");
+
+/// Reads and parses a file; a missing or unreadable file throws ConfigError naming the path.
+Table parse_file(const std::string& path);
+
+/// Writes valid TOML that parse() reads back to an equal tree: plain values first, then
+/// sub-tables as [a.b] sections and arrays of tables as [[a]] sections.
+std::string serialize(const Table& root);
+
+}  // namespace crushdem::toml

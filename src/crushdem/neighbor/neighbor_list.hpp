@@ -1,0 +1,59 @@
+// Verlet neighbour list built from a multi-level cell grid.
+//
+// Particles are sorted into levels by radius (level L holds radii in (r_max/2^(L+1), r_max/2^L]),
+// each level with its own cell grid of side 2 r_max/2^L + skin. A particle queries only the
+// levels of particles at least as large as itself, where a query box a few cells wide suffices,
+// so the cost per particle stays bounded with a 1:30 (or larger) radius ratio: a fragment never
+// scans the thousands of small cells a large grain would cover, and a large grain never scans
+// a fine grid.
+//
+// The list is a half list in CSR form: each pair (i, j) is stored once, owned by the smaller
+// particle (higher level), or by the lower index within a level. A reverse CSR gives, for each
+// particle, the entries where it is the second member, so that forces can be gathered in a
+// fixed order (results independent of the thread count). The list is rebuilt when any particle
+// has moved more than half the skin since the last build.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "crushdem/particles/particle_store.hpp"
+
+namespace crushdem {
+
+class NeighborList {
+ public:
+  using Index = std::uint32_t;
+
+  /// Builds the list for a cutoff of r_i + r_j + skin.
+  void build(const ParticleStore& p, double skin);
+
+  /// Largest displacement of any particle since the last build.
+  double max_displacement(const ParticleStore& p) const;
+  /// True when the list may miss a pair (2 max displacement > skin) or the particle count changed.
+  bool needs_rebuild(const ParticleStore& p) const;
+
+  /// A permutation of particle indices in cell order (improves cache locality when applied).
+  static std::vector<std::size_t> spatial_order(const ParticleStore& p);
+
+  std::size_t num_particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::size_t num_pairs() const { return neighbors.size(); }
+  double skin() const { return skin_; }
+  std::size_t builds() const { return builds_; }
+
+  // CSR half list: the partners of i are neighbors[offsets[i] .. offsets[i+1]).
+  std::vector<Index> offsets, neighbors;
+  // Reverse CSR: entries e (indices into neighbors) with neighbors[e] == j are
+  // rev_entries[rev_offsets[j] .. rev_offsets[j+1]), in increasing e.
+  std::vector<Index> rev_offsets, rev_entries;
+  // Owner of each entry (i for entry e in i's range), kept to make entry loops flat.
+  std::vector<Index> owner;
+
+ private:
+  double skin_ = 0.0;
+  std::size_t builds_ = 0;
+  std::vector<double> x0_, y0_, z0_;  // positions at the last build
+};
+
+}  // namespace crushdem

@@ -1,0 +1,115 @@
+#include "crushdem/walls/walls.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+
+const char* wall_name(int k) {
+  static const char* names[kNumWalls] = {"xmin", "xmax", "ymin", "ymax", "zmin", "zmax"};
+  return names[k];
+}
+
+const char* to_string(WallMode m) {
+  switch (m) {
+    case WallMode::Fixed: return "fixed";
+    case WallMode::Velocity: return "velocity";
+    case WallMode::Servo: return "servo";
+  }
+  return "?";
+}
+
+void WallConfig::validate(const std::string& prefix) const {
+  auto bad = [&](const std::string& key, double v, const std::string& what) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    throw ConfigError(bad_value(prefix + "." + key, s.str(), what));
+  };
+  if (!std::isfinite(position)) bad("position", position, "a finite coordinate in m");
+  if (!std::isfinite(velocity)) bad("velocity", velocity, "a finite velocity in m/s");
+  if (mode == WallMode::Servo) {
+    if (!(target_stress > 0.0) || !std::isfinite(target_stress)) {
+      bad("target_stress", target_stress, "a positive compressive stress in Pa for a servo wall");
+    }
+    if (!(servo_alpha > 0.0 && servo_alpha <= 1.0)) bad("servo_alpha", servo_alpha, "a gain in (0, 1]");
+    if (!(max_speed > 0.0) || !std::isfinite(max_speed)) {
+      bad("max_speed", max_speed, "a positive speed in m/s");
+    }
+  }
+}
+
+Walls::Walls(const std::array<WallConfig, kNumWalls>& cfg) : cfg_(cfg) {
+  for (int k = 0; k < kNumWalls; ++k) {
+    st_[static_cast<std::size_t>(k)].position = cfg_[static_cast<std::size_t>(k)].position;
+  }
+  update_velocities(0.0);
+}
+
+double Walls::area(int k) const {
+  const int a = wall_axis(k);
+  return length((a + 1) % 3) * length((a + 2) % 3);
+}
+
+Vec3 Walls::outward_normal(int k) const {
+  Vec3 n{};
+  const double s = wall_is_low(k) ? -1.0 : 1.0;
+  if (wall_axis(k) == 0) n.x = s;
+  if (wall_axis(k) == 1) n.y = s;
+  if (wall_axis(k) == 2) n.z = s;
+  return n;
+}
+
+void Walls::update_velocities(double dt) {
+  for (int k = 0; k < kNumWalls; ++k) {
+    const WallConfig& c = cfg_[static_cast<std::size_t>(k)];
+    WallState& s = st_[static_cast<std::size_t>(k)];
+    const double out = wall_is_low(k) ? -1.0 : 1.0;  // axis component of the outward normal
+    switch (c.mode) {
+      case WallMode::Fixed: s.velocity = 0.0; break;
+      case WallMode::Velocity: s.velocity = c.velocity; break;
+      case WallMode::Servo: {
+        const double error = stress(k) - c.target_stress;
+        double v_out;
+        if (s.stiffness > 0.0 && dt > 0.0) {
+          v_out = c.servo_alpha * area(k) / (s.stiffness * dt) * error;
+        } else {
+          v_out = error > 0.0 ? c.max_speed : -c.max_speed;  // no contact yet: approach
+        }
+        v_out = std::clamp(v_out, -c.max_speed, c.max_speed);
+        s.velocity = out * v_out;
+        break;
+      }
+    }
+  }
+}
+
+void Walls::move(double dt) {
+  for (auto& s : st_) {
+    s.position += s.velocity * dt;
+    s.displacement_since_build += std::abs(s.velocity * dt);
+  }
+}
+
+double Walls::max_displacement_since_build() const {
+  double m = 0.0;
+  for (const auto& s : st_) m = std::max(m, s.displacement_since_build);
+  return m;
+}
+
+void Walls::reset_displacements() {
+  for (auto& s : st_) s.displacement_since_build = 0.0;
+}
+
+void WallContacts::resize(std::size_t n) {
+  particle.resize(n);
+  wall.resize(n);
+  for (auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
+    a->assign(n, 0.0);
+  }
+}
+
+}  // namespace crushdem
