@@ -1,7 +1,5 @@
 // Tests for the TOML reader/writer: every supported feature, every error class (message must
 // carry source, line and key), the line field, and parse(serialize(x)) == x.
-#include "crushdem/io/toml.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,8 +10,10 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/io/toml.hpp"
 
 namespace {
 
@@ -142,28 +142,27 @@ TEST(TomlParse, ArrayOfTablesWithNestedTables) {
 }
 
 TEST(TomlParse, BasicStringEscapes) {
-  const Table t = parse(
-      R"(s = "q\" b\\ n\n t\t r\r b\b f\f")" "\n"
-      R"(u = "\u00e9\u20AC")" "\n"
-      R"(U = "\U0001F600")" "\n"
-      "tab = \"a\tb\"\n"
-      "hash = \"# not a comment\"\n");
+  const Table t = parse(R"(s = "q\" b\\ n\n t\t r\r b\b f\f"
+u = "\u00e9\u20AC"
+U = "\U0001F600"
+hash = "# not a comment"
+)");
   EXPECT_EQ(at(t, "s").str, "q\" b\\ n\n t\t r\r b\b f\f");
   EXPECT_EQ(at(t, "u").str, "\xC3\xA9\xE2\x82\xAC");
   EXPECT_EQ(at(t, "U").str, "\xF0\x9F\x98\x80");
-  EXPECT_EQ(at(t, "tab").str, "a\tb");
+  EXPECT_EQ(at(parse("tab = \"a\tb\""), "tab").str, "a\tb");  // raw tab is allowed
   EXPECT_EQ(at(t, "hash").str, "# not a comment");
   EXPECT_EQ(at(t, "s").type, Type::String);
 }
 
 TEST(TomlParse, LiteralStrings) {
-  const Table t = parse(R"(path = 'C:\Users\n"x"')" "\n");
+  const Table t = parse(R"(path = 'C:\Users\n"x"')");
   EXPECT_EQ(at(t, "path").str, R"(C:\Users\n"x")");
 }
 
 TEST(TomlParse, MultiLineBasicStrings) {
   const Table t = parse(
-      "a = \"\"\"\nline1\nline2\"\"\"\n"               // first newline trimmed
+      "a = \"\"\"\nline1\nline2\"\"\"\n"                  // first newline trimmed
       "b = \"\"\"one \\\n     two \\\n\n  three\"\"\"\n"  // line-ending backslash eats whitespace
       "c = \"\"\"has \"\" quotes and \\\"\\\"\\\" \"\"\"\n"
       "d = \"\"\"ends with quotes\"\"\"\"\"\n"
@@ -295,18 +294,18 @@ TEST(TomlParse, InlineTables) {
 
 TEST(TomlParse, LineField) {
   const Table t = parse(
-      "a = 1\n"                  // 1
-      "\n"                       // 2
-      "[sec]\n"                  // 3
-      "s = \"\"\"x\n"            // 4
-      "y\"\"\"\n"                // 5
-      "after = [\n"              // 6
-      "  10,\n"                  // 7
-      "  20 ]\n"                 // 8
-      "d.e = 2\n"                // 9
-      "[[arr]]\n"                // 10
-      "[[arr]]\n"                // 11
-      "v = 3\n");                // 12
+      "a = 1\n"        // 1
+      "\n"             // 2
+      "[sec]\n"        // 3
+      "s = \"\"\"x\n"  // 4
+      "y\"\"\"\n"      // 5
+      "after = [\n"    // 6
+      "  10,\n"        // 7
+      "  20 ]\n"       // 8
+      "d.e = 2\n"      // 9
+      "[[arr]]\n"      // 10
+      "[[arr]]\n"      // 11
+      "v = 3\n");      // 12
   EXPECT_EQ(at(t, "a").line, 1);
   EXPECT_EQ(at(t, "sec").line, 3);
   EXPECT_EQ(at(sub(t, "sec"), "s").line, 4);
@@ -330,8 +329,8 @@ TEST(TomlParse, ByteOrderMarkAndCrlf) {
 // ---- errors ----
 
 TEST(TomlErrors, ExactMessageFormat) {
-  EXPECT_EQ(parse_error("[p]\nradius = 1\n\n\nradius = 2\n").rfind(
-                "cfg.toml:5: duplicate key 'radius'", 0),
+  EXPECT_EQ(parse_error("[p]\nradius = 1\n\n\nradius = 2\n")
+                .rfind("cfg.toml:5: duplicate key 'radius'", 0),
             0u);
   try {
     parse("x = ", "<string>");
@@ -352,6 +351,7 @@ TEST(TomlErrors, DuplicateKeys) {
 TEST(TomlErrors, TableRedefinition) {
   expect_error("[a]\nx = 1\n[b]\n[a]\n", 4, {"'a'", "already"});
   expect_error("[a.b]\n[a.b]\n", 2, {"'a.b'", "already"});
+  expect_error("[a.b]\n[a]\n[a]\n", 3, {"'a'", "already"});  // implicit, then defined twice
   expect_error("a.b = 1\n[a]\n", 2, {"'a'", "already"});
   expect_error("[fruit]\napple.color = 'red'\n[fruit.apple]\n", 3, {"'fruit.apple'"});
   expect_error("[a.b.c]\nz = 9\n[a]\nb.c.t = 1\n", 4, {"'b.c.t'", "'b' is a table"});
@@ -384,6 +384,14 @@ TEST(TomlErrors, BadEscapesAndControlCharacters) {
   expect_error("s = \"\"\"a\\ b\"\"\"\n", 1, {"line-ending backslash"});
   expect_error("s = '''a''''''\n", 1, {"too many quotes"});
   expect_error("a = 1\rb = 2\n", 1, {"carriage return"});
+}
+
+TEST(TomlErrors, InvalidUtf8) {
+  expect_error("a = 1\ns = \"\xC3\"\n", 2, {"UTF-8"});           // truncated sequence
+  expect_error("s = 'x'\n# \xC0\xAF overlong\n", 2, {"UTF-8"});  // overlong '/'
+  expect_error("s = \"\xED\xA0\x80\"\n", 1, {"UTF-8"});          // encoded surrogate
+  expect_error("s = \"\xF8\x88\x80\x80\"\n", 1, {"UTF-8"});      // 5-byte lead byte
+  EXPECT_EQ(at(parse("s = \"\xF0\x9F\x98\x80\"\n"), "s").str, "\xF0\x9F\x98\x80");
 }
 
 TEST(TomlErrors, InvalidNumbers) {
@@ -515,6 +523,15 @@ TEST(TomlValue, CopyIsDeep) {
   EXPECT_EQ(at(sub(defaults, "sim"), "dt").real, 1.0);
   EXPECT_EQ(at(sub(copy, "sim"), "dt").real, 2.0);
   EXPECT_FALSE(copy == defaults);
+
+  Value assigned = Value::make_integer(0);
+  assigned = Value::make_table(defaults);  // copy assignment must be deep as well
+  (*assigned.table->at("sim").table)["dt"] = Value::make_float(3.0);
+  EXPECT_EQ(at(sub(defaults, "sim"), "dt").real, 1.0);
+  Value source = Value::make_table(defaults);
+  assigned = source;
+  source.table->clear();
+  EXPECT_EQ(assigned.table->size(), 1u);
 }
 
 TEST(TomlValue, EqualityIgnoresLineButNotType) {
@@ -594,12 +611,10 @@ TEST(TomlSerialize, RoundTripConfigDocument) {
 }
 
 TEST(TomlSerialize, FloatsRoundTripExactlyAndStayFloats) {
-  const double values[] = {0.0,     -0.0,    1.0,    -2.0,    0.1,     1.0 / 3.0, 1e16, 1e17,
-                           1e300,   5e-324,  2.5e-8, 123456789012345678.0, 6.02214076e23,
-                           -1.7976931348623157e308,
-                           std::numeric_limits<double>::infinity(),
-                           -std::numeric_limits<double>::infinity(),
-                           std::numeric_limits<double>::quiet_NaN()};
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<double> values = {0.0, -0.0, 1.0, -2.0, 0.1, 1.0 / 3.0, 1e16, 1e17, 1e300};
+  values.insert(values.end(), {5e-324, 2.5e-8, 123456789012345678.0, 6.02214076e23});
+  values.insert(values.end(), {-1.7976931348623157e308, kInf, -kInf, std::nan("")});
   for (double d : values) {
     Table t;
     t["x"] = Value::make_float(d);
@@ -621,8 +636,8 @@ TEST(TomlSerialize, FloatsRoundTripExactlyAndStayFloats) {
 
 TEST(TomlSerialize, StringsAndKeysAreEscaped) {
   Table t;
-  const std::string nasty = std::string("q\" b\\ nl\n cr\r tab\t bell\x07 del\x7f nul") + '\0' +
-                            " \xC3\xA9 # [x] '''";
+  const std::string nasty =
+      std::string("q\" b\\ nl\n cr\r tab\t bell\x07 del\x7f nul") + '\0' + " \xC3\xA9 # [x] '''";
   t["s"] = Value::make_string(nasty);
   t["key with spaces"] = Value::make_string("v");
   t["dot.key"] = Value::make_string("v");
@@ -641,7 +656,8 @@ TEST(TomlSerialize, BuiltInCodeTree) {
   root["arr_of_tables"] = Value::make_array({Value::make_table(inner), Value::make_table()});
   root["nested_arrays_of_tables"] =
       Value::make_array({Value::make_array({Value::make_table(inner)})});
-  root["t"] = Value::make_table({{"child", Value::make_table(inner)}, {"x", Value::make_bool(false)}});
+  root["t"] =
+      Value::make_table({{"child", Value::make_table(inner)}, {"x", Value::make_bool(false)}});
   root["z"] = Value::make_string("last");
   const std::string text = serialize(root);
   EXPECT_TRUE(parse(text) == root) << text;

@@ -23,9 +23,15 @@ CD_HD inline Vec3 mindlin_tangential(Vec3 F_t, Vec3 n, Vec3 du_t, double k_t, do
   // Rotate the stored force onto the current tangent plane, keeping its magnitude.
   const double len2 = dot(F_t, F_t);
   if (len2 > 0.0) {
-    Vec3 proj = F_t - dot(F_t, n) * n;
-    const double p2 = dot(proj, proj);
-    F_t = p2 > 0.0 ? std::sqrt(len2 / p2) * proj : Vec3{};
+    const double f_n = dot(F_t, n);
+    F_t -= f_n * n;
+    // Restoring the length multiplies by sqrt(len2 / (len2 - f_n^2)) = 1 + f_n^2 / (2 len2):
+    // below 1e-17 relative that factor rounds to 1 in double precision, so the sqrt and the
+    // division are skipped (the common case: the contact plane turns very little per step).
+    if (f_n * f_n > 1e-17 * len2) {
+      const double p2 = dot(F_t, F_t);
+      F_t = p2 > 0.0 ? std::sqrt(len2 / p2) * F_t : Vec3{};
+    }
   }
   F_t -= k_t * du_t;
   const double cap = mu * F_n;

@@ -167,7 +167,16 @@ void Simulation::rebuild_neighbors() {
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   const std::size_t M = nl_.neighbors.size();
   for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
-  for (auto* a : {&rf_x_, &rf_y_, &rf_z_, &rt_x_, &rt_y_, &rt_z_}) a->resize(M);
+  reaction_.assign(M, Reaction{{0, 0, 0}, {0, 0, 0}});
+  entry_R_star_.resize(M);
+  entry_m_eff_.resize(M);
+#pragma omp parallel for schedule(static)
+  for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
+    const auto e = static_cast<std::size_t>(ee);
+    const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
+    entry_R_star_[e] = p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]);
+    entry_m_eff_[e] = 1.0 / (p_.inv_mass[i] + p_.inv_mass[j]);
+  }
   touching_.assign(M, 0);
 
   // Wall candidates, sorted by particle index (CSR).
@@ -243,10 +252,10 @@ void Simulation::pair_forces(const Law& law) {
   const double *X = p_.x.data(), *Y = p_.y.data(), *Z = p_.z.data(), *R = p_.radius.data();
   const double *VX = p_.vx.data(), *VY = p_.vy.data(), *VZ = p_.vz.data();
   const double *WX = p_.wx.data(), *WY = p_.wy.data(), *WZ = p_.wz.data();
-  const double* IM = p_.inv_mass.data();
+  const double* RS = entry_R_star_.data();
+  const double* ME = entry_m_eff_.data();
   double *ftx = ft_x_.data(), *fty = ft_y_.data(), *ftz = ft_z_.data();
-  double *rfx = rf_x_.data(), *rfy = rf_y_.data(), *rfz = rf_z_.data();
-  double *rtx = rt_x_.data(), *rty = rt_y_.data(), *rtz = rt_z_.data();
+  Reaction* react = reaction_.data();
   std::uint8_t* touch = touching_.data();
   double *FX = p_.fx.data(), *FY = p_.fy.data(), *FZ = p_.fz.data();
   double *TX = p_.tx.data(), *TY = p_.ty.data(), *TZ = p_.tz.data();
@@ -268,18 +277,19 @@ void Simulation::pair_forces(const Law& law) {
         if (touch[e]) {
           touch[e] = 0;
           ftx[e] = fty[e] = ftz[e] = 0.0;
+          react[e] = Reaction{{0, 0, 0}, {0, 0, 0}};
         }
         continue;
       }
       const double dist = std::sqrt(d2);
       const Vec3 n = (1.0 / dist) * dx;
       const double delta = rsum - dist;
-      const double R_star = ri * R[j] / rsum;
+      const double R_star = RS[e];
       const double a_i = ri - 0.5 * delta, a_j = R[j] - 0.5 * delta;
       const Vec3 wj{WX[j], WY[j], WZ[j]};
       const Vec3 v_rel =
           Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
-      const double m_eff = 1.0 / (IM[i] + IM[j]);
+      const double m_eff = ME[e];
       const ContactResponse c = contact_response(law, delta, R_star, m_eff, n, v_rel,
                                                  Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
       ftx[e] = c.F_t.x;
@@ -289,12 +299,7 @@ void Simulation::pair_forces(const Law& law) {
       const Vec3 tn = cross(n, c.tangential);
       F += c.force;
       T += a_i * tn;
-      rfx[e] = -c.force.x;
-      rfy[e] = -c.force.y;
-      rfz[e] = -c.force.z;
-      rtx[e] = a_j * tn.x;
-      rty[e] = a_j * tn.y;
-      rtz[e] = a_j * tn.z;
+      react[e] = Reaction{{-c.force.x, -c.force.y, -c.force.z}, {a_j * tn.x, a_j * tn.y, a_j * tn.z}};
     }
     FX[i] = F.x;
     FY[i] = F.y;
@@ -368,19 +373,19 @@ void Simulation::wall_forces(const Law& law) {
   }
 }
 
-void Simulation::gather_and_damp() {
+void Simulation::gather_and_damp(bool kick) {
   const std::size_t N = p_.size();
   const double alpha = cfg_.damping.local_alpha;
+  const double hh = 0.5 * dt_;
 #pragma omp parallel for schedule(static, 256)
   for (Idx jj = 0; jj < static_cast<Idx>(N); ++jj) {
     const auto j = static_cast<std::size_t>(jj);
     Vec3 F{p_.fx[j], p_.fy[j], p_.fz[j]};
     Vec3 T{p_.tx[j], p_.ty[j], p_.tz[j]};
     for (auto k = nl_.rev_offsets[j]; k < nl_.rev_offsets[j + 1]; ++k) {
-      const auto e = nl_.rev_entries[k];
-      if (!touching_[e]) continue;
-      F += Vec3{rf_x_[e], rf_y_[e], rf_z_[e]};
-      T += Vec3{rt_x_[e], rt_y_[e], rt_z_[e]};
+      const Reaction& r = reaction_[nl_.rev_entries[k]];
+      F += Vec3{r.f[0], r.f[1], r.f[2]};
+      T += Vec3{r.t[0], r.t[1], r.t[2]};
     }
     for (auto e = wall_offsets_[j]; e < wall_offsets_[j + 1]; ++e) {
       F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
@@ -400,6 +405,15 @@ void Simulation::gather_and_damp() {
     p_.tx[j] = T.x;
     p_.ty[j] = T.y;
     p_.tz[j] = T.z;
+    if (kick) {  // second half kick of velocity Verlet, fused to save a pass over memory
+      const double a = hh * p_.inv_mass[j], b = hh * p_.inv_inertia[j];
+      p_.vx[j] += a * F.x;
+      p_.vy[j] += a * F.y;
+      p_.vz[j] += a * F.z;
+      p_.wx[j] += b * T.x;
+      p_.wy[j] += b * T.y;
+      p_.wz[j] += b * T.z;
+    }
   }
 }
 
@@ -413,16 +427,34 @@ void Simulation::compute_forces() {
     pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp});
     wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw});
   }
-  gather_and_damp();
+  gather_and_damp(false);
+  forces_valid_ = true;
+}
+
+void Simulation::forces_and_kick() {
+  if (cfg_.contact.law == NormalLaw::Hertz) {
+    pair_forces(HertzLaw{cp_.E_star});
+    wall_forces(HertzLaw{cp_.E_star});
+  } else {
+    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp});
+    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw});
+  }
+  gather_and_damp(true);
   forces_valid_ = true;
 }
 
 // --- time integration --------------------------------------------------------------------------
 
-void Simulation::half_kick() {
-  const double hh = 0.5 * dt_;
+double Simulation::kick_drift() {
+  // First half kick and drift in one pass; returns the largest squared displacement since the
+  // last neighbour build (the rebuild criterion), also computed in the same pass.
+  const double h = dt_, hh = 0.5 * dt_;
   const std::size_t N = p_.size();
-#pragma omp parallel for schedule(static)
+  const double* x0 = nl_.x_ref().data();
+  const double* y0 = nl_.y_ref().data();
+  const double* z0 = nl_.z_ref().data();
+  double m2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : m2)
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double a = hh * p_.inv_mass[i], b = hh * p_.inv_inertia[i];
@@ -432,30 +464,24 @@ void Simulation::half_kick() {
     p_.wx[i] += b * p_.tx[i];
     p_.wy[i] += b * p_.ty[i];
     p_.wz[i] += b * p_.tz[i];
+    p_.x[i] += h * p_.vx[i];
+    p_.y[i] += h * p_.vy[i];
+    p_.z[i] += h * p_.vz[i];
+    const double dx = p_.x[i] - x0[i], dy = p_.y[i] - y0[i], dz = p_.z[i] - z0[i];
+    m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
   }
+  return m2;
 }
 
 void Simulation::step(std::uint64_t n) {
   for (std::uint64_t s = 0; s < n; ++s) {
     dt();
-    if (!forces_valid_) compute_forces();
-    half_kick();
-    const std::size_t N = p_.size();
+    if (!forces_valid_ || !nl_valid_) compute_forces();
     const double h = dt_;
-#pragma omp parallel for schedule(static)
-    for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      p_.x[i] += h * p_.vx[i];
-      p_.y[i] += h * p_.vy[i];
-      p_.z[i] += h * p_.vz[i];
-    }
+    const double d = std::sqrt(kick_drift());
     walls_.move(h);
-    const double d = nl_.max_displacement(p_);
-    if (2.0 * d > skin_ || d + walls_.max_displacement_since_build() > skin_) {
-      nl_valid_ = false;
-    }
-    compute_forces();
-    half_kick();
+    if (2.0 * d > skin_ || d + walls_.max_displacement_since_build() > skin_) rebuild_neighbors();
+    forces_and_kick();
     walls_.update_velocities(h);
     time_ += h;
     ++steps_;
@@ -539,6 +565,33 @@ double Simulation::kinetic_energy() const {
   });
 }
 
+std::size_t Simulation::memory_bytes() const {
+  std::size_t b = 0;
+  auto add = [&b](const auto& v) { b += v.capacity() * sizeof(v[0]); };
+  for (const auto* v : {&p_.x, &p_.y, &p_.z, &p_.vx, &p_.vy, &p_.vz, &p_.wx, &p_.wy, &p_.wz,
+                        &p_.fx, &p_.fy, &p_.fz, &p_.tx, &p_.ty, &p_.tz, &p_.radius, &p_.mass,
+                        &p_.inv_mass, &p_.inv_inertia}) {
+    add(*v);
+  }
+  add(p_.id);
+  add(p_.parent);
+  for (std::size_t k = 0; k < p_.field_names().size(); ++k) add(p_.field(k));
+  for (const auto* v : {&nl_.offsets, &nl_.neighbors, &nl_.rev_offsets, &nl_.rev_entries,
+                        &nl_.owner, &wall_offsets_}) {
+    add(*v);
+  }
+  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_}) add(*v);
+  add(reaction_);
+  add(touching_);
+  add(wc_.particle);
+  add(wc_.wall);
+  for (const auto* v : {&wc_.ft_x, &wc_.ft_y, &wc_.ft_z, &wc_.fx, &wc_.fy, &wc_.fz, &wc_.tx,
+                        &wc_.ty, &wc_.tz, &wc_.F_n, &wc_.k_n, &wc_.delta}) {
+    add(*v);
+  }
+  return b;
+}
+
 std::size_t Simulation::num_contacts() const {
   std::size_t n = 0;
   if (!forces_valid_) return 0;
@@ -594,7 +647,7 @@ std::array<double, 9> Simulation::love_weber_stress() const {
       const double pair = deterministic_sum(nl_.neighbors.size(), [&](std::size_t e) {
         if (!touching_[e]) return 0.0;
         const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
-        const double f[3] = {rf_x_[e], rf_y_[e], rf_z_[e]};
+        const double* f = reaction_[e].f;
         const double l[3] = {p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
         return f[a] * l[b];
       });

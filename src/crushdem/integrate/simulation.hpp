@@ -94,6 +94,8 @@ class Simulation {
   /// Number of grain-grain contacts with positive overlap.
   std::size_t num_contacts() const;
   double kinetic_energy() const;
+  /// Bytes held by the engine's arrays (particles, neighbour list, contacts).
+  std::size_t memory_bytes() const;
 
   /// Love-Weber stress tensor over the box volume, row-major 3x3 [Pa] (compression positive).
   std::array<double, 9> love_weber_stress() const;
@@ -124,8 +126,9 @@ class Simulation {
   void pair_forces(const Law& law);
   template <class Law>
   void wall_forces(const Law& law);
-  void gather_and_damp();
-  void half_kick();
+  void gather_and_damp(bool kick);
+  double kick_drift();
+  void forces_and_kick();
 
   SimulationConfig cfg_;
   ContactParams cp_;
@@ -135,8 +138,16 @@ class Simulation {
   WallContacts wc_;
   // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.
   std::vector<double> ft_x_, ft_y_, ft_z_;
-  std::vector<double> rf_x_, rf_y_, rf_z_, rt_x_, rt_y_, rt_z_;
+  // Reaction on the partner j of each entry, force then torque, packed so the gather reads one
+  // cache line per entry; zero for entries not in contact.
+  struct Reaction {
+    double f[3];
+    double t[3];
+  };
+  std::vector<Reaction> reaction_;
   std::vector<std::uint8_t> touching_;
+  // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
+  std::vector<double> entry_R_star_, entry_m_eff_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
   std::vector<WallHistory> saved_walls_;

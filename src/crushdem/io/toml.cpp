@@ -3,6 +3,7 @@
 // the TOML rules need in order to tell "add to a table" from "redefine a table".
 #include "crushdem/io/toml.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -90,8 +91,7 @@ bool Value::is_number() const { return type == Type::Integer || type == Type::Fl
 double Value::as_number() const {
   if (type == Type::Integer) return static_cast<double>(integer);
   if (type == Type::Float) return real;
-  throw std::logic_error(std::string("toml value of type ") + type_name(type) +
-                         " is not a number");
+  throw std::logic_error(std::string("toml value of type ") + type_name(type) + " is not a number");
 }
 
 namespace {
@@ -231,6 +231,7 @@ class Parser {
   }
 
   Table run() {
+    check_utf8();
     Value root = Value::make_table();
     origin_[root.table.get()] = Origin::kHeader;
     current_ = root.table.get();
@@ -257,6 +258,32 @@ class Parser {
     throw ConfigError(source_ + ":" + std::to_string(line) + ": " + what);
   }
   [[noreturn]] void fail(const std::string& what) const { fail_at(line_, what); }
+
+  // TOML documents must be valid UTF-8; checking once up front keeps string parsing byte-based.
+  void check_utf8() const {
+    int line = 1;
+    for (size_t i = pos_; i < s_.size();) {
+      const auto b = static_cast<unsigned char>(s_[i]);
+      if (b < 0x80) {
+        line += b == '\n';
+        ++i;
+        continue;
+      }
+      const size_t len = b >= 0xf8 ? 0 : b >= 0xf0 ? 4 : b >= 0xe0 ? 3 : b >= 0xc0 ? 2 : 0;
+      bool ok = len != 0;
+      std::uint32_t cp = b & (0x7f >> len);
+      for (size_t k = 1; ok && k < len; ++k) {
+        const auto c = static_cast<unsigned char>(i + k < s_.size() ? s_[i + k] : 0);
+        ok = (c & 0xc0) == 0x80;
+        cp = (cp << 6) | (c & 0x3f);
+      }
+      const std::uint32_t min = len == 2 ? 0x80 : len == 3 ? 0x800 : 0x10000;  // no overlongs
+      if (!ok || cp > 0x10ffff || cp < min || (cp >= 0xd800 && cp <= 0xdfff)) {
+        fail_at(line, "invalid UTF-8 byte sequence");
+      }
+      i += len;
+    }
+  }
 
   bool eof() const { return pos_ >= s_.size(); }
   char peek(size_t off = 0) const { return pos_ + off < s_.size() ? s_[pos_ + off] : '\0'; }
@@ -496,6 +523,8 @@ class Parser {
     return arr;
   }
 
+  // The table itself is never entered in origin_, so origin_of() reports it as inline and
+  // nothing outside the braces can add to it or to the dotted sub-tables it contains.
   Value parse_inline_table() {
     ++pos_;
     Value tbl = Value::make_table();
@@ -516,18 +545,7 @@ class Parser {
       ++pos_;
     }
     ++pos_;
-    seal(*tbl.table);
     return tbl;
-  }
-
-  // Sub-tables made by dotted keys inside braces are part of the inline table and closed too.
-  void seal(Table& t) {
-    for (auto& [k, v] : t) {
-      if (v.type == Type::Table) {
-        origin_[v.table.get()] = Origin::kInline;
-        seal(*v.table);
-      }
-    }
   }
 
   std::uint32_t parse_hex_escape(int digits) {
@@ -580,7 +598,8 @@ class Parser {
     ++pos_;
     std::string out;
     while (true) {
-      if (eof() || at_newline()) fail("unterminated string (missing " + std::string(1, quote) + ")");
+      if (eof() || at_newline())
+        fail("unterminated string (missing " + std::string(1, quote) + ")");
       const char c = peek();
       if (c == quote) break;
       if (c == '\\' && quote == '"') {
@@ -636,8 +655,8 @@ class Parser {
     const std::string_view tok = s_.substr(start, pos_ - start);
     if (tok == "true") return Value::make_bool(true);
     if (tok == "false") return Value::make_bool(false);
-    const bool date = tok.size() >= 5 && is_digit(tok[0]) && is_digit(tok[1]) &&
-                      is_digit(tok[2]) && is_digit(tok[3]) && tok[4] == '-';
+    const bool date = tok.size() >= 5 && is_digit(tok[0]) && is_digit(tok[1]) && is_digit(tok[2]) &&
+                      is_digit(tok[3]) && tok[4] == '-';
     if (date || tok.find(':') != std::string_view::npos) {
       fail("dates are not supported ('" + std::string(tok) + "'); use a string");
     }
@@ -674,7 +693,8 @@ class Parser {
       return Value::make_float(negative ? -d : d);
     }
 
-    if (body.size() >= 2 && body[0] == '0' && (body[1] == 'x' || body[1] == 'o' || body[1] == 'b')) {
+    if (body.size() >= 2 && body[0] == '0' &&
+        (body[1] == 'x' || body[1] == 'o' || body[1] == 'b')) {
       if (has_sign) bad(": a sign is not allowed on hex, octal or binary integers");
       const int base = body[1] == 'x' ? 16 : body[1] == 'o' ? 8 : 2;
       const std::string_view digits = body.substr(2);
@@ -734,7 +754,7 @@ class Parser {
   const std::string& source_;
   size_t pos_ = 0;
   int line_ = 1;
-  Table* current_ = nullptr;                       // section receiving key/value lines
+  Table* current_ = nullptr;                         // section receiving key/value lines
   std::unordered_map<const Table*, Origin> origin_;  // tables are heap objects: stable keys
   std::unordered_set<const std::vector<Value>*> table_arrays_;  // made by [[ ]], may grow
 };

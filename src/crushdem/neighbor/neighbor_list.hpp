@@ -41,6 +41,10 @@ class NeighborList {
   std::size_t num_pairs() const { return neighbors.size(); }
   double skin() const { return skin_; }
   std::size_t builds() const { return builds_; }
+  /// Positions at the last build (the reference of the displacement criterion).
+  const std::vector<double>& x_ref() const { return x0_; }
+  const std::vector<double>& y_ref() const { return y0_; }
+  const std::vector<double>& z_ref() const { return z0_; }
 
   // CSR half list: the partners of i are neighbors[offsets[i] .. offsets[i+1]).
   std::vector<Index> offsets, neighbors;

@@ -1,0 +1,127 @@
+// `crushdem bench`: the peer reference problem (../shared/bench-peers/README.md).
+//
+// Loads the reference packing (11,500 spheres in a box of 6 walls at 5 MPa), runs WARM untimed
+// then STEPS timed steps with the same contact law and constants as the peers (Hertz-Mindlin,
+// Coulomb, Tsuji viscous damping from the restitution REST, walls with the same friction), and
+// prints particle_steps_per_s=<N*STEPS/seconds> as the last line. Values come from the command
+// line, else from the environment variables the peer harness sets, else from its lib.sh defaults.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "crushdem/cli/cli.hpp"
+#include "crushdem/core/error.hpp"
+#include "crushdem/integrate/simulation.hpp"
+#include "crushdem/io/packing.hpp"
+
+#ifdef CRUSHDEM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+namespace crushdem::cli {
+namespace {
+
+double env_number(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  if (!v || !*v) return fallback;
+  char* end = nullptr;
+  const double x = std::strtod(v, &end);
+  if (end == v || *end != '\0' || !std::isfinite(x)) {
+    throw ConfigError(std::string("environment variable ") + name + "=" + v +
+                      ": expected a number");
+  }
+  return x;
+}
+
+long peak_rss_kib() {
+  std::ifstream s("/proc/self/status");
+  std::string line;
+  while (std::getline(s, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
+  }
+  return -1;
+}
+
+}  // namespace
+
+int bench_main(const std::vector<std::string>& args) {
+  Args a(args, "bench");
+  const char* env_packing = std::getenv("PACKING");
+  const std::string packing_path =
+      a.value("--packing", env_packing ? env_packing : "../shared/bench-peers/common/packing.txt");
+  const long steps = a.integer("--steps", static_cast<long>(env_number("STEPS", 10000)));
+  const long warm = a.integer("--warm", static_cast<long>(env_number("WARM", 500)));
+  const long threads = a.integer("--threads", static_cast<long>(env_number("THREADS", 0)));
+  const std::string law = a.value("--law", "hertz");
+  const std::string state_out = a.value("--state-out", std::getenv("STATE_OUT") ? std::getenv("STATE_OUT") : "");
+  a.finish();
+  if (steps <= 0) throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
+  if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
+  set_threads(threads);
+
+  const Packing pk = read_packing(packing_path);
+  const double L = pk.header_number("L_m", packing_path);
+
+  SimulationConfig cfg;
+  cfg.material.density = env_number("RHO", 2650.0);
+  cfg.material.shear_modulus = env_number("G_SHEAR", 32e9);
+  cfg.material.poisson_ratio = env_number("NU", 0.19);
+  cfg.material.friction = env_number("MU", 0.275);
+  cfg.contact.law = parse_normal_law(law, "--law");
+  cfg.contact.wall_friction = cfg.material.friction;
+  cfg.contact.restitution = env_number("REST", 0.5);
+  cfg.damping.local_alpha = 0.0;  // the peers use viscous contact damping only
+  cfg.timestep.dt = env_number("DT", 1.494169e-8);
+  cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
+  for (int k = 0; k < kNumWalls; ++k) {
+    cfg.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? 0.0 : L;
+  }
+  Simulation sim(cfg);
+  for (const PackingRow& r : pk.rows) {
+    NewParticle np;
+    np.position = r.position;
+    np.radius = 0.5 * r.diameter;
+    np.density = cfg.material.density;
+    sim.particles().insert_with_id(r.id, np);
+  }
+  sim.invalidate();
+  const auto N = static_cast<double>(sim.particles().size());
+
+  sim.step(static_cast<std::uint64_t>(warm));
+  sim.compute_forces();
+  const std::size_t builds0 = sim.neighbors().builds();
+  const auto t0 = std::chrono::steady_clock::now();
+  sim.step(static_cast<std::uint64_t>(steps));
+  const auto t1 = std::chrono::steady_clock::now();
+  const double secs = std::chrono::duration<double>(t1 - t0).count();
+
+  const auto& walls = sim.walls();
+  double p_wall = 0.0;
+  for (int k = 0; k < kNumWalls; ++k) p_wall += walls.stress(k) / kNumWalls;
+  const auto s = sim.love_weber_stress();
+  std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e\n", N, steps,
+              warm, current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin);
+  std::printf("neighbor_pairs=%zu contacts=%zu neigh_builds_timed=%zu\n",
+              sim.neighbors().num_pairs(), sim.num_contacts(),
+              sim.neighbors().builds() - builds0);
+  std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,
+              sim.kinetic_energy());
+  std::printf("engine_bytes_per_particle=%.0f peak_rss_kib=%ld wall_s=%.4f\n",
+              static_cast<double>(sim.memory_bytes()) / N, peak_rss_kib(), secs);
+  if (!state_out.empty()) {
+    Packing out;
+    const auto& p = sim.particles();
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      out.rows.push_back({p.id[i], {p.x[i], p.y[i], p.z[i]}, 2.0 * p.radius[i]});
+    }
+    write_packing(state_out, out);
+  }
+  std::printf("particle_steps_per_s=%.6e\n", N * static_cast<double>(steps) / secs);
+  return 0;
+}
+
+}  // namespace crushdem::cli

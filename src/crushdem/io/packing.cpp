@@ -1,0 +1,78 @@
+#include "crushdem/io/packing.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+
+double Packing::header_number(const std::string& key, const std::string& path) const {
+  auto it = header.find(key);
+  if (it == header.end()) throw ConfigError(path + ": header has no '# " + key + "=' line");
+  char* end = nullptr;
+  const double v = std::strtod(it->second.c_str(), &end);
+  if (end == it->second.c_str() || !std::isfinite(v)) {
+    throw ConfigError(path + ": header " + key + "=" + it->second + ": expected a number");
+  }
+  return v;
+}
+
+Packing read_packing(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError("particle file '" + path + "' cannot be opened");
+  Packing pk;
+  std::string line;
+  int lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.empty() || line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (line[0] == '#') {
+      const auto eq = line.find('=');
+      if (eq != std::string::npos) {
+        auto trim = [](std::string s) {
+          const auto b = s.find_first_not_of(" \t\r");
+          const auto e = s.find_last_not_of(" \t\r");
+          return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
+        };
+        pk.header[trim(line.substr(1, eq - 1))] = trim(line.substr(eq + 1));
+      }
+      continue;
+    }
+    std::istringstream s(line);
+    PackingRow r;
+    if (!(s >> r.id >> r.position.x >> r.position.y >> r.position.z >> r.diameter)) {
+      throw ConfigError(path + ":" + std::to_string(lineno) +
+                        ": expected 'id x y z diameter', got '" + line + "'");
+    }
+    if (!(r.diameter > 0.0) || !std::isfinite(r.position.x) || !std::isfinite(r.position.y) ||
+        !std::isfinite(r.position.z)) {
+      throw ConfigError(path + ":" + std::to_string(lineno) +
+                        ": expected finite coordinates and a positive diameter");
+    }
+    pk.rows.push_back(r);
+  }
+  if (pk.rows.empty()) throw ConfigError("particle file '" + path + "' holds no particles");
+  return pk;
+}
+
+void write_packing(const std::string& path, const Packing& packing) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw ConfigError("cannot write '" + path + "'");
+  for (const auto& [k, v] : packing.header) std::fprintf(f, "# %s=%s\n", k.c_str(), v.c_str());
+  std::vector<const PackingRow*> rows;
+  for (const auto& r : packing.rows) rows.push_back(&r);
+  std::sort(rows.begin(), rows.end(), [](auto* a, auto* b) { return a->id < b->id; });
+  for (const auto* r : rows) {
+    std::fprintf(f, "%llu %.17g %.17g %.17g %.17g\n", static_cast<unsigned long long>(r->id),
+                 r->position.x, r->position.y, r->position.z, r->diameter);
+  }
+  if (std::fclose(f) != 0) throw ConfigError("cannot write '" + path + "'");
+}
+
+}  // namespace crushdem
