@@ -23,6 +23,7 @@ Args::Args(const std::vector<std::string>& args, std::string command)
         options_.emplace_back(a.substr(0, eq), a.substr(eq + 1));
       } else if (k + 1 < args.size() && args[k + 1].rfind("--", 0) != 0) {
         options_.emplace_back(a, args[k + 1]);  // may turn out to be a flag + positional
+        ++k;
       } else {
         flags_.push_back(a);
       }

@@ -88,6 +88,7 @@ class Simulation {
   /// The step the next call to step() uses (computes it if automatic).
   double dt();
   void set_dt(double dt);  // fixes the step (overrides automatic)
+  double current_dt() const { return dt_; }  // the step last used (0 before the first)
 
   /// Touching contacts at the current state (grain-grain then grain-wall).
   std::vector<ContactRecord> contacts() const;

@@ -1,0 +1,296 @@
+"""crushdem: discrete element simulation of crushable granular materials.
+
+The engine is C++ (``crushdem._core``); this package is a thin Python front end.
+All quantities are SI: lengths in m, times in s, forces in N, stresses and moduli in Pa,
+masses in kg, energies in J.
+
+A simulation is configured with the same sections and keys as a TOML configuration file
+(``crushdem check FILE`` validates one), given as keyword arguments::
+
+    import numpy as np
+    import crushdem
+
+    sim = crushdem.Simulation(
+        material={"shear_modulus": 32e9, "poisson_ratio": 0.19},
+        contact={"law": "hertz"},
+        box={"min": [0, 0, 0], "max": [1e-3] * 3},
+        walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
+    )
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
+    sim.step(100)
+    print(sim.time, sim.wall_stresses())
+
+Invalid or unknown keys raise :class:`ConfigError` (a subclass of :class:`ValueError`) with a
+message naming the key, e.g. ``material.shear_modulus``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Mapping, Optional, Sequence
+
+import numpy as np
+
+from . import _core
+from ._core import ConfigError, RuntimeFailure, cli_main
+
+__all__ = [
+    "Simulation",
+    "ConfigError",
+    "RuntimeFailure",
+    "WALL_NAMES",
+    "NO_PARENT",
+    "cli_main",
+    "resolved_config",
+]
+
+__version__ = "0.1.0"
+
+#: Wall order used by every per-wall array (axis k//2, low side when k is even).
+WALL_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+
+#: ``parent_ids`` value of a grain that has no parent (it was not produced by a fracture).
+NO_PARENT = np.uint64(2**64 - 1)
+
+
+def _config_dict(sections: Mapping[str, Any]) -> Dict[str, Any]:
+    """Drops sections given as None so that ``Simulation(walls=None)`` means "defaults"."""
+    return {k: v for k, v in sections.items() if v is not None}
+
+
+def resolved_config(**sections: Any) -> str:
+    """Validates a configuration and returns it as TOML with every default filled in.
+
+    Takes the same keyword arguments as :class:`Simulation`.
+    """
+    return _core.resolved_config(_config_dict(sections))
+
+
+class Simulation:
+    """A DEM simulation of spheres in a box of six walls.
+
+    Particle data come from methods (``positions()``, ``velocities()``, ...) that return NumPy
+    copies; editing them does not change the simulation.
+
+    Keyword arguments are the sections of a configuration file, each a dict (SI units):
+
+    ``material``
+        ``density`` [kg/m^3], ``shear_modulus`` G [Pa], ``poisson_ratio`` nu [-],
+        ``friction`` grain-grain mu [-].
+    ``contact``
+        ``law`` ("hertz" or "rough"), ``roughness_Sq`` [m], ``k1``, ``k2`` [-],
+        ``wall_friction`` [-], ``restitution`` [-].
+    ``damping``
+        ``local_alpha`` [-] (0 turns local damping off).
+    ``timestep``
+        ``dt`` [s] (0 = automatic), ``rayleigh_fraction``, ``safety`` [-],
+        ``update_interval`` [steps].
+    ``neighbor``
+        ``skin`` [m] (0 = automatic), ``sort_particles`` (bool).
+    ``box``
+        ``min``, ``max``: corners [m] as 3-lists.
+    ``walls``
+        a dict keyed by wall name (``xmin`` ... ``zmax``), each with ``mode``
+        ("fixed", "velocity", "servo"), ``velocity`` [m/s], ``target_stress`` [Pa],
+        ``servo_alpha`` [-], ``max_speed`` [m/s].
+
+    Alternatively pass one nested dict as ``config`` (sections given as keywords override it).
+    Raises :class:`ConfigError` (a :class:`ValueError`) for a bad or unknown key.
+    """
+
+    def __init__(self, config: Optional[Mapping[str, Any]] = None, **sections: Any) -> None:
+        merged: Dict[str, Any] = dict(config or {})
+        merged.update(sections)
+        self._sim = _core.Simulation(_config_dict(merged))
+
+    # --- particles --------------------------------------------------------------------------
+
+    def add_particles(
+        self,
+        positions: Any,
+        radii: Any,
+        velocities: Any = None,
+    ) -> np.ndarray:
+        """Adds spheres and returns their ids (uint64 array).
+
+        positions: (N, 3) centres [m]; radii: (N,) [m] (a scalar is broadcast);
+        velocities: (N, 3) [m/s] or None for rest. Mass follows from ``material.density``.
+        """
+        pos = np.ascontiguousarray(positions, dtype=np.float64)
+        if pos.ndim == 1 and pos.size == 3:
+            pos = pos.reshape(1, 3)
+        rad = np.asarray(radii, dtype=np.float64)
+        if rad.ndim == 0:
+            rad = np.full(pos.shape[0] if pos.ndim == 2 else 1, float(rad))
+        rad = np.ascontiguousarray(rad)
+        vel = None
+        if velocities is not None:
+            vel = np.ascontiguousarray(velocities, dtype=np.float64)
+            if vel.ndim == 1 and vel.size == 3 and pos.shape[0] == 1:
+                vel = vel.reshape(1, 3)
+        return self._sim.add_particles(pos, rad, vel)
+
+    def add_particle(self, position: Sequence[float], radius: float,
+                     velocity: Optional[Sequence[float]] = None) -> int:
+        """Adds one sphere (centre [m], radius [m], velocity [m/s]); returns its id."""
+        ids = self.add_particles([position], [radius], None if velocity is None else [velocity])
+        return int(ids[0])
+
+    @property
+    def num_particles(self) -> int:
+        """Number of grains."""
+        return self._sim.num_particles
+
+    def positions(self) -> np.ndarray:
+        """Centres, (N, 3) float64 copy [m]."""
+        return self._sim.positions()
+
+    def velocities(self) -> np.ndarray:
+        """Velocities, (N, 3) float64 copy [m/s]."""
+        return self._sim.velocities()
+
+    def angular_velocities(self) -> np.ndarray:
+        """Angular velocities, (N, 3) float64 copy [rad/s]."""
+        return self._sim.angular_velocities()
+
+    def forces(self) -> np.ndarray:
+        """Forces of the last evaluation (after local damping), (N, 3) float64 copy [N]."""
+        return self._sim.forces()
+
+    def torques(self) -> np.ndarray:
+        """Torques of the last evaluation, (N, 3) float64 copy [N m]."""
+        return self._sim.torques()
+
+    def radii(self) -> np.ndarray:
+        """Radii, (N,) float64 copy [m]."""
+        return self._sim.radii()
+
+    def masses(self) -> np.ndarray:
+        """Masses, (N,) float64 copy [kg]."""
+        return self._sim.masses()
+
+    def ids(self) -> np.ndarray:
+        """Stable particle ids, (N,) uint64 (array order changes when particles are sorted)."""
+        return self._sim.ids()
+
+    def parent_ids(self) -> np.ndarray:
+        """Id of the grain each particle came from, (N,) uint64; NO_PARENT if none."""
+        return self._sim.parent_ids()
+
+    # --- time stepping ----------------------------------------------------------------------
+
+    def step(self, n: int = 1) -> None:
+        """Advances ``n`` time steps (the GIL is released meanwhile)."""
+        self._sim.step(int(n))
+
+    def run(self, duration: float) -> None:
+        """Advances by at least ``duration`` seconds of simulated time, in whole steps."""
+        end = self.time + float(duration)
+        while self.time < end:
+            dt = self.dt
+            if not dt > 0.0:
+                raise RuntimeFailure(f"run: time step is {dt} s (no particles?)")
+            n = max(1, int(np.ceil((end - self.time) / dt - 1e-9)))
+            self._sim.step(min(n, 1_000_000))
+
+    def compute_forces(self) -> None:
+        """Evaluates forces and torques at the current state without moving anything."""
+        self._sim.compute_forces()
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return self._sim.time
+
+    @property
+    def step_count(self) -> int:
+        """Number of steps taken."""
+        return self._sim.step_count
+
+    @property
+    def dt(self) -> float:
+        """Time step [s] the next step uses (computed when automatic). Assigning fixes it."""
+        return self._sim.dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        self._sim.set_dt(float(value))
+
+    def set_dt(self, dt: float) -> None:
+        """Fixes the time step [s], overriding the automatic choice."""
+        self._sim.set_dt(float(dt))
+
+    def rayleigh_dt(self) -> float:
+        """Rayleigh time-step estimate of the smallest grain [s]."""
+        return self._sim.rayleigh_dt()
+
+    def stiffness_dt(self) -> float:
+        """Stiffness (sqrt(m/k)) time-step estimate [s]."""
+        return self._sim.stiffness_dt()
+
+    # --- contacts, walls, measures ----------------------------------------------------------
+
+    def contacts(self) -> Dict[str, np.ndarray]:
+        """Touching contacts at the current state, grain-grain then grain-wall.
+
+        Returns a dict of arrays of equal length: ``id_i``, ``id_j`` (uint64; for a wall
+        contact ``id_j`` is the wall index 0..5, see WALL_NAMES), ``is_wall`` (bool),
+        ``overlap`` [m], ``normal_force`` [N] (elastic), ``normal`` (n, 3) unit vector from i
+        towards j (or into the wall), ``tangential_force`` (n, 3) [N] on grain i.
+        """
+        return self._sim.contacts()
+
+    def num_contacts(self) -> int:
+        """Grain-grain contacts with positive overlap."""
+        return self._sim.num_contacts()
+
+    def wall_positions(self) -> np.ndarray:
+        """Wall plane coordinates (6,) [m], in WALL_NAMES order."""
+        return self._sim.wall_positions()
+
+    def wall_velocities(self) -> np.ndarray:
+        """Wall velocities along their axes (6,) [m/s]."""
+        return self._sim.wall_velocities()
+
+    def wall_stresses(self) -> np.ndarray:
+        """Compressive normal stress on each wall (6,) [Pa]."""
+        return self._sim.wall_stresses()
+
+    def wall_forces(self) -> np.ndarray:
+        """Total force of the grains on each wall (6, 3) [N]."""
+        return self._sim.wall_forces()
+
+    def set_wall(self, name: str, mode: Optional[str] = None, velocity: Optional[float] = None,
+                 target_stress: Optional[float] = None, servo_alpha: Optional[float] = None,
+                 max_speed: Optional[float] = None) -> None:
+        """Changes how wall ``name`` (xmin ... zmax) is driven; unspecified settings are kept.
+
+        mode: "fixed", "velocity" or "servo"; velocity [m/s] along the coordinate axis;
+        target_stress [Pa] (compressive); servo_alpha [-]; max_speed [m/s].
+        """
+        self._sim.set_wall(name, mode=mode, velocity=velocity, target_stress=target_stress,
+                           servo_alpha=servo_alpha, max_speed=max_speed)
+
+    def wall_config(self, name: str) -> Dict[str, Any]:
+        """Current settings of wall ``name`` as a dict."""
+        return self._sim.wall_config(name)
+
+    def love_weber_stress(self) -> np.ndarray:
+        """Love-Weber stress tensor over the box volume (3, 3) [Pa], compression positive."""
+        return self._sim.love_weber_stress()
+
+    def kinetic_energy(self) -> float:
+        """Translational plus rotational kinetic energy [J]."""
+        return self._sim.kinetic_energy()
+
+    def config_toml(self) -> str:
+        """The configuration this simulation was built with (all keys resolved), as TOML."""
+        return self._sim.config_toml()
+
+    @property
+    def core(self) -> "_core.Simulation":
+        """The underlying C++ object (crushdem._core.Simulation)."""
+        return self._sim
+
+    def __repr__(self) -> str:
+        return (f"<crushdem.Simulation: {self.num_particles} particles, "
+                f"t = {self.time:.6g} s, {self.step_count} steps>")

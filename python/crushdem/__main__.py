@@ -1,0 +1,33 @@
+"""The ``crushdem`` command: the C++ command line (run, check, bench, ...) plus ``plot``.
+
+``crushdem plot DIR`` draws the time series of a finished run; every other command is handed to
+the same C++ front end as the standalone executable.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import List, Optional
+
+
+def main(argv: Optional[List[str]] = None) -> None:
+    """Entry point of the console script; exits with the command's status."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] == "plot":
+        from . import plot
+
+        sys.exit(plot.main(args[1:]))
+    if args and args[0] in ("-h", "--help", "help"):
+        sys.stdout.write("crushdem plot DIR                          draw DIR/timeseries.csv as PNGs\n")
+
+    from . import _core
+
+    # The C++ code writes through C stdio; empty Python's buffers first so output stays in order
+    # (_core.cli_main flushes the C streams before it returns).
+    sys.stdout.flush()
+    sys.stderr.flush()
+    sys.exit(_core.cli_main(args))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,443 @@
+// crushdem._core: the nanobind module behind the Python package.
+//
+// The Python side builds a Simulation from a nested dict that mirrors the TOML configuration file
+// (same sections, same keys, SI units); the dict is converted to a toml::Table and read by the one
+// configuration reader the command line uses, so validation and error messages are identical.
+// Particle state is returned as NumPy copies (float64, ids uint64).
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <initializer_list>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "crushdem/cli/cli.hpp"
+#include "crushdem/core/error.hpp"
+#include "crushdem/integrate/simulation.hpp"
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/toml.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace crushdem::python {
+namespace {
+
+// --- dict -> toml::Table ---------------------------------------------------------------------
+
+std::string join_key(const std::string& prefix, const std::string& key) {
+  return prefix.empty() ? key : prefix + "." + key;
+}
+
+std::string type_name_of(nb::handle obj) {
+  return nb::cast<std::string>(nb::str(nb::handle(reinterpret_cast<PyObject*>(Py_TYPE(obj.ptr()))).attr("__name__")));
+}
+
+toml::Table to_table(nb::handle dict, const std::string& prefix);
+
+toml::Value to_value(nb::handle obj, const std::string& key) {
+  // bool first: Python's bool is a subclass of int.
+  if (PyBool_Check(obj.ptr())) return toml::Value::make_bool(obj.ptr() == Py_True);
+  if (PyLong_Check(obj.ptr())) {
+    int overflow = 0;
+    const long long v = PyLong_AsLongLongAndOverflow(obj.ptr(), &overflow);
+    if (overflow != 0) {
+      throw ConfigError(bad_value(key, nb::cast<std::string>(nb::str(obj)),
+                                  "an integer that fits in 64 bits"));
+    }
+    if (v == -1 && PyErr_Occurred()) throw nb::python_error();
+    return toml::Value::make_integer(static_cast<std::int64_t>(v));
+  }
+  if (PyFloat_Check(obj.ptr())) return toml::Value::make_float(PyFloat_AsDouble(obj.ptr()));
+  if (PyUnicode_Check(obj.ptr())) return toml::Value::make_string(nb::cast<std::string>(obj));
+  if (PyDict_Check(obj.ptr())) return toml::Value::make_table(to_table(obj, key));
+  if (PyList_Check(obj.ptr()) || PyTuple_Check(obj.ptr())) {
+    std::vector<toml::Value> elements;
+    std::size_t k = 0;
+    for (nb::handle item : obj) {
+      elements.push_back(to_value(item, key + "[" + std::to_string(k) + "]"));
+      ++k;
+    }
+    return toml::Value::make_array(std::move(elements));
+  }
+  // NumPy scalars and arrays (and anything else array-like with tolist()): convert to plain
+  // Python objects first; numpy.bool_ becomes bool, integer dtypes int, float dtypes float.
+  if (nb::hasattr(obj, "dtype") && nb::hasattr(obj, "tolist")) {
+    nb::object plain = obj.attr("tolist")();
+    if (!nb::hasattr(plain, "dtype")) return to_value(plain, key);
+  }
+  if (obj.is_none()) {
+    throw ConfigError("key '" + key + "' = None: expected a value (leave the key out for the default)");
+  }
+  throw ConfigError("key '" + key + "': a Python " + type_name_of(obj) +
+                    " cannot be a configuration value (expected bool, int, float, str, list or dict)");
+}
+
+toml::Table to_table(nb::handle dict, const std::string& prefix) {
+  if (!PyDict_Check(dict.ptr())) {
+    throw ConfigError((prefix.empty() ? std::string("configuration") : "key '" + prefix + "'") +
+                      ": expected a dict, got a " + type_name_of(dict));
+  }
+  toml::Table t;
+  for (auto [k, v] : nb::borrow<nb::dict>(dict)) {
+    if (!PyUnicode_Check(k.ptr())) {
+      throw ConfigError("configuration keys must be strings; got " +
+                        nb::cast<std::string>(nb::repr(k)) +
+                        (prefix.empty() ? std::string() : " in '" + prefix + "'"));
+    }
+    const std::string key = nb::cast<std::string>(k);
+    t[key] = to_value(v, join_key(prefix, key));
+  }
+  return t;
+}
+
+SimulationConfig config_from_dict(nb::handle dict) {
+  return simulation_config_from_toml(to_table(dict, ""), "<python>");
+}
+
+// --- NumPy output ------------------------------------------------------------------------------
+
+template <class T>
+using NpArray = nb::ndarray<nb::numpy, T>;
+
+/// A new C-contiguous NumPy array owning its memory.
+template <class T>
+NpArray<T> new_array(std::initializer_list<std::size_t> shape, T** data) {
+  std::size_t n = 1;
+  for (std::size_t s : shape) n *= s;
+  T* buf = new T[n > 0 ? n : 1]();
+  nb::capsule owner(buf, [](void* p) noexcept { delete[] static_cast<T*>(p); });
+  *data = buf;
+  return NpArray<T>(buf, shape, owner);
+}
+
+NpArray<double> column(const std::vector<double>& v) {
+  double* d = nullptr;
+  auto a = new_array<double>({v.size()}, &d);
+  std::copy(v.begin(), v.end(), d);
+  return a;
+}
+
+NpArray<std::uint64_t> id_column(const std::vector<ParticleId>& v) {
+  std::uint64_t* d = nullptr;
+  auto a = new_array<std::uint64_t>({v.size()}, &d);
+  std::copy(v.begin(), v.end(), d);
+  return a;
+}
+
+NpArray<double> triple(const std::vector<double>& x, const std::vector<double>& y,
+                       const std::vector<double>& z) {
+  double* d = nullptr;
+  auto a = new_array<double>({x.size(), 3}, &d);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    d[3 * i] = x[i];
+    d[3 * i + 1] = y[i];
+    d[3 * i + 2] = z[i];
+  }
+  return a;
+}
+
+// --- NumPy input -------------------------------------------------------------------------------
+
+using InArray = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
+
+void check_shape(const InArray& a, const char* name, std::size_t n, bool vec3) {
+  const bool ok = vec3 ? (a.ndim() == 2 && a.shape(1) == 3 && a.shape(0) == n)
+                       : (a.ndim() == 1 && a.shape(0) == n);
+  if (!ok) {
+    std::string got = "(";
+    for (std::size_t d = 0; d < a.ndim(); ++d) {
+      got += (d ? ", " : "") + std::to_string(a.shape(d));
+    }
+    got += a.ndim() == 1 ? ",)" : ")";
+    throw nb::value_error((std::string(name) + ": expected shape " +
+                           (vec3 ? "(" + std::to_string(n) + ", 3)" : "(" + std::to_string(n) + ",)") +
+                           ", got " + got)
+                              .c_str());
+  }
+}
+
+// --- walls -------------------------------------------------------------------------------------
+
+int wall_index(const std::string& name) {
+  for (int k = 0; k < kNumWalls; ++k) {
+    if (name == wall_name(k)) return k;
+  }
+  throw ConfigError(bad_value("wall", "'" + name + "'", "one of xmin, xmax, ymin, ymax, zmin, zmax"));
+}
+
+WallMode parse_wall_mode(const std::string& s, const std::string& key) {
+  if (s == "fixed") return WallMode::Fixed;
+  if (s == "velocity") return WallMode::Velocity;
+  if (s == "servo") return WallMode::Servo;
+  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"fixed\", \"velocity\" or \"servo\""));
+}
+
+void set_wall(Simulation& sim, const std::string& name, std::optional<std::string> mode,
+              std::optional<double> velocity, std::optional<double> target_stress,
+              std::optional<double> servo_alpha, std::optional<double> max_speed) {
+  const int k = wall_index(name);
+  const std::string prefix = std::string("walls.") + name;
+  WallConfig c = sim.walls().config(k);
+  if (mode) c.mode = parse_wall_mode(*mode, prefix + ".mode");
+  if (velocity) c.velocity = *velocity;
+  if (target_stress) c.target_stress = *target_stress;
+  if (servo_alpha) c.servo_alpha = *servo_alpha;
+  if (max_speed) c.max_speed = *max_speed;
+  c.validate(prefix);  // throws before anything changes
+  sim.walls().config(k) = c;
+  // Fixed and prescribed velocities apply from the next step on; a servo wall keeps its current
+  // velocity until the end of the next step, where the controller chooses a new one.
+  WallState& s = sim.walls().state(k);
+  if (c.mode == WallMode::Fixed) s.velocity = 0.0;
+  if (c.mode == WallMode::Velocity) s.velocity = c.velocity;
+}
+
+// --- the module --------------------------------------------------------------------------------
+
+int run_cli(const std::vector<std::string>& args) {
+  int rc;
+  {
+    nb::gil_scoped_release release;
+    rc = cli::cli_main(args);
+    std::fflush(stdout);
+    std::fflush(stderr);
+  }
+  return rc;
+}
+
+}  // namespace
+}  // namespace crushdem::python
+
+NB_MODULE(_core, m) {
+  using namespace crushdem;
+  using namespace crushdem::python;
+
+  m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
+
+  nb::exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
+  nb::exception<RuntimeFailure>(m, "RuntimeFailure", PyExc_RuntimeError);
+
+  nb::class_<Simulation>(m, "Simulation",
+                         "The time-stepping engine. Build it from a nested dict with the sections "
+                         "of a TOML configuration file (SI units).")
+      .def("__init__",
+           [](Simulation* self, nb::dict config) { new (self) Simulation(config_from_dict(config)); },
+           "config"_a = nb::dict(),
+           "Validates the configuration; bad or unknown keys raise ValueError naming the key.")
+
+      .def(
+          "add_particles",
+          [](Simulation& sim, InArray positions, InArray radii, std::optional<InArray> velocities) {
+            const std::size_t n = radii.ndim() == 1 ? radii.shape(0) : 0;
+            check_shape(radii, "radii", n, false);
+            check_shape(positions, "positions", n, true);
+            if (velocities) check_shape(*velocities, "velocities", n, true);
+            const double* x = positions.data();
+            const double* r = radii.data();
+            const double* v = velocities ? velocities->data() : nullptr;
+            const double density = sim.config().material.density;
+            TopologyChange ch;
+            ch.add.reserve(n);
+            for (std::size_t i = 0; i < n; ++i) {
+              if (!(r[i] > 0.0) || !std::isfinite(r[i])) {
+                throw nb::value_error(("radii[" + std::to_string(i) + "] = " + std::to_string(r[i]) +
+                                       ": expected a positive radius in m")
+                                          .c_str());
+              }
+              for (int c = 0; c < 3; ++c) {
+                if (!std::isfinite(x[3 * i + c]) || (v && !std::isfinite(v[3 * i + c]))) {
+                  throw nb::value_error(
+                      ("particle " + std::to_string(i) + ": non-finite position or velocity").c_str());
+                }
+              }
+              NewParticle p;
+              p.position = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
+              if (v) p.velocity = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+              p.radius = r[i];
+              p.density = density;
+              ch.add.push_back(std::move(p));
+            }
+            return id_column(sim.apply_topology(ch));
+          },
+          "positions"_a, "radii"_a, "velocities"_a = nb::none(),
+          "Adds grains: positions (N,3) [m], radii (N,) [m], velocities (N,3) [m/s] or None. "
+          "Returns their ids (uint64).")
+
+      .def(
+          "step",
+          [](Simulation& sim, std::int64_t n) {
+            if (n < 0) throw nb::value_error("step: n must be >= 0");
+            nb::gil_scoped_release release;
+            sim.step(static_cast<std::uint64_t>(n));
+          },
+          "n"_a = 1, "Advances n time steps (the GIL is released while stepping).")
+      .def("compute_forces", &Simulation::compute_forces,
+           "Computes forces and torques for the current state without moving anything.")
+      .def("invalidate", &Simulation::invalidate,
+           "Forces and neighbour list are recomputed before the next step.")
+
+      .def_prop_ro("time", &Simulation::time, "Simulated time [s].")
+      .def_prop_ro("step_count", &Simulation::step_count, "Steps taken.")
+      .def_prop_ro("dt", [](Simulation& sim) { return sim.dt(); },
+                   "The time step the next step uses [s] (computed if automatic).")
+      .def("set_dt", &Simulation::set_dt, "dt"_a, "Fixes the time step [s] (overrides automatic).")
+      .def("rayleigh_dt", &Simulation::rayleigh_dt, "Rayleigh time-step estimate [s].")
+      .def("stiffness_dt", &Simulation::stiffness_dt, "Stiffness time-step estimate [s].")
+      .def_prop_ro("num_particles", [](const Simulation& sim) { return sim.particles().size(); })
+
+      // Particle arrays (copies).
+      .def("positions", [](const Simulation& s) {
+        const auto& p = s.particles();
+        return triple(p.x, p.y, p.z);
+      }, "Positions (N,3) [m].")
+      .def("velocities", [](const Simulation& s) {
+        const auto& p = s.particles();
+        return triple(p.vx, p.vy, p.vz);
+      }, "Velocities (N,3) [m/s].")
+      .def("angular_velocities", [](const Simulation& s) {
+        const auto& p = s.particles();
+        return triple(p.wx, p.wy, p.wz);
+      }, "Angular velocities (N,3) [rad/s].")
+      .def("forces", [](const Simulation& s) {
+        const auto& p = s.particles();
+        return triple(p.fx, p.fy, p.fz);
+      }, "Forces (N,3) [N] of the last evaluation (after local damping).")
+      .def("torques", [](const Simulation& s) {
+        const auto& p = s.particles();
+        return triple(p.tx, p.ty, p.tz);
+      }, "Torques (N,3) [N m].")
+      .def("radii", [](const Simulation& s) { return column(s.particles().radius); }, "Radii (N,) [m].")
+      .def("masses", [](const Simulation& s) { return column(s.particles().mass); }, "Masses (N,) [kg].")
+      .def("ids", [](const Simulation& s) { return id_column(s.particles().id); }, "Ids (N,) uint64.")
+      .def("parent_ids", [](const Simulation& s) { return id_column(s.particles().parent); },
+           "Parent ids (N,) uint64; 2**64-1 for no parent.")
+
+      .def(
+          "contacts",
+          [](const Simulation& sim) {
+            const std::vector<ContactRecord> cs = sim.contacts();
+            const std::size_t n = cs.size();
+            std::uint64_t *ii, *jj;
+            bool* wall;
+            double *delta, *fn, *normal, *ft;
+            nb::dict out;
+            out["id_i"] = new_array<std::uint64_t>({n}, &ii);
+            out["id_j"] = new_array<std::uint64_t>({n}, &jj);
+            out["is_wall"] = new_array<bool>({n}, &wall);
+            out["overlap"] = new_array<double>({n}, &delta);
+            out["normal_force"] = new_array<double>({n}, &fn);
+            out["normal"] = new_array<double>({n, 3}, &normal);
+            out["tangential_force"] = new_array<double>({n, 3}, &ft);
+            for (std::size_t c = 0; c < n; ++c) {
+              const ContactRecord& r = cs[c];
+              ii[c] = r.id_i;
+              jj[c] = r.id_j;
+              wall[c] = r.is_wall;
+              delta[c] = r.delta;
+              fn[c] = r.F_n;
+              normal[3 * c] = r.normal.x;
+              normal[3 * c + 1] = r.normal.y;
+              normal[3 * c + 2] = r.normal.z;
+              ft[3 * c] = r.F_t.x;
+              ft[3 * c + 1] = r.F_t.y;
+              ft[3 * c + 2] = r.F_t.z;
+            }
+            return out;
+          },
+          "Touching contacts: dict of arrays id_i, id_j (uint64; wall index 0..5 when is_wall), "
+          "is_wall (bool), overlap [m], normal_force [N], normal (N,3) unit vector from i to j "
+          "(or into the wall), tangential_force (N,3) [N] on i.")
+      .def("num_contacts", &Simulation::num_contacts, "Grain-grain contacts with positive overlap.")
+
+      .def(
+          "wall_positions",
+          [](const Simulation& sim) {
+            double* d;
+            auto a = new_array<double>({kNumWalls}, &d);
+            for (int k = 0; k < kNumWalls; ++k) d[k] = sim.walls().position(k);
+            return a;
+          },
+          "Wall plane coordinates (6,) [m], order xmin xmax ymin ymax zmin zmax.")
+      .def(
+          "wall_velocities",
+          [](const Simulation& sim) {
+            double* d;
+            auto a = new_array<double>({kNumWalls}, &d);
+            for (int k = 0; k < kNumWalls; ++k) d[k] = sim.walls().state(k).velocity;
+            return a;
+          },
+          "Wall velocities along their axes (6,) [m/s].")
+      .def(
+          "wall_stresses",
+          [](const Simulation& sim) {
+            double* d;
+            auto a = new_array<double>({kNumWalls}, &d);
+            for (int k = 0; k < kNumWalls; ++k) d[k] = sim.walls().stress(k);
+            return a;
+          },
+          "Compressive normal stress on each wall (6,) [Pa].")
+      .def(
+          "wall_forces",
+          [](const Simulation& sim) {
+            double* d;
+            auto a = new_array<double>({kNumWalls, 3}, &d);
+            for (int k = 0; k < kNumWalls; ++k) {
+              const Vec3 f = sim.walls().state(k).force;
+              d[3 * k] = f.x;
+              d[3 * k + 1] = f.y;
+              d[3 * k + 2] = f.z;
+            }
+            return a;
+          },
+          "Total force of the grains on each wall (6,3) [N].")
+      .def("set_wall", &set_wall, "name"_a, "mode"_a = nb::none(), "velocity"_a = nb::none(),
+           "target_stress"_a = nb::none(), "servo_alpha"_a = nb::none(), "max_speed"_a = nb::none(),
+           "Changes the control of wall `name` (xmin..zmax): mode 'fixed'|'velocity'|'servo', "
+           "velocity [m/s] along the axis, target_stress [Pa], servo_alpha [-], max_speed [m/s].")
+      .def(
+          "wall_config",
+          [](const Simulation& sim, const std::string& name) {
+            const WallConfig& c = sim.walls().config(wall_index(name));
+            nb::dict d;
+            d["mode"] = to_string(c.mode);
+            d["velocity"] = c.velocity;
+            d["target_stress"] = c.target_stress;
+            d["servo_alpha"] = c.servo_alpha;
+            d["max_speed"] = c.max_speed;
+            return d;
+          },
+          "name"_a, "The current control settings of one wall as a dict.")
+
+      .def(
+          "love_weber_stress",
+          [](const Simulation& sim) {
+            const std::array<double, 9> s = sim.love_weber_stress();
+            double* d;
+            auto a = new_array<double>({3, 3}, &d);
+            std::copy(s.begin(), s.end(), d);
+            return a;
+          },
+          "Love-Weber stress tensor (3,3) over the box volume [Pa], compression positive.")
+      .def("kinetic_energy", &Simulation::kinetic_energy, "Translational + rotational [J].")
+      .def("memory_bytes", &Simulation::memory_bytes)
+      .def(
+          "config_toml",
+          [](const Simulation& sim) { return toml::serialize(to_toml(sim.config())); },
+          "The configuration the simulation was built with, every key resolved, as TOML.");
+
+  m.def("cli_main", &run_cli, "args"_a,
+        "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code.");
+  m.def(
+      "resolved_config",
+      [](nb::dict config) { return toml::serialize(to_toml(config_from_dict(config))); },
+      "config"_a, "Validates a configuration dict and returns it with every default filled in, as TOML.");
+}

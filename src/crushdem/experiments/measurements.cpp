@@ -1,0 +1,90 @@
+#include "crushdem/experiments/measurements.hpp"
+
+#include <cmath>
+
+#include "crushdem/core/deterministic.hpp"
+
+namespace crushdem {
+
+StrainReference StrainReference::from(const Walls& w) {
+  StrainReference r;
+  for (int a = 0; a < 3; ++a) r.length[a] = w.length(a);
+  r.volume = w.volume();
+  return r;
+}
+
+Measurement measure(const Simulation& sim, const StrainReference& ref) {
+  Measurement m;
+  const Walls& w = sim.walls();
+  const ParticleStore& p = sim.particles();
+  m.emplace_back("time_s", sim.time());
+  m.emplace_back("step", static_cast<double>(sim.step_count()));
+  m.emplace_back("n_particles", static_cast<double>(p.size()));
+  for (int k = 0; k < kNumWalls; ++k) {
+    m.emplace_back(std::string("wall_") + wall_name(k) + "_position_m", w.position(k));
+  }
+  double s_axis[3];
+  for (int k = 0; k < kNumWalls; ++k) {
+    m.emplace_back(std::string("wall_") + wall_name(k) + "_stress_Pa", w.stress(k));
+  }
+  for (int a = 0; a < 3; ++a) s_axis[a] = 0.5 * (w.stress(2 * a) + w.stress(2 * a + 1));
+  const double p_wall = (s_axis[0] + s_axis[1] + s_axis[2]) / 3.0;
+  const double q_wall = s_axis[2] - 0.5 * (s_axis[0] + s_axis[1]);
+  m.emplace_back("mean_stress_Pa", p_wall);
+  m.emplace_back("deviator_stress_Pa", q_wall);
+  const auto lw = sim.love_weber_stress();
+  const char* comp[6] = {"xx", "yy", "zz", "xy", "yz", "xz"};
+  const int idx[6] = {0, 4, 8, 1, 5, 2};
+  for (int c = 0; c < 6; ++c) {
+    m.emplace_back(std::string("love_") + comp[c] + "_Pa", lw[static_cast<std::size_t>(idx[c])]);
+  }
+  m.emplace_back("love_mean_stress_Pa", (lw[0] + lw[4] + lw[8]) / 3.0);
+  const double eps_axial = ref.length[2] > 0 ? 1.0 - w.length(2) / ref.length[2] : 0.0;
+  const double eps_vol = ref.volume > 0 ? 1.0 - w.volume() / ref.volume : 0.0;
+  m.emplace_back("axial_strain", eps_axial);
+  m.emplace_back("lateral_strain_x", ref.length[0] > 0 ? 1.0 - w.length(0) / ref.length[0] : 0.0);
+  m.emplace_back("lateral_strain_y", ref.length[1] > 0 ? 1.0 - w.length(1) / ref.length[1] : 0.0);
+  m.emplace_back("volumetric_strain", eps_vol);
+  const double Vs = deterministic_sum(p.size(), [&](std::size_t i) {
+    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
+  });
+  m.emplace_back("void_ratio", Vs > 0 ? (w.volume() - Vs) / Vs : 0.0);
+  const auto contacts = sim.contacts();
+  std::size_t n_pp = 0;
+  double sum_fn = 0, sum_fn2 = 0, sum_ft = 0, sum_ft2 = 0;
+  for (const auto& c : contacts) {
+    if (c.is_wall) continue;
+    ++n_pp;
+    const double ft = norm(c.F_t);
+    sum_fn += c.F_n;
+    sum_fn2 += c.F_n * c.F_n;
+    sum_ft += ft;
+    sum_ft2 += ft * ft;
+  }
+  const double nc = static_cast<double>(n_pp);
+  m.emplace_back("n_contacts", nc);
+  m.emplace_back("coordination_number", p.size() ? 2.0 * nc / static_cast<double>(p.size()) : 0.0);
+  auto mean = [&](double s) { return n_pp ? s / nc : 0.0; };
+  auto sd = [&](double s, double s2) {
+    return n_pp ? std::sqrt(std::max(0.0, s2 / nc - (s / nc) * (s / nc))) : 0.0;
+  };
+  m.emplace_back("mean_Fn_N", mean(sum_fn));
+  m.emplace_back("std_Fn_N", sd(sum_fn, sum_fn2));
+  m.emplace_back("mean_Ft_N", mean(sum_ft));
+  m.emplace_back("std_Ft_N", sd(sum_ft, sum_ft2));
+  // Unbalanced-force ratio: mean resultant force on a grain over the mean contact force.
+  const double mean_unbalanced =
+      p.size() ? deterministic_sum(p.size(),
+                                   [&](std::size_t i) {
+                                     return std::sqrt(p.fx[i] * p.fx[i] + p.fy[i] * p.fy[i] +
+                                                      p.fz[i] * p.fz[i]);
+                                   }) /
+                     static_cast<double>(p.size())
+                : 0.0;
+  m.emplace_back("unbalanced_force_ratio", n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
+  m.emplace_back("kinetic_energy_J", sim.kinetic_energy());
+  m.emplace_back("dt_s", sim.current_dt());
+  return m;
+}
+
+}  // namespace crushdem

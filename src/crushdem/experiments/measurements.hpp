@@ -1,0 +1,26 @@
+// Macroscopic measurements of a Simulation at one instant (model-notes 4.3): wall stresses,
+// Love-Weber stress, p and q, strains from the wall positions, void ratio, coordination number,
+// contact-force statistics and kinetic energy. Compression is positive; the axial direction is z.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "crushdem/integrate/simulation.hpp"
+
+namespace crushdem {
+
+/// The reference state strains are measured from (box lengths at the start).
+struct StrainReference {
+  double length[3] = {0, 0, 0};
+  double volume = 0.0;
+  static StrainReference from(const Walls& w);
+};
+
+/// Named values in a fixed order, SI units in the names (e.g. "wall_zmax_stress_Pa").
+using Measurement = std::vector<std::pair<std::string, double>>;
+
+Measurement measure(const Simulation& sim, const StrainReference& ref);
+
+}  // namespace crushdem

@@ -1,0 +1,426 @@
+#include "crushdem/io/config.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+namespace {
+
+using toml::Table;
+using toml::Type;
+using toml::Value;
+
+std::string show(const Value& v) {
+  switch (v.type) {
+    case Type::String: return "\"" + v.str + "\"";
+    case Type::Integer: return std::to_string(v.integer);
+    case Type::Float: {
+      std::ostringstream s;
+      s.precision(17);
+      s << v.real;
+      return s.str();
+    }
+    case Type::Boolean: return v.boolean ? "true" : "false";
+    case Type::Array: return "an array";
+    case Type::Table: return "a table";
+  }
+  return "?";
+}
+
+/// Reads one section, remembering which keys were used so that unknown keys are reported.
+class Section {
+ public:
+  Section(const Table* t, std::string prefix, std::string source)
+      : t_(t), prefix_(std::move(prefix)), source_(std::move(source)) {}
+
+  std::string key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
+  std::string where(const Value& v) const {
+    return v.line > 0 ? source_ + ":" + std::to_string(v.line) + ": " : source_ + ": ";
+  }
+  [[noreturn]] void fail(const std::string& k, const Value& v, const std::string& expected) const {
+    throw ConfigError(where(v) + bad_value(key(k), show(v), expected));
+  }
+  const Value* find(const std::string& k) {
+    known_.insert(k);
+    if (!t_) return nullptr;
+    auto it = t_->find(k);
+    return it == t_->end() ? nullptr : &it->second;
+  }
+  void number(const std::string& k, double& out, const char* expected = "a number") {
+    if (const Value* v = find(k)) {
+      if (!v->is_number()) fail(k, *v, expected);
+      out = v->as_number();
+    }
+  }
+  void count(const std::string& k, std::uint64_t& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Integer || v->integer < 0) fail(k, *v, "an integer >= 0");
+      out = static_cast<std::uint64_t>(v->integer);
+    }
+  }
+  void boolean(const std::string& k, bool& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Boolean) fail(k, *v, "true or false");
+      out = v->boolean;
+    }
+  }
+  void string(const std::string& k, std::string& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::String) fail(k, *v, "a string");
+      out = v->str;
+    }
+  }
+  void vec3(const std::string& k, double out[3], bool& present) {
+    present = false;
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array || v->array.size() != 3 ||
+          !std::all_of(v->array.begin(), v->array.end(), [](const Value& x) { return x.is_number(); })) {
+        fail(k, *v, "an array of 3 numbers [x, y, z] in m");
+      }
+      for (int d = 0; d < 3; ++d) out[d] = v->array[static_cast<std::size_t>(d)].as_number();
+      present = true;
+    }
+  }
+  Section sub(const std::string& k) {
+    const Value* v = find(k);
+    if (v && v->type != Type::Table) fail(k, *v, "a table [" + key(k) + "]");
+    return Section(v ? v->table.get() : nullptr, key(k), source_);
+  }
+  bool has(const std::string& k) const { return t_ && t_->count(k); }
+  /// Throws for any key that no reader asked for.
+  void finish() const {
+    if (!t_) return;
+    for (const auto& [k, v] : *t_) {
+      if (!known_.count(k)) {
+        std::string valid;
+        for (const auto& n : known_) valid += (valid.empty() ? "" : ", ") + n;
+        throw ConfigError(where(v) + "unknown key '" + key(k) + "'" +
+                          (valid.empty() ? "" : " (valid keys: " + valid + ")"));
+      }
+    }
+  }
+
+ private:
+  const Table* t_;
+  std::string prefix_, source_;
+  std::set<std::string> known_;
+};
+
+void read_simulation(Section& root, SimulationConfig& c) {
+  {
+    Section s = root.sub("material");
+    s.number("density", c.material.density);
+    s.number("shear_modulus", c.material.shear_modulus);
+    s.number("poisson_ratio", c.material.poisson_ratio);
+    s.number("friction", c.material.friction);
+    s.finish();
+  }
+  {
+    Section s = root.sub("contact");
+    std::string law = to_string(c.contact.law);
+    s.string("law", law);
+    c.contact.law = parse_normal_law(law, "contact.law");
+    s.number("roughness_Sq", c.contact.roughness_Sq);
+    s.number("k1", c.contact.k1);
+    s.number("k2", c.contact.k2);
+    s.number("wall_friction", c.contact.wall_friction);
+    s.number("restitution", c.contact.restitution);
+    s.finish();
+  }
+  {
+    Section s = root.sub("damping");
+    s.number("local_alpha", c.damping.local_alpha);
+    s.finish();
+  }
+  {
+    Section s = root.sub("timestep");
+    s.number("dt", c.timestep.dt);
+    s.number("rayleigh_fraction", c.timestep.rayleigh_fraction);
+    s.number("safety", c.timestep.safety);
+    s.count("update_interval", c.timestep.update_interval);
+    s.finish();
+  }
+  {
+    Section s = root.sub("neighbor");
+    s.number("skin", c.neighbor.skin);
+    s.boolean("sort_particles", c.neighbor.sort_particles);
+    s.finish();
+  }
+  {
+    Section s = root.sub("box");
+    if (!root.has("box")) {
+      throw ConfigError(
+          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, m)");
+    }
+    double lo[3], hi[3];
+    bool has_lo = false, has_hi = false;
+    s.vec3("min", lo, has_lo);
+    s.vec3("max", hi, has_hi);
+    if (!has_lo || !has_hi) {
+      throw ConfigError(std::string("missing key 'box.") + (has_lo ? "max" : "min") +
+                        "': expected an array of 3 numbers [x, y, z] in m");
+    }
+    s.finish();
+    for (int a = 0; a < 3; ++a) {
+      c.walls[static_cast<std::size_t>(2 * a)].position = lo[a];
+      c.walls[static_cast<std::size_t>(2 * a + 1)].position = hi[a];
+    }
+  }
+  {
+    Section walls = root.sub("walls");
+    for (int k = 0; k < kNumWalls; ++k) {
+      Section s = walls.sub(wall_name(k));
+      WallConfig& w = c.walls[static_cast<std::size_t>(k)];
+      std::string mode = to_string(w.mode);
+      s.string("mode", mode);
+      if (mode == "fixed") {
+        w.mode = WallMode::Fixed;
+      } else if (mode == "velocity") {
+        w.mode = WallMode::Velocity;
+      } else if (mode == "servo") {
+        w.mode = WallMode::Servo;
+      } else {
+        throw ConfigError(bad_value(s.key("mode"), "\"" + mode + "\"",
+                                    "\"fixed\", \"velocity\" or \"servo\""));
+      }
+      s.number("velocity", w.velocity);
+      s.number("target_stress", w.target_stress);
+      s.number("servo_alpha", w.servo_alpha);
+      s.number("max_speed", w.max_speed);
+      s.finish();
+    }
+    walls.finish();
+  }
+}
+
+Value num(double v) { return Value::make_float(v); }
+Value cnt(std::uint64_t v) { return Value::make_integer(static_cast<std::int64_t>(v)); }
+
+}  // namespace
+
+SimulationConfig simulation_config_from_toml(const toml::Table& root, const std::string& source) {
+  SimulationConfig c;
+  Section r(&root, "", source);
+  read_simulation(r, c);
+  // Only the simulation sections are read here; the caller owns the others.
+  for (const auto& [k, v] : root) {
+    static const std::set<std::string> mine = {"material", "contact", "damping", "timestep",
+                                               "neighbor", "box", "walls"};
+    if (!mine.count(k)) {
+      throw ConfigError(r.where(v) + "unknown key '" + k +
+                        "' (valid sections: material, contact, damping, timestep, neighbor, "
+                        "box, walls)");
+    }
+  }
+  c.validate();
+  return c;
+}
+
+RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
+                               const std::string& base_dir) {
+  RunConfig c;
+  Section r(&root, "", source);
+  read_simulation(r, c.simulation);
+  {
+    Section s = r.sub("particles");
+    if (!root.count("particles")) {
+      throw ConfigError("missing section [particles]: expected file = \"...\" or [particles.generate]");
+    }
+    s.string("file", c.particles.file);
+    if (!c.particles.file.empty() && std::filesystem::path(c.particles.file).is_relative()) {
+      c.particles.file = (std::filesystem::path(base_dir) / c.particles.file).string();
+    }
+    Section g = s.sub("generate");
+    g.count("count", c.particles.generate.count);
+    g.number("diameter_min", c.particles.generate.diameter_min);
+    g.number("diameter_max", c.particles.generate.diameter_max);
+    g.count("seed", c.particles.generate.seed);
+    g.finish();
+    if (!c.particles.file.empty() && s.has("generate")) {
+      throw ConfigError("particles: give either 'particles.file' or [particles.generate], not both");
+    }
+    s.finish();
+  }
+  {
+    Section s = r.sub("run");
+    s.count("steps", c.steps);
+    s.number("duration", c.duration);
+    s.finish();
+  }
+  {
+    Section s = r.sub("output");
+    s.count("interval", c.output.interval);
+    s.count("vtk_interval", c.output.vtk_interval);
+    s.number("progress_seconds", c.output.progress_seconds);
+    s.finish();
+  }
+  r.finish();
+  c.validate();
+  return c;
+}
+
+RunConfig load_run_config(const std::string& path) {
+  const toml::Table t = toml::parse_file(path);
+  const auto base = std::filesystem::path(path).parent_path().string();
+  return run_config_from_toml(t, path, base.empty() ? "." : base);
+}
+
+std::array<double, 6> RunConfig::box() const {
+  std::array<double, 6> b{};
+  for (int k = 0; k < kNumWalls; ++k) {
+    b[static_cast<std::size_t>(k)] = simulation.walls[static_cast<std::size_t>(k)].position;
+  }
+  return b;
+}
+
+void GenerateConfig::validate(const std::array<double, 6>& box) const {
+  auto show_d = [](double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return s.str();
+  };
+  if (count == 0) throw ConfigError(bad_value("particles.generate.count", "0", "a positive count"));
+  if (!(diameter_min > 0.0) || !std::isfinite(diameter_min)) {
+    throw ConfigError(bad_value("particles.generate.diameter_min", show_d(diameter_min),
+                                "a positive diameter in m"));
+  }
+  if (!(diameter_max >= diameter_min) || !std::isfinite(diameter_max)) {
+    throw ConfigError(bad_value("particles.generate.diameter_max", show_d(diameter_max),
+                                "a diameter >= particles.generate.diameter_min in m"));
+  }
+  const double side = std::min({box[1] - box[0], box[3] - box[2], box[5] - box[4]});
+  if (diameter_max >= side) {
+    throw ConfigError(bad_value("particles.generate.diameter_max", show_d(diameter_max),
+                                "a diameter smaller than the box side " + show_d(side) + " m"));
+  }
+  // Random sequential addition jams near a solid fraction of 0.38 for spheres; ask for less.
+  const double V = (box[1] - box[0]) * (box[3] - box[2]) * (box[5] - box[4]);
+  const double dm = 0.5 * (diameter_min + diameter_max);
+  const double solid = static_cast<double>(count) * kPi / 6.0 * dm * dm * dm;
+  if (solid > 0.3 * V) {
+    throw ConfigError(bad_value("particles.generate.count", std::to_string(count),
+                                "at most about " +
+                                    std::to_string(static_cast<long>(0.3 * V / (kPi / 6.0 * dm * dm * dm))) +
+                                    " grains: random placement without overlap cannot exceed a "
+                                    "solid fraction of 0.3 in this box"));
+  }
+}
+
+void ParticlesConfig::validate(const std::array<double, 6>& box) const {
+  if (file.empty()) {
+    if (generate.count == 0) {
+      throw ConfigError("particles: expected 'particles.file' or [particles.generate] with count > 0");
+    }
+    generate.validate(box);
+  } else if (!std::filesystem::exists(file)) {
+    throw ConfigError(bad_value("particles.file", "\"" + file + "\"", "an existing particle file"));
+  }
+}
+
+void OutputConfig::validate() const {
+  if (interval == 0) throw ConfigError(bad_value("output.interval", "0", "a positive number of steps"));
+  if (!(progress_seconds >= 0.0)) {
+    throw ConfigError(bad_value("output.progress_seconds", std::to_string(progress_seconds),
+                                "a time >= 0 in s"));
+  }
+}
+
+void RunConfig::validate() const {
+  simulation.validate();
+  particles.validate(box());
+  output.validate();
+  if ((steps == 0) == (duration <= 0.0)) {
+    throw ConfigError("run: expected exactly one of 'run.steps' (a positive count) or "
+                      "'run.duration' (a positive time in s)");
+  }
+  if (!std::isfinite(duration) || duration < 0.0) {
+    throw ConfigError(bad_value("run.duration", std::to_string(duration), "a positive time in s"));
+  }
+}
+
+toml::Table to_toml(const SimulationConfig& c) {
+  Table t;
+  Table m;
+  m["density"] = num(c.material.density);
+  m["shear_modulus"] = num(c.material.shear_modulus);
+  m["poisson_ratio"] = num(c.material.poisson_ratio);
+  m["friction"] = num(c.material.friction);
+  t["material"] = Value::make_table(m);
+  Table ct;
+  ct["law"] = Value::make_string(to_string(c.contact.law));
+  ct["roughness_Sq"] = num(c.contact.roughness_Sq);
+  ct["k1"] = num(c.contact.k1);
+  ct["k2"] = num(c.contact.k2);
+  ct["wall_friction"] = num(c.contact.wall_friction);
+  ct["restitution"] = num(c.contact.restitution);
+  t["contact"] = Value::make_table(ct);
+  Table d;
+  d["local_alpha"] = num(c.damping.local_alpha);
+  t["damping"] = Value::make_table(d);
+  Table ts;
+  ts["dt"] = num(c.timestep.dt);
+  ts["rayleigh_fraction"] = num(c.timestep.rayleigh_fraction);
+  ts["safety"] = num(c.timestep.safety);
+  ts["update_interval"] = cnt(c.timestep.update_interval);
+  t["timestep"] = Value::make_table(ts);
+  Table nb;
+  nb["skin"] = num(c.neighbor.skin);
+  nb["sort_particles"] = Value::make_bool(c.neighbor.sort_particles);
+  t["neighbor"] = Value::make_table(nb);
+  Table box;
+  std::vector<Value> lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    lo.push_back(num(c.walls[static_cast<std::size_t>(2 * a)].position));
+    hi.push_back(num(c.walls[static_cast<std::size_t>(2 * a + 1)].position));
+  }
+  box["min"] = Value::make_array(lo);
+  box["max"] = Value::make_array(hi);
+  t["box"] = Value::make_table(box);
+  Table walls;
+  for (int k = 0; k < kNumWalls; ++k) {
+    const WallConfig& w = c.walls[static_cast<std::size_t>(k)];
+    Table wt;
+    wt["mode"] = Value::make_string(to_string(w.mode));
+    wt["velocity"] = num(w.velocity);
+    wt["target_stress"] = num(w.target_stress);
+    wt["servo_alpha"] = num(w.servo_alpha);
+    wt["max_speed"] = num(w.max_speed);
+    walls[wall_name(k)] = Value::make_table(wt);
+  }
+  t["walls"] = Value::make_table(walls);
+  return t;
+}
+
+toml::Table to_toml(const RunConfig& c) {
+  Table t = to_toml(c.simulation);
+  Table p;
+  if (!c.particles.file.empty()) {
+    p["file"] = Value::make_string(c.particles.file);
+  } else {
+    Table g;
+    g["count"] = cnt(c.particles.generate.count);
+    g["diameter_min"] = num(c.particles.generate.diameter_min);
+    g["diameter_max"] = num(c.particles.generate.diameter_max);
+    g["seed"] = cnt(c.particles.generate.seed);
+    p["generate"] = Value::make_table(g);
+  }
+  t["particles"] = Value::make_table(p);
+  Table r;
+  if (c.steps > 0) r["steps"] = cnt(c.steps);
+  if (c.duration > 0.0) r["duration"] = num(c.duration);
+  t["run"] = Value::make_table(r);
+  Table o;
+  o["interval"] = cnt(c.output.interval);
+  o["vtk_interval"] = cnt(c.output.vtk_interval);
+  o["progress_seconds"] = num(c.output.progress_seconds);
+  t["output"] = Value::make_table(o);
+  return t;
+}
+
+}  // namespace crushdem

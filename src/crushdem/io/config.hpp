@@ -1,0 +1,61 @@
+// The one configuration model: plain structs filled from a TOML table (the CLI reads a file,
+// Python turns keyword arguments into the same table), validated before anything runs. Every
+// key is documented in docs/configuration.md; units are SI.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "crushdem/integrate/simulation.hpp"
+#include "crushdem/io/toml.hpp"
+
+namespace crushdem {
+
+/// Grains placed at random without overlap (random sequential addition) inside the box.
+struct GenerateConfig {
+  std::uint64_t count = 0;
+  double diameter_min = 0.0;  // [m]
+  double diameter_max = 0.0;  // [m]; diameters uniform by number in [min, max]
+  std::uint64_t seed = 1;
+  void validate(const std::array<double, 6>& box) const;
+};
+
+struct ParticlesConfig {
+  std::string file;         // "id x y z diameter" rows (relative to the config file)
+  GenerateConfig generate;  // used when file is empty
+  void validate(const std::array<double, 6>& box) const;
+};
+
+struct OutputConfig {
+  std::uint64_t interval = 1000;     // steps between rows of timeseries.csv
+  std::uint64_t vtk_interval = 0;    // steps between VTK snapshots (0 = first and last only)
+  double progress_seconds = 2.0;     // wall-clock seconds between progress lines
+  void validate() const;
+};
+
+struct RunConfig {
+  SimulationConfig simulation;
+  ParticlesConfig particles;
+  OutputConfig output;
+  std::uint64_t steps = 0;  // run length in steps, or
+  double duration = 0.0;    // in simulated seconds (exactly one of the two)
+  void validate() const;
+  /// Box as [xmin, xmax, ymin, ymax, zmin, zmax] from the wall positions.
+  std::array<double, 6> box() const;
+};
+
+/// Reads [material] [contact] [damping] [timestep] [neighbor] [box] [walls.*]; any other
+/// top-level section is left for the caller. Unknown keys inside these sections are errors.
+SimulationConfig simulation_config_from_toml(const toml::Table& root, const std::string& source);
+/// Reads a whole run file: the simulation sections plus [particles] [run] [output].
+/// Relative particle file paths are resolved against `base_dir`.
+RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
+                               const std::string& base_dir);
+RunConfig load_run_config(const std::string& path);
+
+/// The resolved configuration (every key, defaults filled in) as TOML.
+toml::Table to_toml(const SimulationConfig& c);
+toml::Table to_toml(const RunConfig& c);
+
+}  // namespace crushdem

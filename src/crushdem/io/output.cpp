@@ -1,0 +1,141 @@
+#include "crushdem/io/output.hpp"
+
+#include <cmath>
+#include <fstream>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+
+std::string format_double(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+CsvWriter::~CsvWriter() {
+  if (f_) std::fclose(f_);
+}
+
+void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
+  if (!f_) {
+    f_ = std::fopen(path_.c_str(), "w");
+    if (!f_) throw ConfigError("cannot write '" + path_ + "'");
+    for (std::size_t k = 0; k < row.size(); ++k) {
+      std::fprintf(f_, "%s%s", k ? "," : "", row[k].first.c_str());
+      columns_.push_back(row[k].first);
+    }
+    std::fputc('\n', f_);
+  }
+  if (row.size() != columns_.size()) {
+    throw std::logic_error("CSV row has " + std::to_string(row.size()) + " columns, header " +
+                           std::to_string(columns_.size()));
+  }
+  for (std::size_t k = 0; k < row.size(); ++k) {
+    std::fprintf(f_, "%s%s", k ? "," : "", format_double(row[k].second).c_str());
+  }
+  std::fputc('\n', f_);
+  std::fflush(f_);
+}
+
+namespace {
+std::string json_escape(const std::string& s) {
+  std::string o = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') {
+      o += '\\';
+      o += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", c);
+      o += b;
+    } else {
+      o += c;
+    }
+  }
+  return o + "\"";
+}
+}  // namespace
+
+void JsonObject::number(const std::string& key, double v) {
+  fields.emplace_back(key, std::isfinite(v) ? format_double(v) : "null");
+}
+void JsonObject::integer(const std::string& key, long long v) {
+  fields.emplace_back(key, std::to_string(v));
+}
+void JsonObject::string(const std::string& key, const std::string& v) {
+  fields.emplace_back(key, json_escape(v));
+}
+void JsonObject::object(const std::string& key, const JsonObject& v) {
+  fields.emplace_back(key, v.dump(2));
+}
+
+std::string JsonObject::dump(int indent) const {
+  const std::string pad(static_cast<std::size_t>(indent) + 2, ' ');
+  std::string o = "{\n";
+  for (std::size_t k = 0; k < fields.size(); ++k) {
+    o += pad + json_escape(fields[k].first) + ": " + fields[k].second;
+    o += k + 1 < fields.size() ? ",\n" : "\n";
+  }
+  return o + std::string(static_cast<std::size_t>(indent), ' ') + "}";
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  if (!f) throw ConfigError("cannot write '" + path + "'");
+  f << text;
+  if (!f) throw ConfigError("cannot write '" + path + "'");
+}
+
+void write_vtk_particles(const std::string& path, const ParticleStore& p) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw ConfigError("cannot write '" + path + "'");
+  const std::size_t N = p.size();
+  std::fprintf(f, "# vtk DataFile Version 3.0\ncrushdem particles\nASCII\nDATASET POLYDATA\n");
+  std::fprintf(f, "POINTS %zu double\n", N);
+  for (std::size_t i = 0; i < N; ++i) {
+    std::fprintf(f, "%.17g %.17g %.17g\n", p.x[i], p.y[i], p.z[i]);
+  }
+  std::fprintf(f, "VERTICES %zu %zu\n", N, 2 * N);
+  for (std::size_t i = 0; i < N; ++i) std::fprintf(f, "1 %zu\n", i);
+  std::fprintf(f, "POINT_DATA %zu\n", N);
+  auto scalars = [&](const char* name, auto&& get) {
+    std::fprintf(f, "SCALARS %s double 1\nLOOKUP_TABLE default\n", name);
+    for (std::size_t i = 0; i < N; ++i) std::fprintf(f, "%.17g\n", static_cast<double>(get(i)));
+  };
+  auto vectors = [&](const char* name, const std::vector<double>& a, const std::vector<double>& b,
+                     const std::vector<double>& c) {
+    std::fprintf(f, "VECTORS %s double\n", name);
+    for (std::size_t i = 0; i < N; ++i) std::fprintf(f, "%.17g %.17g %.17g\n", a[i], b[i], c[i]);
+  };
+  scalars("radius", [&](std::size_t i) { return p.radius[i]; });
+  scalars("diameter", [&](std::size_t i) { return 2.0 * p.radius[i]; });
+  scalars("id", [&](std::size_t i) { return static_cast<double>(p.id[i]); });
+  scalars("parent_id", [&](std::size_t i) {
+    return p.parent[i] == kNoParent ? -1.0 : static_cast<double>(p.parent[i]);
+  });
+  vectors("velocity", p.vx, p.vy, p.vz);
+  vectors("angular_velocity", p.wx, p.wy, p.wz);
+  vectors("force", p.fx, p.fy, p.fz);
+  for (std::size_t k = 0; k < p.field_names().size(); ++k) {
+    const auto& fld = p.field(k);
+    scalars(p.field_names()[k].c_str(), [&](std::size_t i) { return fld[i]; });
+  }
+  if (std::fclose(f) != 0) throw ConfigError("cannot write '" + path + "'");
+}
+
+void write_vtk_box(const std::string& path, const double b[6]) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) throw ConfigError("cannot write '" + path + "'");
+  std::fprintf(f, "# vtk DataFile Version 3.0\ncrushdem walls\nASCII\nDATASET POLYDATA\nPOINTS 8 double\n");
+  for (int k = 0; k < 8; ++k) {
+    std::fprintf(f, "%.17g %.17g %.17g\n", b[(k & 1) ? 1 : 0], b[(k & 2) ? 3 : 2], b[(k & 4) ? 5 : 4]);
+  }
+  std::fprintf(f,
+               "POLYGONS 6 30\n4 0 2 6 4\n4 1 3 7 5\n4 0 1 5 4\n4 2 3 7 6\n4 0 1 3 2\n4 4 5 7 6\n");
+  if (std::fclose(f) != 0) throw ConfigError("cannot write '" + path + "'");
+}
+
+}  // namespace crushdem

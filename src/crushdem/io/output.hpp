@@ -1,0 +1,49 @@
+// Result files: CSV time series, JSON summaries and legacy-VTK particle snapshots (ParaView
+// opens them directly). Numbers are written with 17 significant digits so that files round-trip
+// exactly and runs can be compared byte for byte.
+#pragma once
+
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "crushdem/particles/particle_store.hpp"
+
+namespace crushdem {
+
+/// Appends rows to a CSV file; the header is written with the first row. Each row is flushed so
+/// that an interrupted run keeps everything it has finished.
+class CsvWriter {
+ public:
+  explicit CsvWriter(std::string path) : path_(std::move(path)) {}
+  ~CsvWriter();
+  CsvWriter(const CsvWriter&) = delete;
+  CsvWriter& operator=(const CsvWriter&) = delete;
+  void write(const std::vector<std::pair<std::string, double>>& row);
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  std::vector<std::string> columns_;
+};
+
+/// A flat JSON object of numbers and strings, written in the order given.
+struct JsonObject {
+  std::vector<std::pair<std::string, std::string>> fields;  // values already JSON-encoded
+  void number(const std::string& key, double v);
+  void integer(const std::string& key, long long v);
+  void string(const std::string& key, const std::string& v);
+  void object(const std::string& key, const JsonObject& v);
+  std::string dump(int indent = 0) const;
+};
+void write_text_file(const std::string& path, const std::string& text);
+
+/// Particle snapshot: positions, radius, id, parent id, velocity, angular velocity, force.
+void write_vtk_particles(const std::string& path, const ParticleStore& p);
+/// The six walls as quadrilaterals, for display with the particles.
+void write_vtk_box(const std::string& path, const double box[6]);
+
+std::string format_double(double v);
+
+}  // namespace crushdem

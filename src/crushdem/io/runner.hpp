@@ -1,0 +1,33 @@
+// Runs a RunConfig and writes its result directory:
+//   config.toml      the resolved configuration (every key, defaults filled in)
+//   timeseries.csv   one row per output interval (SI units in the column names)
+//   summary.json     final state and run description (identical for any thread count)
+//   timing.json      wall-clock time, threads, throughput (the only file that varies)
+//   vtk/particles_NNNNNN.vtk, vtk/box_NNNNNN.vtk   snapshots for ParaView
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "crushdem/io/config.hpp"
+
+namespace crushdem {
+
+struct RunOptions {
+  std::string out_dir;
+  bool progress = true;  // progress lines on stderr
+};
+
+struct RunSummary {
+  std::uint64_t steps = 0;
+  double time = 0.0;
+  double wall_seconds = 0.0;
+  std::size_t particles = 0;
+};
+
+/// Adds the configured particles (from a file or generated) to a simulation.
+void add_configured_particles(Simulation& sim, const RunConfig& cfg);
+
+RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt);
+
+}  // namespace crushdem
