@@ -9,6 +9,8 @@ from __future__ import annotations
 import sys
 from typing import List, Optional
 
+_PLOT_USAGE = f"{'  plot DIR':<44}draw DIR/timeseries.csv as PNG figures\n"
+
 
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point of the console script; exits with the command's status."""
@@ -17,16 +19,17 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import plot
 
         sys.exit(plot.main(args[1:]))
-    if args and args[0] in ("-h", "--help", "help"):
-        sys.stdout.write("crushdem plot DIR                          draw DIR/timeseries.csv as PNGs\n")
 
     from . import _core
 
-    # The C++ code writes through C stdio; empty Python's buffers first so output stays in order
-    # (_core.cli_main flushes the C streams before it returns).
+    # The C++ code writes through C stdio: empty Python's buffers first so that output stays in
+    # order (_core.cli_main flushes the C streams before it returns).
     sys.stdout.flush()
     sys.stderr.flush()
-    sys.exit(_core.cli_main(args))
+    rc = _core.cli_main(args)
+    if not args or args[0] in ("-h", "--help", "help"):
+        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE)
+    sys.exit(rc)
 
 
 if __name__ == "__main__":

@@ -75,9 +75,9 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
     if (!nb::hasattr(plain, "dtype")) return to_value(plain, key);
   }
   if (obj.is_none()) {
-    throw ConfigError("key '" + key + "' = None: expected a value (leave the key out for the default)");
+    throw ConfigError("<python>: key '" + key + "' = None: expected a value (leave the key out for the default)");
   }
-  throw ConfigError("key '" + key + "': a Python " + type_name_of(obj) +
+  throw ConfigError("<python>: key '" + key + "': a Python " + type_name_of(obj) +
                     " cannot be a configuration value (expected bool, int, float, str, list or dict)");
 }
 

@@ -243,9 +243,8 @@ void Simulation::rebuild_neighbors() {
 // --- forces ------------------------------------------------------------------------------------
 
 template <class Law>
-void Simulation::pair_forces(const Law& law) {
+void Simulation::pair_forces(const Law& law, double h) {
   const std::size_t N = p_.size();
-  const double h = dt_;
   const ContactParams cp = cp_;
   const auto* off = nl_.offsets.data();
   const auto* nb = nl_.neighbors.data();
@@ -311,9 +310,8 @@ void Simulation::pair_forces(const Law& law) {
 }
 
 template <class Law>
-void Simulation::wall_forces(const Law& law) {
+void Simulation::wall_forces(const Law& law, double h) {
   const std::size_t M = wc_.size();
-  const double h = dt_;
   const ContactParams cp = cp_;
   std::array<Vec3, kNumWalls> n_out{};
   std::array<double, kNumWalls> pos{}, vel{};
@@ -418,30 +416,28 @@ void Simulation::gather_and_damp(bool kick) {
 }
 
 void Simulation::compute_forces() {
+  // Evaluating forces advances the tangential history by one increment, so it is done once per
+  // state: a second call without a step in between does nothing.
+  if (forces_valid_ && nl_valid_) return;
   if (!nl_valid_) rebuild_neighbors();
   if (dt_ <= 0.0) dt();
+  // A refresh of the current state (start, or after a topology change): the tangential history
+  // already holds this step's increment, so none is added (increment time 0).
+  evaluate_forces(0.0, false);
+}
+
+void Simulation::evaluate_forces(double increment_dt, bool kick) {
   if (cfg_.contact.law == NormalLaw::Hertz) {
-    pair_forces(HertzLaw{cp_.E_star});
-    wall_forces(HertzLaw{cp_.E_star});
+    pair_forces(HertzLaw{cp_.E_star}, increment_dt);
+    wall_forces(HertzLaw{cp_.E_star}, increment_dt);
   } else {
-    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp});
-    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw});
+    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp}, increment_dt);
+    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw}, increment_dt);
   }
-  gather_and_damp(false);
+  gather_and_damp(kick);
   forces_valid_ = true;
 }
 
-void Simulation::forces_and_kick() {
-  if (cfg_.contact.law == NormalLaw::Hertz) {
-    pair_forces(HertzLaw{cp_.E_star});
-    wall_forces(HertzLaw{cp_.E_star});
-  } else {
-    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp});
-    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw});
-  }
-  gather_and_damp(true);
-  forces_valid_ = true;
-}
 
 // --- time integration --------------------------------------------------------------------------
 
@@ -481,7 +477,7 @@ void Simulation::step(std::uint64_t n) {
     const double d = std::sqrt(kick_drift());
     walls_.move(h);
     if (2.0 * d > skin_ || d + walls_.max_displacement_since_build() > skin_) rebuild_neighbors();
-    forces_and_kick();
+    evaluate_forces(h, true);
     walls_.update_velocities(h);
     time_ += h;
     ++steps_;

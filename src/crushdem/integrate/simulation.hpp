@@ -104,7 +104,8 @@ class Simulation {
   /// Forces (and neighbour list) are recomputed before the next step; call after editing
   /// positions or radii from outside.
   void invalidate();
-  /// Computes forces for the current state without moving anything (for inspection).
+  /// Computes forces for the current state without moving anything (for inspection); does
+  /// nothing if they are already up to date (each evaluation advances tangential history).
   void compute_forces();
 
   /// Time-step estimates (exposed for tests and reporting).
@@ -124,12 +125,12 @@ class Simulation {
   void capture_history();
   void rebuild_neighbors();
   template <class Law>
-  void pair_forces(const Law& law);
+  void pair_forces(const Law& law, double increment_dt);
   template <class Law>
-  void wall_forces(const Law& law);
+  void wall_forces(const Law& law, double increment_dt);
+  void evaluate_forces(double increment_dt, bool kick);
   void gather_and_damp(bool kick);
   double kick_drift();
-  void forces_and_kick();
 
   SimulationConfig cfg_;
   ContactParams cp_;

@@ -1,0 +1,307 @@
+"""Tests of the Python front end (run with `python -m pytest tests/python` after `pip install .`)."""
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import crushdem
+from crushdem import _core
+
+G = 32e9
+NU = 0.19
+E_STAR = G / (1.0 - NU)  # two grains of one material (model-notes 1.1)
+BOX = {"min": [0.0, 0.0, 0.0], "max": [1e-3, 1e-3, 1e-3]}
+
+
+def hertz_sim(**extra):
+    cfg = dict(
+        material={"shear_modulus": G, "poisson_ratio": NU, "friction": 0.0},
+        contact={"law": "hertz"},
+        damping={"local_alpha": 0.0},
+        box=BOX,
+    )
+    cfg.update(extra)
+    return crushdem.Simulation(**cfg)
+
+
+def test_head_on_collision_conserves_energy():
+    sim = hertz_sim()
+    r = 1e-4
+    v0 = 0.5
+    sim.add_particles(
+        np.array([[3.5e-4, 5e-4, 5e-4], [6.5e-4, 5e-4, 5e-4]]),
+        np.array([r, r]),
+        np.array([[v0, 0.0, 0.0], [-v0, 0.0, 0.0]]),
+    )
+    ke0 = sim.kinetic_energy()
+    m = sim.masses()
+    assert ke0 == pytest.approx(0.5 * m.sum() * v0**2, rel=1e-12)
+
+    touched = False
+    for _ in range(2000):
+        sim.step(10)
+        c = sim.contacts()
+        if len(c["overlap"]) > 0:
+            touched = True
+            assert not c["is_wall"].any()
+            assert sim.kinetic_energy() < ke0  # part of it is stored in the contact
+        if touched and len(c["overlap"]) == 0:
+            break
+    assert touched, "the spheres never met"
+    assert len(sim.contacts()["overlap"]) == 0, "the spheres did not separate"
+
+    v = sim.velocities()
+    # They bounced: velocities reversed along x, nothing else.
+    assert v[0, 0] < 0.0 < v[1, 0]
+    np.testing.assert_allclose(v[:, 1:], 0.0, atol=1e-12)
+    assert sim.kinetic_energy() == pytest.approx(ke0, rel=1e-4)
+    np.testing.assert_allclose(np.abs(v[:, 0]), v0, rtol=1e-4)
+    # Momentum is conserved exactly by the symmetric pair force.
+    assert abs(m @ v[:, 0]) < 1e-12 * m.sum() * v0
+    assert sim.step_count > 0 and sim.time == pytest.approx(sim.step_count * sim.dt, rel=1e-9)
+
+
+def test_array_shapes_and_dtypes():
+    sim = hertz_sim()
+    n = 5
+    rng = np.random.default_rng(3)
+    pos = 2e-4 + rng.random((n, 3)) * 6e-4
+    pos[:, 0] = np.linspace(1.5e-4, 8.5e-4, n)  # separated along x
+    ids = sim.add_particles(pos, np.full(n, 5e-5))
+    assert ids.dtype == np.uint64 and ids.shape == (n,)
+    assert list(ids) == list(range(n))
+    assert sim.num_particles == n
+
+    for name in ("positions", "velocities", "angular_velocities", "forces", "torques"):
+        a = getattr(sim, name)()
+        assert a.shape == (n, 3), name
+        assert a.dtype == np.float64, name
+    for name in ("radii", "masses"):
+        a = getattr(sim, name)()
+        assert a.shape == (n,) and a.dtype == np.float64, name
+    for name in ("ids", "parent_ids"):
+        a = getattr(sim, name)()
+        assert a.shape == (n,) and a.dtype == np.uint64, name
+    assert (sim.parent_ids() == crushdem.NO_PARENT).all()
+
+    np.testing.assert_allclose(np.sort(sim.positions()[:, 0]), pos[:, 0])
+    np.testing.assert_allclose(sim.masses(), 2650.0 * 4.0 / 3.0 * math.pi * 5e-5**3, rtol=1e-12)
+
+    # Copies: editing them does not touch the simulation.
+    p = sim.positions()
+    p[:] = 0.0
+    assert sim.positions().max() > 0.0
+
+    assert sim.wall_positions().shape == (6,)
+    np.testing.assert_allclose(sim.wall_positions(), [0, 1e-3, 0, 1e-3, 0, 1e-3])
+    assert sim.wall_stresses().shape == (6,)
+    assert sim.wall_forces().shape == (6, 3)
+    lw = sim.love_weber_stress()
+    assert lw.shape == (3, 3) and lw.dtype == np.float64
+
+    c = sim.contacts()
+    assert set(c) == {"id_i", "id_j", "is_wall", "overlap", "normal_force", "normal",
+                      "tangential_force"}
+    assert c["id_i"].dtype == np.uint64 and c["is_wall"].dtype == np.bool_
+    assert c["normal"].shape == (0, 3)
+
+    with pytest.raises(ValueError, match="positions"):
+        sim.add_particles(np.zeros((2, 2)), np.ones(2) * 1e-5)
+    with pytest.raises(ValueError, match="radi"):
+        sim.add_particles(np.full((1, 3), 5e-4), [-1.0])
+    assert sim.num_particles == n
+
+
+def test_wall_contact_is_hertz():
+    sim = hertz_sim()
+    r = 1e-4
+    delta = 1e-7
+    sim.add_particles(np.array([[5e-4, 5e-4, r - delta]]), np.array([r]))
+    sim.compute_forces()
+    c = sim.contacts()
+    assert len(c["overlap"]) == 1
+    assert c["is_wall"][0]
+    assert crushdem.WALL_NAMES[int(c["id_j"][0])] == "zmin"
+    assert c["id_i"][0] == 0
+    assert c["overlap"][0] == pytest.approx(delta, rel=1e-9)
+    expected = 4.0 / 3.0 * E_STAR * math.sqrt(r) * delta**1.5
+    assert abs(c["normal_force"][0] - expected) <= 1e-9 * expected
+    np.testing.assert_allclose(c["normal"][0], [0.0, 0.0, -1.0], atol=1e-15)
+    # The wall pushes the grain up with that force; the wall feels the reaction.
+    assert sim.forces()[0, 2] == pytest.approx(expected, rel=1e-9)
+    assert sim.wall_forces()[4, 2] == pytest.approx(-expected, rel=1e-9)
+    assert sim.wall_stresses()[4] == pytest.approx(expected / 1e-6, rel=1e-9)
+
+
+def test_bad_value_names_the_key():
+    with pytest.raises(ValueError, match=r"material\.shear_modulus"):
+        crushdem.Simulation(material={"shear_modulus": -1}, box=BOX)
+    with pytest.raises(crushdem.ConfigError):
+        crushdem.Simulation(material={"shear_modulus": -1}, box=BOX)
+    with pytest.raises(ValueError, match=r"box"):
+        crushdem.Simulation(material={"shear_modulus": 32e9})  # [box] is required
+
+
+def test_unknown_key_is_named():
+    with pytest.raises(ValueError, match="shear_modulsu"):
+        crushdem.Simulation(material={"shear_modulsu": 32e9}, box=BOX)
+    with pytest.raises(ValueError, match="nonsense"):
+        crushdem.Simulation(material={"shear_modulus": 32e9}, box=BOX, nonsense={"a": 1})
+
+
+def test_value_conversion():
+    # numpy scalars and arrays, tuples, ints for floats, bools
+    sim = crushdem.Simulation(
+        material={"shear_modulus": np.float64(30e9), "density": 2600},
+        neighbor={"sort_particles": np.bool_(False)},
+        box={"min": np.zeros(3), "max": (1e-3, 1e-3, np.float32(2e-3))},
+        walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
+    )
+    np.testing.assert_allclose(sim.wall_positions(), [0, 1e-3, 0, 1e-3, 0, 2e-3], rtol=1e-7)
+    toml = sim.config_toml()
+    assert "sort_particles = false" in toml
+    assert "shear_modulus = 3e+10" in toml or "shear_modulus = 30000000000.0" in toml
+    assert sim.wall_config("zmax")["mode"] == "servo"
+    with pytest.raises(ValueError, match="None"):
+        crushdem.Simulation(material={"density": None}, box=BOX)
+    with pytest.raises(ValueError, match="material.density"):
+        crushdem.Simulation(material={"density": object()}, box=BOX)
+    with pytest.raises(ValueError):
+        crushdem.Simulation(neighbor={"sort_particles": 1}, box=BOX)  # an integer is not a boolean
+
+
+def test_set_wall_moves_it():
+    sim = hertz_sim()
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
+    sim.set_dt(1e-8)
+    assert sim.dt == 1e-8
+    sim.set_wall("zmax", mode="velocity", velocity=-0.1)
+    sim.step(100)
+    assert sim.wall_positions()[5] == pytest.approx(1e-3 - 0.1 * 100 * 1e-8, rel=1e-9)
+    assert sim.wall_velocities()[5] == -0.1
+    with pytest.raises(ValueError, match="wall"):
+        sim.set_wall("top", mode="fixed")
+    with pytest.raises(ValueError, match="walls.zmax.mode"):
+        sim.set_wall("zmax", mode="spinning")
+    sim.set_wall("zmax", mode="fixed")
+    z = sim.wall_positions()[5]
+    sim.step(10)
+    assert sim.wall_positions()[5] == z
+
+
+def test_step_releases_gil():
+    import threading
+
+    sim = hertz_sim()
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
+    t = threading.Thread(target=sim.step, args=(1000,))
+    t.start()
+    t.join()
+    assert sim.step_count == 1000
+
+
+def test_resolved_config():
+    text = crushdem.resolved_config(contact={"law": "hertz"}, box=BOX)
+    assert 'law = "hertz"' in text
+    assert "[walls.zmax]" in text
+
+
+SMALL_CONFIG = """
+[material]
+shear_modulus = 32e9
+[contact]
+law = "hertz"
+[box]
+min = [0.0, 0.0, 0.0]
+max = [1e-3, 1e-3, 1e-3]
+[walls.zmax]
+mode = "servo"
+target_stress = 1e5
+[particles.generate]
+count = 10
+diameter_min = 1e-4
+diameter_max = 1.5e-4
+seed = 3
+[run]
+steps = 10
+"""
+
+
+def test_cli_check(tmp_path, capfd):
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL_CONFIG)
+    assert crushdem.cli_main(["check", str(path)]) == 0
+    assert "valid" in capfd.readouterr().out
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(SMALL_CONFIG.replace("shear_modulus = 32e9", "shear_modulus = -1.0"))
+    assert crushdem.cli_main(["check", str(bad)]) == 2
+    assert "material.shear_modulus" in capfd.readouterr().err
+
+
+def test_console_script_help():
+    out = subprocess.run([sys.executable, "-m", "crushdem", "--help"], capture_output=True,
+                         text=True, check=True).stdout
+    assert "usage: crushdem" in out and "check" in out and "plot DIR" in out
+    assert out.index("usage") < out.index("plot DIR")  # C and Python output in order
+
+
+def test_plot_writes_png(tmp_path):
+    n = 20
+    t = np.linspace(0.0, 1e-3, n)
+    p = np.geomspace(1e5, 1e7, n)
+    cols = {
+        "time_s": t,
+        "step": np.arange(n) * 100,
+        "wall_xmin_stress_Pa": p,
+        "wall_xmax_stress_Pa": p,
+        "wall_zmax_stress_Pa": 1.5 * p,
+        "mean_stress_Pa": p * 4.0 / 3.0,
+        "deviator_stress_Pa": 0.5 * p,
+        "axial_strain": np.linspace(0.0, 0.1, n),
+        "volumetric_strain": np.linspace(0.0, 0.05, n),
+        "void_ratio": np.linspace(0.8, 0.6, n),
+        "kinetic_energy_J": np.geomspace(1e-6, 1e-12, n),
+    }
+    header = ",".join(cols)
+    rows = "\n".join(",".join(repr(float(cols[c][i])) for c in cols) for i in range(n))
+    (tmp_path / "timeseries.csv").write_text(header + "\n" + rows + "\n")
+
+    res = subprocess.run([sys.executable, "-m", "crushdem", "plot", str(tmp_path)],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    for name in ("stress_time.png", "strain_stress.png", "void_ratio.png"):
+        f = tmp_path / name
+        assert f.exists(), name
+        assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert str(f) in res.stdout
+
+    missing = subprocess.run([sys.executable, "-m", "crushdem", "plot", str(tmp_path / "nope")],
+                             capture_output=True, text=True)
+    assert missing.returncode == 2 and "timeseries.csv" in missing.stderr
+
+
+def test_runtime_failure_is_runtime_error():
+    sim = hertz_sim()
+    sim.add_particles(np.array([[5e-4, 5e-4, 9.5e-4]]), np.array([4e-5]), np.array([[0, 0, 50.0]]))
+    sim.set_dt(1e-7)
+    # The grain flies through the fixed zmax wall at 50 m/s, far faster than the contact can stop it.
+    with pytest.raises(RuntimeError):
+        for _ in range(100):
+            sim.step(10)
+    with pytest.raises(RuntimeError):
+        raise crushdem.RuntimeFailure("x")
+
+
+def test_installed_console_script():
+    script = os.path.join(os.path.dirname(sys.executable), "crushdem")
+    if not os.path.exists(script):
+        pytest.skip("console script not next to the interpreter")
+    res = subprocess.run([script, "--help"], capture_output=True, text=True)
+    assert res.returncode == 0 and "usage: crushdem" in res.stdout
+    res = subprocess.run([script, "frobnicate"], capture_output=True, text=True)
+    assert res.returncode == 2 and "unknown command" in res.stderr

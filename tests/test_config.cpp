@@ -1,0 +1,117 @@
+// Malformed configurations fail before running, naming the key or file.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/io/config.hpp"
+
+namespace crushdem {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kValid = R"(
+[material]
+shear_modulus = 32e9
+[box]
+min = [0.0, 0.0, 0.0]
+max = [1e-3, 1e-3, 1e-3]
+[walls.zmax]
+mode = "servo"
+target_stress = 1e6
+[particles.generate]
+count = 10
+diameter_min = 1e-4
+diameter_max = 2e-4
+[run]
+steps = 10
+)";
+
+RunConfig parse(const std::string& text) {
+  return run_config_from_toml(toml::parse(text, "cfg.toml"), "cfg.toml", ".");
+}
+
+// Replaces the first occurrence of `from` in the valid document.
+std::string edit(const std::string& from, const std::string& to) {
+  std::string s = kValid;
+  const auto k = s.find(from);
+  EXPECT_NE(k, std::string::npos) << from;
+  return s.replace(k, from.size(), to);
+}
+
+void expect_error(const std::string& text, const std::vector<std::string>& fragments) {
+  try {
+    parse(text);
+    ADD_FAILURE() << "accepted:\n" << text;
+  } catch (const ConfigError& e) {
+    for (const auto& f : fragments) {
+      EXPECT_NE(std::string(e.what()).find(f), std::string::npos)
+          << "message '" << e.what() << "' lacks '" << f << "'";
+    }
+  }
+}
+
+TEST(Config, ValidConfigurationRoundTrips) {
+  const RunConfig c = parse(kValid);
+  EXPECT_EQ(c.simulation.walls[5].mode, WallMode::Servo);
+  EXPECT_EQ(c.particles.generate.count, 10u);
+  // The resolved configuration reads back to the same values.
+  const RunConfig again = run_config_from_toml(to_toml(c), "resolved", ".");
+  EXPECT_EQ(toml::serialize(to_toml(again)), toml::serialize(to_toml(c)));
+}
+
+TEST(Config, UnknownKey) {
+  expect_error(edit("shear_modulus = 32e9", "shear_modulus = 32e9\nshear_modulos = 1.0"),
+               {"material.shear_modulos", "cfg.toml:4", "unknown key"});
+  expect_error(kValid + "[bogus]\nx = 1\n", {"bogus"});
+}
+
+TEST(Config, WrongType) {
+  expect_error(edit("shear_modulus = 32e9", "shear_modulus = \"stiff\""),
+               {"material.shear_modulus", "\"stiff\"", "number"});
+  expect_error(edit("count = 10", "count = 10.5"), {"particles.generate.count", "integer"});
+}
+
+TEST(Config, NegativeModulus) {
+  expect_error(edit("shear_modulus = 32e9", "shear_modulus = -32e9"),
+               {"material.shear_modulus", "-32000000000", "positive"});
+}
+
+TEST(Config, BoxSmallerThanGrain) {
+  expect_error(edit("diameter_max = 2e-4", "diameter_max = 2e-3"),
+               {"particles.generate.diameter_max", "box"});
+}
+
+TEST(Config, InvertedBox) {
+  expect_error(edit("max = [1e-3, 1e-3, 1e-3]", "max = [1e-3, 1e-3, -1e-3]"),
+               {"walls.zmax.position"});
+}
+
+TEST(Config, BadWallMode) {
+  expect_error(edit("mode = \"servo\"", "mode = \"servoo\""), {"walls.zmax.mode", "servoo"});
+  expect_error(edit("target_stress = 1e6", "target_stress = -1e6"), {"walls.zmax.target_stress"});
+}
+
+TEST(Config, MissingParticleFile) {
+  std::string text = kValid;
+  const auto k = text.find("[particles.generate]");
+  text = text.substr(0, k) + "[particles]\nfile = \"no_such_file.txt\"\n[run]\nsteps = 10\n";
+  expect_error(text, {"particles.file", "no_such_file.txt"});
+}
+
+TEST(Config, RunLength) {
+  expect_error(edit("steps = 10", "steps = 10\nduration = 1.0"), {"run.steps", "run.duration"});
+}
+
+TEST(Config, TooManyGrains) {
+  expect_error(edit("count = 10", "count = 100000"), {"particles.generate.count"});
+}
+
+TEST(Config, SyntaxErrorNamesLine) {
+  expect_error(edit("[run]", "[run"), {"cfg.toml:"});
+}
+
+}  // namespace
+}  // namespace crushdem

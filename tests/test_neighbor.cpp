@@ -1,0 +1,142 @@
+// Neighbour list against an O(N^2) search, and contact history across rebuilds and compaction.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "crushdem/core/random.hpp"
+#include "crushdem/neighbor/neighbor_list.hpp"
+#include "helpers.hpp"
+
+namespace crushdem {
+namespace {
+
+ParticleStore random_store(std::size_t n, double r_min, double r_max, double L, std::uint64_t seed) {
+  ParticleStore p;
+  RandomStream rng(seed);
+  TopologyChange ch;
+  for (std::size_t i = 0; i < n; ++i) {
+    NewParticle np;
+    // log-uniform radii: every size level is populated
+    np.radius = r_min * std::pow(r_max / r_min, rng.uniform());
+    np.position = {rng.uniform(0, L), rng.uniform(0, L), rng.uniform(0, L)};
+    np.density = 2650;
+    ch.add.push_back(np);
+  }
+  p.apply(ch);
+  return p;
+}
+
+std::set<std::pair<ParticleId, ParticleId>> list_pairs(const NeighborList& nl,
+                                                       const ParticleStore& p) {
+  std::set<std::pair<ParticleId, ParticleId>> s;
+  for (std::size_t i = 0; i + 1 < nl.offsets.size(); ++i) {
+    for (auto e = nl.offsets[i]; e < nl.offsets[i + 1]; ++e) {
+      const ParticleId a = p.id[i], b = p.id[nl.neighbors[e]];
+      EXPECT_TRUE(s.insert({std::min(a, b), std::max(a, b)}).second) << "pair listed twice";
+    }
+  }
+  return s;
+}
+
+std::set<std::pair<ParticleId, ParticleId>> brute_pairs(const ParticleStore& p, double skin) {
+  std::set<std::pair<ParticleId, ParticleId>> s;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    for (std::size_t j = i + 1; j < p.size(); ++j) {
+      const double dx = p.x[i] - p.x[j], dy = p.y[i] - p.y[j], dz = p.z[i] - p.z[j];
+      const double c = p.radius[i] + p.radius[j] + skin;
+      if (dx * dx + dy * dy + dz * dz < c * c) {
+        s.insert({std::min(p.id[i], p.id[j]), std::max(p.id[i], p.id[j])});
+      }
+    }
+  }
+  return s;
+}
+
+class NeighborBruteForce : public ::testing::TestWithParam<double> {};
+
+TEST_P(NeighborBruteForce, EqualsQuadraticSearch) {
+  const double ratio = GetParam();  // r_max / r_min
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    ParticleStore p = random_store(1500, 1e-4 / ratio, 1e-4, 2e-3, seed);
+    NeighborList nl;
+    const double skin = 2e-5;
+    nl.build(p, skin);
+    EXPECT_EQ(list_pairs(nl, p), brute_pairs(p, skin));
+    // Reverse list: every entry appears exactly once, under its partner.
+    std::vector<int> seen(nl.neighbors.size(), 0);
+    for (std::size_t j = 0; j < p.size(); ++j) {
+      for (auto k = nl.rev_offsets[j]; k < nl.rev_offsets[j + 1]; ++k) {
+        EXPECT_EQ(nl.neighbors[nl.rev_entries[k]], j);
+        ++seen[nl.rev_entries[k]];
+      }
+    }
+    EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(RadiusRatios, NeighborBruteForce, ::testing::Values(1.0, 1.8, 30.0, 100.0));
+
+TEST(Neighbor, RebuildCriterion) {
+  ParticleStore p = random_store(200, 5e-5, 1e-4, 1e-3, 7);
+  NeighborList nl;
+  nl.build(p, 2e-5);
+  EXPECT_FALSE(nl.needs_rebuild(p));
+  p.x[3] += 0.9e-5;
+  EXPECT_FALSE(nl.needs_rebuild(p));
+  p.x[3] += 0.2e-5;  // moved more than half the skin
+  EXPECT_TRUE(nl.needs_rebuild(p));
+}
+
+// A sheared pair keeps its tangential force when the list is rebuilt, particles are re-sorted,
+// and unrelated particles are removed before them (indices shift, ids do not): the pair evolves
+// exactly as in a run where nothing was removed.
+TEST(Neighbor, TangentialHistorySurvivesRebuildAndCompaction) {
+  SimulationConfig cfg = testing::box_config(-1e-3, 1e-3);
+  cfg.timestep.dt = 1e-9;
+  const double R = 1e-4;
+  auto make = [&](Simulation& sim, std::vector<ParticleId>& others) {
+    for (int k = 0; k < 5; ++k) {
+      others.push_back(sim.add_particle({-8e-4, -8e-4 + 3e-4 * k, 0}, 1e-4));
+    }
+    const ParticleId a = sim.add_particle({-R + 2e-7, 0, 0}, R, {0, 0.01, 0});
+    const ParticleId b = sim.add_particle({R - 2e-7, 0, 0}, R, {0, -0.01, 0});
+    return std::pair{a, b};
+  };
+  Simulation with(cfg), without(cfg);
+  std::vector<ParticleId> others, unused;
+  const auto [a, b] = make(with, others);
+  make(without, unused);
+  auto ft_of_pair = [&](const Simulation& sim) {
+    for (const auto& c : sim.contacts()) {
+      if (!c.is_wall && ((c.id_i == a && c.id_j == b) || (c.id_i == b && c.id_j == a))) {
+        return c.id_i == a ? c.F_t : -c.F_t;
+      }
+    }
+    return Vec3{};
+  };
+  with.step(200);
+  without.step(200);
+  ASSERT_GT(norm(ft_of_pair(with)), 0.0);
+  TopologyChange ch;
+  for (std::size_t i = 0; i < with.particles().size(); ++i) {
+    if (std::find(others.begin(), others.end(), with.particles().id[i]) != others.end()) {
+      ch.remove.push_back(i);
+    }
+  }
+  ASSERT_EQ(ch.remove.size(), 5u);
+  const auto builds = with.neighbors().builds();
+  with.apply_topology(ch);
+  with.step(50);
+  without.step(50);
+  EXPECT_GT(with.neighbors().builds(), builds);
+  const Vec3 f1 = ft_of_pair(with), f2 = ft_of_pair(without);
+  ASSERT_GT(norm(f2), 0.0);
+  EXPECT_DOUBLE_EQ(f1.x, f2.x);
+  EXPECT_DOUBLE_EQ(f1.y, f2.y);
+  EXPECT_DOUBLE_EQ(f1.z, f2.z);
+}
+
+}  // namespace
+}  // namespace crushdem

@@ -1,0 +1,81 @@
+// Rough-surface Hertz law (model-notes 1.2) against the constants stated there.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "crushdem/contact/rough_hertz.hpp"
+
+namespace crushdem {
+namespace {
+
+TEST(RoughLaw, ZeroRoughnessIsHertzExactly) {
+  const RoughHertzParams p = make_rough_hertz(0.0, 0.05, 5.0);
+  for (double delta : {1e-9, 3.7e-8, 1e-7, 2.5e-6}) {
+    const NormalForce a = rough_hertz_normal(delta, 5e-5, 3.95e10, p);
+    const NormalForce b = hertz_normal(delta, 5e-5, 3.95e10);
+    EXPECT_EQ(a.F_n, b.F_n);
+    EXPECT_EQ(a.k_n, b.k_n);
+  }
+}
+
+struct Expected {
+  double k1, k2, dT1_s, dT2_s, b, c, tol;
+};
+
+class RoughConstants : public ::testing::TestWithParam<Expected> {};
+
+TEST_P(RoughConstants, MatchModelNotes) {
+  const Expected e = GetParam();
+  for (double s : {0.6e-6 * std::sqrt(2.0), 0.6e-6, 3e-7}) {
+    const RoughHertzParams p = make_rough_hertz(s, e.k1, e.k2);
+    EXPECT_NEAR(p.d_T1 / s, e.dT1_s, e.tol * e.dT1_s);
+    EXPECT_NEAR(p.d_T2 / s, e.dT2_s, e.tol * e.dT2_s);
+    EXPECT_NEAR(p.b, e.b, e.tol * e.b);
+    EXPECT_NEAR(p.c, e.c, e.tol * e.c);
+  }
+}
+
+// The notes give 3-4 significant digits; the tolerance is half a unit of the last one.
+INSTANTIATE_TEST_SUITE_P(BothPairs, RoughConstants,
+                         ::testing::Values(Expected{1, 100, 2.109, 24.47, 1.583, 2.590, 5e-4},
+                                           Expected{0.05, 5, 1.30, 5.10, 2.112, 5.693, 4e-3}));
+
+TEST(RoughLaw, ForceAndStiffnessContinuousAtTransitions) {
+  for (auto [k1, k2] : {std::pair{0.05, 5.0}, std::pair{1.0, 100.0}}) {
+    const double s = 0.6e-6 * std::sqrt(2.0);
+    const RoughHertzParams p = make_rough_hertz(s, k1, k2);
+    for (double R_star : {5e-6, 5e-5, 1e-4}) {
+      for (double d : {p.d_T1, p.d_T2}) {
+        const double eps = d * 1e-12;
+        const NormalForce lo = rough_hertz_normal(d - eps, R_star, 3.95e10, p);
+        const NormalForce hi = rough_hertz_normal(d + eps, R_star, 3.95e10, p);
+        EXPECT_NEAR(lo.F_n / hi.F_n, 1.0, 1e-9) << "force jump at " << d / s << " s";
+        EXPECT_NEAR(lo.k_n / hi.k_n, 1.0, 1e-9) << "stiffness jump at " << d / s << " s";
+      }
+      // Transition loads: N(d_T1) = k1 X, N(d_T2) = k2 X, X = s E* sqrt(2 R* s).
+      const double X = s * 3.95e10 * std::sqrt(2.0 * R_star * s);
+      EXPECT_NEAR(rough_hertz_normal(p.d_T1, R_star, 3.95e10, p).F_n / (k1 * X), 1.0, 1e-12);
+      EXPECT_NEAR(rough_hertz_normal(p.d_T2, R_star, 3.95e10, p).F_n / (k2 * X), 1.0, 1e-12);
+    }
+  }
+}
+
+TEST(RoughLaw, StiffnessIsTheDerivativeOfForce) {
+  const RoughHertzParams p = make_rough_hertz(0.85e-6, 0.05, 5.0);
+  for (double d : {0.5e-6, 2e-6, 4e-6, 8e-6}) {
+    const double h = d * 1e-6;
+    const double dF = (rough_hertz_normal(d + h, 5e-5, 3.95e10, p).F_n -
+                       rough_hertz_normal(d - h, 5e-5, 3.95e10, p).F_n) / (2 * h);
+    EXPECT_NEAR(rough_hertz_normal(d, 5e-5, 3.95e10, p).k_n / dF, 1.0, 1e-6);
+  }
+}
+
+TEST(RoughLaw, SofterThanHertzAtSmallOverlap) {
+  // Asperities make the contact softer at first: at the same overlap, less force than Hertz.
+  const RoughHertzParams p = make_rough_hertz(0.85e-6, 0.05, 5.0);
+  const double d = 2e-6;
+  EXPECT_LT(rough_hertz_normal(d, 5e-5, 3.95e10, p).F_n, hertz_normal(d, 5e-5, 3.95e10).F_n);
+}
+
+}  // namespace
+}  // namespace crushdem
