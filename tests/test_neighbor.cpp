@@ -12,7 +12,8 @@
 namespace crushdem {
 namespace {
 
-ParticleStore random_store(std::size_t n, double r_min, double r_max, double L, std::uint64_t seed) {
+ParticleStore random_store(std::size_t n, double r_min, double r_max, double L,
+                           std::uint64_t seed) {
   ParticleStore p;
   RandomStream rng(seed);
   TopologyChange ch;
@@ -76,7 +77,8 @@ TEST_P(NeighborBruteForce, EqualsQuadraticSearch) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(RadiusRatios, NeighborBruteForce, ::testing::Values(1.0, 1.8, 30.0, 100.0));
+INSTANTIATE_TEST_SUITE_P(RadiusRatios, NeighborBruteForce,
+                         ::testing::Values(1.0, 1.8, 30.0, 100.0));
 
 TEST(Neighbor, RebuildCriterion) {
   ParticleStore p = random_store(200, 5e-5, 1e-4, 1e-3, 7);

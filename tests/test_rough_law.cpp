@@ -65,7 +65,8 @@ TEST(RoughLaw, StiffnessIsTheDerivativeOfForce) {
   for (double d : {0.5e-6, 2e-6, 4e-6, 8e-6}) {
     const double h = d * 1e-6;
     const double dF = (rough_hertz_normal(d + h, 5e-5, 3.95e10, p).F_n -
-                       rough_hertz_normal(d - h, 5e-5, 3.95e10, p).F_n) / (2 * h);
+                       rough_hertz_normal(d - h, 5e-5, 3.95e10, p).F_n) /
+                      (2 * h);
     EXPECT_NEAR(rough_hertz_normal(d, 5e-5, 3.95e10, p).k_n / dF, 1.0, 1e-6);
   }
 }

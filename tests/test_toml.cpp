@@ -48,7 +48,9 @@ const Value& at(const Table& t, const std::string& key) {
   if (it == t.end()) throw std::out_of_range("missing key " + key);
   return it->second;
 }
-const Table& sub(const Table& t, const std::string& key) { return *at(t, key).table; }
+const Table& sub(const Table& t, const std::string& key) {
+  return *at(t, key).table;
+}
 
 TEST(TomlParse, EmptyAndCommentsAndBlankLines) {
   EXPECT_TRUE(parse("").empty());

@@ -57,9 +57,11 @@ int bench_main(const std::vector<std::string>& args) {
   const long warm = a.integer("--warm", static_cast<long>(env_number("WARM", 500)));
   const long threads = a.integer("--threads", static_cast<long>(env_number("THREADS", 0)));
   const std::string law = a.value("--law", "hertz");
-  const std::string state_out = a.value("--state-out", std::getenv("STATE_OUT") ? std::getenv("STATE_OUT") : "");
+  const char* env_state_out = std::getenv("STATE_OUT");
+  const std::string state_out = a.value("--state-out", env_state_out ? env_state_out : "");
   a.finish();
-  if (steps <= 0) throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
+  if (steps <= 0)
+    throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
   set_threads(threads);
 
@@ -103,11 +105,10 @@ int bench_main(const std::vector<std::string>& args) {
   double p_wall = 0.0;
   for (int k = 0; k < kNumWalls; ++k) p_wall += walls.stress(k) / kNumWalls;
   const auto s = sim.love_weber_stress();
-  std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e\n", N, steps,
-              warm, current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin);
+  std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e\n", N, steps, warm,
+              current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin);
   std::printf("neighbor_pairs=%zu contacts=%zu neigh_builds_timed=%zu\n",
-              sim.neighbors().num_pairs(), sim.num_contacts(),
-              sim.neighbors().builds() - builds0);
+              sim.neighbors().num_pairs(), sim.num_contacts(), sim.neighbors().builds() - builds0);
   std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,
               sim.kinetic_energy());
   std::printf("engine_bytes_per_particle=%.0f peak_rss_kib=%ld wall_s=%.4f\n",

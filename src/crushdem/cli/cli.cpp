@@ -112,7 +112,7 @@ int cli_main(const std::vector<std::string>& args) {
     std::fputs(kUsage, args.empty() ? stderr : stdout);
     return args.empty() ? 2 : 0;
   }
-  const std::string cmd = args[0];
+  const std::string& cmd = args[0];
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   try {
     if (cmd == "bench") return bench_main(rest);

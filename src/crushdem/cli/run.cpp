@@ -22,9 +22,9 @@ int run_main(const std::vector<std::string>& args) {
   opt.out_dir = out;
   opt.progress = !quiet;
   const RunSummary s = run_to_directory(cfg, opt);
-  std::printf("crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
-              static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds,
-              out.c_str());
+  std::printf(
+      "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
+      static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds, out.c_str());
   return 0;
 }
 

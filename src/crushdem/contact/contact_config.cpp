@@ -33,8 +33,8 @@ void MaterialConfig::validate() const {
 }
 
 void ContactConfig::validate() const {
-  require(roughness_Sq >= 0.0 && std::isfinite(roughness_Sq), "contact.roughness_Sq",
-          roughness_Sq, "a roughness >= 0 in m");
+  require(roughness_Sq >= 0.0 && std::isfinite(roughness_Sq), "contact.roughness_Sq", roughness_Sq,
+          "a roughness >= 0 in m");
   require(k1 > 0.0 && std::isfinite(k1), "contact.k1", k1, "a positive number");
   require(k2 > k1 && std::isfinite(k2), "contact.k2", k2, "a number larger than contact.k1");
   require(wall_friction >= 0.0 && std::isfinite(wall_friction), "contact.wall_friction",
@@ -43,7 +43,9 @@ void ContactConfig::validate() const {
           "a coefficient of restitution in (0, 1] (1 = no viscous damping)");
 }
 
-const char* to_string(NormalLaw law) { return law == NormalLaw::Hertz ? "hertz" : "rough"; }
+const char* to_string(NormalLaw law) {
+  return law == NormalLaw::Hertz ? "hertz" : "rough";
+}
 
 NormalLaw parse_normal_law(const std::string& s, const std::string& key) {
   if (s == "hertz") return NormalLaw::Hertz;

@@ -11,11 +11,11 @@
 namespace crushdem {
 
 struct MaterialConfig {
-  double density = 2650.0;        // [kg/m^3] quartz (CHOICE)
-  double shear_modulus = 32e9;    // G [Pa] (STUDY, Table 1)
-  double poisson_ratio = 0.19;    // nu [-] (STUDY)
-  double friction = 0.275;        // mu, grain-grain [-] (STUDY)
-  void validate() const;          // throws ConfigError naming "material.<key>"
+  double density = 2650.0;      // [kg/m^3] quartz (CHOICE)
+  double shear_modulus = 32e9;  // G [Pa] (STUDY, Table 1)
+  double poisson_ratio = 0.19;  // nu [-] (STUDY)
+  double friction = 0.275;      // mu, grain-grain [-] (STUDY)
+  void validate() const;        // throws ConfigError naming "material.<key>"
   double E_star() const { return effective_modulus(shear_modulus, poisson_ratio); }
 };
 

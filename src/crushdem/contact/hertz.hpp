@@ -19,7 +19,9 @@ struct NormalForce {
 };
 
 /// E* for two grains of one material from the shear modulus G and Poisson's ratio nu.
-CD_HD inline double effective_modulus(double G, double nu) { return G / (1.0 - nu); }
+CD_HD inline double effective_modulus(double G, double nu) {
+  return G / (1.0 - nu);
+}
 
 CD_HD inline NormalForce hertz_normal(double delta, double R_star, double E_star) {
   if (delta <= 0.0) return {};

@@ -28,7 +28,7 @@ namespace crushdem {
 
 /// Constants of the rough law for one combined roughness s (lengths in metres).
 struct RoughHertzParams {
-  double s = 0.0;     // combined rms roughness [m]; 0 means smooth Hertz
+  double s = 0.0;  // combined rms roughness [m]; 0 means smooth Hertz
   double k1 = 0.05, k2 = 5.0;
   double d_p1 = 0.0, d_ps = 0.0, d_T1 = 0.0, d_T2 = 0.0;
   double b = 0.0, c = 0.0;

@@ -14,7 +14,9 @@
 namespace crushdem {
 
 /// k_t / k_n for one material.
-CD_HD inline double mindlin_stiffness_ratio(double nu) { return 2.0 * (1.0 - nu) / (2.0 - nu); }
+CD_HD inline double mindlin_stiffness_ratio(double nu) {
+  return 2.0 * (1.0 - nu) / (2.0 - nu);
+}
 
 /// Returns the new tangential force; du_t is the tangential relative displacement of the first
 /// body with respect to the second over the step, n the unit contact normal.

@@ -22,11 +22,21 @@ struct Vec3 {
   double x = 0.0, y = 0.0, z = 0.0;
 };
 
-CD_HD inline Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-CD_HD inline Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-CD_HD inline Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
-CD_HD inline Vec3 operator*(double s, Vec3 a) { return {s * a.x, s * a.y, s * a.z}; }
-CD_HD inline Vec3 operator*(Vec3 a, double s) { return {s * a.x, s * a.y, s * a.z}; }
+CD_HD inline Vec3 operator+(Vec3 a, Vec3 b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+CD_HD inline Vec3 operator-(Vec3 a, Vec3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+CD_HD inline Vec3 operator-(Vec3 a) {
+  return {-a.x, -a.y, -a.z};
+}
+CD_HD inline Vec3 operator*(double s, Vec3 a) {
+  return {s * a.x, s * a.y, s * a.z};
+}
+CD_HD inline Vec3 operator*(Vec3 a, double s) {
+  return {s * a.x, s * a.y, s * a.z};
+}
 CD_HD inline Vec3& operator+=(Vec3& a, Vec3 b) {
   a.x += b.x;
   a.y += b.y;
@@ -39,11 +49,15 @@ CD_HD inline Vec3& operator-=(Vec3& a, Vec3 b) {
   a.z -= b.z;
   return a;
 }
-CD_HD inline double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+CD_HD inline double dot(Vec3 a, Vec3 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 CD_HD inline Vec3 cross(Vec3 a, Vec3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-CD_HD inline double norm(Vec3 a) { return std::sqrt(dot(a, a)); }
+CD_HD inline double norm(Vec3 a) {
+  return std::sqrt(dot(a, a));
+}
 
 inline constexpr double kPi = 3.14159265358979323846;
 

@@ -74,14 +74,15 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   m.emplace_back("std_Ft_N", sd(sum_ft, sum_ft2));
   // Unbalanced-force ratio: mean resultant force on a grain over the mean contact force.
   const double mean_unbalanced =
-      p.size() ? deterministic_sum(p.size(),
-                                   [&](std::size_t i) {
-                                     return std::sqrt(p.fx[i] * p.fx[i] + p.fy[i] * p.fy[i] +
-                                                      p.fz[i] * p.fz[i]);
-                                   }) /
+      p.size() ? deterministic_sum(
+                     p.size(),
+                     [&](std::size_t i) {
+                       return std::sqrt(p.fx[i] * p.fx[i] + p.fy[i] * p.fy[i] + p.fz[i] * p.fz[i]);
+                     }) /
                      static_cast<double>(p.size())
-                : 0.0;
-  m.emplace_back("unbalanced_force_ratio", n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
+               : 0.0;
+  m.emplace_back("unbalanced_force_ratio",
+                 n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
   m.emplace_back("kinetic_energy_J", sim.kinetic_energy());
   m.emplace_back("dt_s", sim.current_dt());
   return m;

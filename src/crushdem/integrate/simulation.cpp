@@ -65,9 +65,9 @@ void SimulationConfig::validate() const {
     const double lo = walls[static_cast<std::size_t>(2 * a)].position;
     const double hi = walls[static_cast<std::size_t>(2 * a + 1)].position;
     if (!(hi > lo)) {
-      throw ConfigError(bad_value(std::string("walls.") + wall_name(2 * a + 1) + ".position",
-                                  num(hi), std::string("a position above walls.") +
-                                               wall_name(2 * a) + ".position = " + num(lo)));
+      throw ConfigError(bad_value(
+          std::string("walls.") + wall_name(2 * a + 1) + ".position", num(hi),
+          std::string("a position above walls.") + wall_name(2 * a) + ".position = " + num(lo)));
     }
   }
 }
@@ -158,8 +158,9 @@ void Simulation::rebuild_neighbors() {
       const double pos = walls_.position(k);
       const double dist = wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)];
       if (!(dist > -p_.radius[i])) {
-        throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) + " left the box through wall " +
-                             wall_name(k) + " at t = " + num(time_) + " s");
+        throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) +
+                             " left the box through wall " + wall_name(k) +
+                             " at t = " + num(time_) + " s");
       }
     }
   }
@@ -207,10 +208,11 @@ void Simulation::rebuild_neighbors() {
         const auto e = static_cast<std::size_t>(ee);
         const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
         const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
-        auto it = std::lower_bound(saved_pairs_.begin(), saved_pairs_.end(), PairHistory{a, b, 0, 0, 0},
-                                   [](const PairHistory& u, const PairHistory& v) {
-                                     return std::tie(u.a, u.b) < std::tie(v.a, v.b);
-                                   });
+        auto it =
+            std::lower_bound(saved_pairs_.begin(), saved_pairs_.end(), PairHistory{a, b, 0, 0, 0},
+                             [](const PairHistory& u, const PairHistory& v) {
+                               return std::tie(u.a, u.b) < std::tie(v.a, v.b);
+                             });
         if (it != saved_pairs_.end() && it->a == a && it->b == b) {
           const double s = ia == a ? 1.0 : -1.0;
           ft_x_[e] = s * it->x;
@@ -298,7 +300,8 @@ void Simulation::pair_forces(const Law& law, double h) {
       const Vec3 tn = cross(n, c.tangential);
       F += c.force;
       T += a_i * tn;
-      react[e] = Reaction{{-c.force.x, -c.force.y, -c.force.z}, {a_j * tn.x, a_j * tn.y, a_j * tn.z}};
+      react[e] =
+          Reaction{{-c.force.x, -c.force.y, -c.force.z}, {a_j * tn.x, a_j * tn.y, a_j * tn.z}};
     }
     FX[i] = F.x;
     FY[i] = F.y;
@@ -337,8 +340,8 @@ void Simulation::wall_forces(const Law& law, double h) {
     }
     const Vec3 n = n_out[ks];
     const Vec3 w{p_.wx[i], p_.wy[i], p_.wz[i]};
-    const Vec3 v_rel = Vec3{p_.vx[i], p_.vy[i], p_.vz[i]} + cross(w, dist * n) - vel[ks] * n *
-                       (wall_is_low(k) ? -1.0 : 1.0);
+    const Vec3 v_rel = Vec3{p_.vx[i], p_.vy[i], p_.vz[i]} + cross(w, dist * n) -
+                       vel[ks] * n * (wall_is_low(k) ? -1.0 : 1.0);
     const ContactResponse r =
         contact_response(law, delta, p_.radius[i], p_.mass[i], n, v_rel,
                          Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]}, cp.mu_wall, cp, h);
@@ -438,7 +441,6 @@ void Simulation::evaluate_forces(double increment_dt, bool kick) {
   forces_valid_ = true;
 }
 
-
 // --- time integration --------------------------------------------------------------------------
 
 double Simulation::kick_drift() {
@@ -507,8 +509,9 @@ double Simulation::stiffness_dt() const {
       const double dx = p_.x[j] - p_.x[i], dy = p_.y[j] - p_.y[i], dz = p_.z[j] - p_.z[i];
       const double delta = p_.radius[i] + p_.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
       if (delta <= 0.0) continue;
-      const double k = kt_ratio * law_k(delta, p_.radius[i] * p_.radius[j] /
-                                                   (p_.radius[i] + p_.radius[j]), false);
+      const double k =
+          kt_ratio *
+          law_k(delta, p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]), false);
       ksum[i] += k;
       ksum[j] += k;
     }
@@ -564,9 +567,9 @@ double Simulation::kinetic_energy() const {
 std::size_t Simulation::memory_bytes() const {
   std::size_t b = 0;
   auto add = [&b](const auto& v) { b += v.capacity() * sizeof(v[0]); };
-  for (const auto* v : {&p_.x, &p_.y, &p_.z, &p_.vx, &p_.vy, &p_.vz, &p_.wx, &p_.wy, &p_.wz,
-                        &p_.fx, &p_.fy, &p_.fz, &p_.tx, &p_.ty, &p_.tz, &p_.radius, &p_.mass,
-                        &p_.inv_mass, &p_.inv_inertia}) {
+  for (const auto* v :
+       {&p_.x, &p_.y, &p_.z, &p_.vx, &p_.vy, &p_.vz, &p_.wx, &p_.wy, &p_.wz, &p_.fx, &p_.fy, &p_.fz,
+        &p_.tx, &p_.ty, &p_.tz, &p_.radius, &p_.mass, &p_.inv_mass, &p_.inv_inertia}) {
     add(*v);
   }
   add(p_.id);

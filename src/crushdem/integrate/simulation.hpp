@@ -30,15 +30,16 @@ struct DampingConfig {
 };
 
 struct TimestepConfig {
-  double dt = 0.0;                 // fixed step [s]; 0 = automatic
-  double rayleigh_fraction = 0.2;  // automatic: dt <= fraction * Rayleigh time of the smallest grain
-  double safety = 0.3;             // automatic: dt <= safety * min_i sqrt(m_i / sum k_i)
+  double dt = 0.0;  // fixed step [s]; 0 = automatic
+  double rayleigh_fraction =
+      0.2;              // automatic: dt <= fraction * Rayleigh time of the smallest grain
+  double safety = 0.3;  // automatic: dt <= safety * min_i sqrt(m_i / sum k_i)
   std::uint64_t update_interval = 1000;  // automatic: steps between re-evaluations
   void validate() const;
 };
 
 struct NeighborConfig {
-  double skin = 0.0;         // Verlet skin [m]; 0 = 0.5 * smallest radius at the first build
+  double skin = 0.0;           // Verlet skin [m]; 0 = 0.5 * smallest radius at the first build
   bool sort_particles = true;  // reorder particles in cell order at each rebuild (cache locality)
   void validate() const;
 };
@@ -58,10 +59,10 @@ struct ContactRecord {
   ParticleId id_i = 0;
   ParticleId id_j = 0;  // for a wall contact: the wall index 0..5
   bool is_wall = false;
-  double delta = 0.0;   // overlap [m]
-  double F_n = 0.0;     // elastic normal force [N]
-  Vec3 normal;          // unit normal from i towards j (or into the wall)
-  Vec3 F_t;             // tangential force on i [N]
+  double delta = 0.0;  // overlap [m]
+  double F_n = 0.0;    // elastic normal force [N]
+  Vec3 normal;         // unit normal from i towards j (or into the wall)
+  Vec3 F_t;            // tangential force on i [N]
 };
 
 class Simulation {
@@ -87,7 +88,7 @@ class Simulation {
   std::uint64_t step_count() const { return steps_; }
   /// The step the next call to step() uses (computes it if automatic).
   double dt();
-  void set_dt(double dt);  // fixes the step (overrides automatic)
+  void set_dt(double dt);                    // fixes the step (overrides automatic)
   double current_dt() const { return dt_; }  // the step last used (0 before the first)
 
   /// Touching contacts at the current state (grain-grain then grain-wall).

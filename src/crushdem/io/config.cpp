@@ -79,7 +79,8 @@ class Section {
     present = false;
     if (const Value* v = find(k)) {
       if (v->type != Type::Array || v->array.size() != 3 ||
-          !std::all_of(v->array.begin(), v->array.end(), [](const Value& x) { return x.is_number(); })) {
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.is_number(); })) {
         fail(k, *v, "an array of 3 numbers [x, y, z] in m");
       }
       for (int d = 0; d < 3; ++d) out[d] = v->array[static_cast<std::size_t>(d)].as_number();
@@ -155,7 +156,8 @@ void read_simulation(Section& root, SimulationConfig& c) {
     Section s = root.sub("box");
     if (!root.has("box")) {
       throw ConfigError(
-          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, m)");
+          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, "
+          "m)");
     }
     double lo[3], hi[3];
     bool has_lo = false, has_hi = false;
@@ -185,8 +187,8 @@ void read_simulation(Section& root, SimulationConfig& c) {
       } else if (mode == "servo") {
         w.mode = WallMode::Servo;
       } else {
-        throw ConfigError(bad_value(s.key("mode"), "\"" + mode + "\"",
-                                    "\"fixed\", \"velocity\" or \"servo\""));
+        throw ConfigError(
+            bad_value(s.key("mode"), "\"" + mode + "\"", "\"fixed\", \"velocity\" or \"servo\""));
       }
       s.number("velocity", w.velocity);
       s.number("target_stress", w.target_stress);
@@ -198,8 +200,12 @@ void read_simulation(Section& root, SimulationConfig& c) {
   }
 }
 
-Value num(double v) { return Value::make_float(v); }
-Value cnt(std::uint64_t v) { return Value::make_integer(static_cast<std::int64_t>(v)); }
+Value num(double v) {
+  return Value::make_float(v);
+}
+Value cnt(std::uint64_t v) {
+  return Value::make_integer(static_cast<std::int64_t>(v));
+}
 
 }  // namespace
 
@@ -210,7 +216,7 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
   // Only the simulation sections are read here; the caller owns the others.
   for (const auto& [k, v] : root) {
     static const std::set<std::string> mine = {"material", "contact", "damping", "timestep",
-                                               "neighbor", "box", "walls"};
+                                               "neighbor", "box",     "walls"};
     if (!mine.count(k)) {
       throw ConfigError(r.where(v) + "unknown key '" + k +
                         "' (valid sections: material, contact, damping, timestep, neighbor, "
@@ -229,7 +235,8 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
   {
     Section s = r.sub("particles");
     if (!root.count("particles")) {
-      throw ConfigError("missing section [particles]: expected file = \"...\" or [particles.generate]");
+      throw ConfigError(
+          "missing section [particles]: expected file = \"...\" or [particles.generate]");
     }
     s.string("file", c.particles.file);
     if (!c.particles.file.empty() && std::filesystem::path(c.particles.file).is_relative()) {
@@ -242,7 +249,8 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     g.count("seed", c.particles.generate.seed);
     g.finish();
     if (!c.particles.file.empty() && s.has("generate")) {
-      throw ConfigError("particles: give either 'particles.file' or [particles.generate], not both");
+      throw ConfigError(
+          "particles: give either 'particles.file' or [particles.generate], not both");
     }
     s.finish();
   }
@@ -304,18 +312,19 @@ void GenerateConfig::validate(const std::array<double, 6>& box) const {
   const double dm = 0.5 * (diameter_min + diameter_max);
   const double solid = static_cast<double>(count) * kPi / 6.0 * dm * dm * dm;
   if (solid > 0.3 * V) {
-    throw ConfigError(bad_value("particles.generate.count", std::to_string(count),
-                                "at most about " +
-                                    std::to_string(static_cast<long>(0.3 * V / (kPi / 6.0 * dm * dm * dm))) +
-                                    " grains: random placement without overlap cannot exceed a "
-                                    "solid fraction of 0.3 in this box"));
+    throw ConfigError(bad_value(
+        "particles.generate.count", std::to_string(count),
+        "at most about " + std::to_string(static_cast<long>(0.3 * V / (kPi / 6.0 * dm * dm * dm))) +
+            " grains: random placement without overlap cannot exceed a "
+            "solid fraction of 0.3 in this box"));
   }
 }
 
 void ParticlesConfig::validate(const std::array<double, 6>& box) const {
   if (file.empty()) {
     if (generate.count == 0) {
-      throw ConfigError("particles: expected 'particles.file' or [particles.generate] with count > 0");
+      throw ConfigError(
+          "particles: expected 'particles.file' or [particles.generate] with count > 0");
     }
     generate.validate(box);
   } else if (!std::filesystem::exists(file)) {
@@ -324,10 +333,11 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
 }
 
 void OutputConfig::validate() const {
-  if (interval == 0) throw ConfigError(bad_value("output.interval", "0", "a positive number of steps"));
+  if (interval == 0)
+    throw ConfigError(bad_value("output.interval", "0", "a positive number of steps"));
   if (!(progress_seconds >= 0.0)) {
-    throw ConfigError(bad_value("output.progress_seconds", std::to_string(progress_seconds),
-                                "a time >= 0 in s"));
+    throw ConfigError(
+        bad_value("output.progress_seconds", std::to_string(progress_seconds), "a time >= 0 in s"));
   }
 }
 
@@ -336,8 +346,9 @@ void RunConfig::validate() const {
   particles.validate(box());
   output.validate();
   if ((steps == 0) == (duration <= 0.0)) {
-    throw ConfigError("run: expected exactly one of 'run.steps' (a positive count) or "
-                      "'run.duration' (a positive time in s)");
+    throw ConfigError(
+        "run: expected exactly one of 'run.steps' (a positive count) or "
+        "'run.duration' (a positive time in s)");
   }
   if (!std::isfinite(duration) || duration < 0.0) {
     throw ConfigError(bad_value("run.duration", std::to_string(duration), "a positive time in s"));

@@ -129,9 +129,11 @@ void write_vtk_particles(const std::string& path, const ParticleStore& p) {
 void write_vtk_box(const std::string& path, const double b[6]) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw ConfigError("cannot write '" + path + "'");
-  std::fprintf(f, "# vtk DataFile Version 3.0\ncrushdem walls\nASCII\nDATASET POLYDATA\nPOINTS 8 double\n");
+  std::fprintf(
+      f, "# vtk DataFile Version 3.0\ncrushdem walls\nASCII\nDATASET POLYDATA\nPOINTS 8 double\n");
   for (int k = 0; k < 8; ++k) {
-    std::fprintf(f, "%.17g %.17g %.17g\n", b[(k & 1) ? 1 : 0], b[(k & 2) ? 3 : 2], b[(k & 4) ? 5 : 4]);
+    std::fprintf(f, "%.17g %.17g %.17g\n", b[(k & 1) ? 1 : 0], b[(k & 2) ? 3 : 2],
+                 b[(k & 4) ? 5 : 4]);
   }
   std::fprintf(f,
                "POLYGONS 6 30\n4 0 2 6 4\n4 1 3 7 5\n4 0 1 5 4\n4 2 3 7 6\n4 0 1 3 2\n4 4 5 7 6\n");

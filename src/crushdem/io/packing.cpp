@@ -35,7 +35,7 @@ Packing read_packing(const std::string& path) {
     if (line[0] == '#') {
       const auto eq = line.find('=');
       if (eq != std::string::npos) {
-        auto trim = [](std::string s) {
+        auto trim = [](const std::string& s) {
           const auto b = s.find_first_not_of(" \t\r");
           const auto e = s.find_last_not_of(" \t\r");
           return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);

@@ -30,7 +30,8 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
           throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) +
                             " lies outside the box given by [box]");
         }
-        if (2.0 * rad > box[static_cast<std::size_t>(2 * a + 1)] - box[static_cast<std::size_t>(2 * a)]) {
+        if (2.0 * rad >
+            box[static_cast<std::size_t>(2 * a + 1)] - box[static_cast<std::size_t>(2 * a)]) {
           throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) +
                             " (diameter " + format_double(r.diameter) +
                             " m) is larger than the box");
@@ -68,7 +69,8 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(fs::path(opt.out_dir) / "vtk", ec);
-  if (ec) throw ConfigError("--out '" + opt.out_dir + "': cannot create directory: " + ec.message());
+  if (ec)
+    throw ConfigError("--out '" + opt.out_dir + "': cannot create directory: " + ec.message());
   write_text_file((fs::path(opt.out_dir) / "config.toml").string(), toml::serialize(to_toml(cfg)));
 
   Simulation sim(cfg.simulation);
@@ -106,15 +108,18 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     if (cfg.output.vtk_interval > 0 && s % cfg.output.vtk_interval == 0 && !done()) snapshot();
     if (opt.progress && cfg.output.progress_seconds > 0 && s % 64 == 0) {
       const auto now = clock::now();
-      if (std::chrono::duration<double>(now - last_progress).count() >= cfg.output.progress_seconds) {
+      if (std::chrono::duration<double>(now - last_progress).count() >=
+          cfg.output.progress_seconds) {
         last_progress = now;
         const double frac = cfg.steps > 0 ? static_cast<double>(s) / static_cast<double>(cfg.steps)
                                           : sim.time() / cfg.duration;
         const double el = std::chrono::duration<double>(now - t0).count();
-        std::fprintf(stderr, "[crushdem] step %llu  t = %.4e s  (%.1f %%)  sigma_zz(wall) = %.4g MPa  ETA %.0f s\n",
-                     static_cast<unsigned long long>(s), sim.time(), 100.0 * frac,
-                     0.5e-6 * (sim.walls().stress(4) + sim.walls().stress(5)),
-                     frac > 0 ? el * (1.0 - frac) / frac : 0.0);
+        std::fprintf(
+            stderr,
+            "[crushdem] step %llu  t = %.4e s  (%.1f %%)  sigma_zz(wall) = %.4g MPa  ETA %.0f s\n",
+            static_cast<unsigned long long>(s), sim.time(), 100.0 * frac,
+            0.5e-6 * (sim.walls().stress(4) + sim.walls().stress(5)),
+            frac > 0 ? el * (1.0 - frac) / frac : 0.0);
       }
     }
   }
@@ -140,10 +145,10 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 #else
   timing.integer("threads", 1);
 #endif
-  timing.number("particle_steps_per_second",
-                secs > 0 ? static_cast<double>(sim.particles().size()) *
-                               static_cast<double>(sim.step_count()) / secs
-                         : 0.0);
+  timing.number("particle_steps_per_second", secs > 0
+                                                 ? static_cast<double>(sim.particles().size()) *
+                                                       static_cast<double>(sim.step_count()) / secs
+                                                 : 0.0);
   timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
   write_text_file((fs::path(opt.out_dir) / "timing.json").string(), timing.dump() + "\n");
 

@@ -86,7 +86,9 @@ Value Value::make_table(Table t) {
   return v;
 }
 
-bool Value::is_number() const { return type == Type::Integer || type == Type::Float; }
+bool Value::is_number() const {
+  return type == Type::Integer || type == Type::Float;
+}
 
 double Value::as_number() const {
   if (type == Type::Integer) return static_cast<double>(integer);
@@ -133,11 +135,19 @@ const char* type_name(Type t) {
 
 namespace {
 
-bool is_digit(char c) { return c >= '0' && c <= '9'; }
-bool is_alpha(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
-bool is_bare_key_char(char c) { return is_alpha(c) || is_digit(c) || c == '_' || c == '-'; }
+bool is_digit(char c) {
+  return c >= '0' && c <= '9';
+}
+bool is_alpha(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z');
+}
+bool is_bare_key_char(char c) {
+  return is_alpha(c) || is_digit(c) || c == '_' || c == '-';
+}
 // Characters that can make up a number, boolean or (rejected) date token.
-bool is_token_char(char c) { return is_bare_key_char(c) || c == '+' || c == '.' || c == ':'; }
+bool is_token_char(char c) {
+  return is_bare_key_char(c) || c == '+' || c == '.' || c == ':';
+}
 // TOML forbids raw control characters (except tab) in strings and comments.
 bool is_control(char c) {
   const auto u = static_cast<unsigned char>(c);

@@ -23,7 +23,8 @@ std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
     return static_cast<long>(std::floor((v - box[static_cast<std::size_t>(2 * a)]) / h));
   };
   auto key = [](long i, long j, long k) {
-    return (static_cast<std::uint64_t>(i) & 0x1FFFFF) | ((static_cast<std::uint64_t>(j) & 0x1FFFFF) << 21) |
+    return (static_cast<std::uint64_t>(i) & 0x1FFFFF) |
+           ((static_cast<std::uint64_t>(j) & 0x1FFFFF) << 21) |
            ((static_cast<std::uint64_t>(k) & 0x1FFFFF) << 42);
   };
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> grid;

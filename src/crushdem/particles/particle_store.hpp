@@ -69,15 +69,15 @@ class ParticleStore {
 
   // --- the arrays (public: kernels read and write them directly) ---
   std::vector<ParticleId> id, parent;
-  std::vector<double> x, y, z;     // position [m]
-  std::vector<double> vx, vy, vz;  // velocity [m/s]
-  std::vector<double> wx, wy, wz;  // angular velocity [rad/s]
-  std::vector<double> fx, fy, fz;  // force [N]
-  std::vector<double> tx, ty, tz;  // torque [N m]
-  std::vector<double> radius;      // [m]
-  std::vector<double> mass;        // [kg]
-  std::vector<double> inv_mass;    // [1/kg]
-  std::vector<double> inv_inertia; // 1 / (2/5 m R^2) [1/(kg m^2)]
+  std::vector<double> x, y, z;      // position [m]
+  std::vector<double> vx, vy, vz;   // velocity [m/s]
+  std::vector<double> wx, wy, wz;   // angular velocity [rad/s]
+  std::vector<double> fx, fy, fz;   // force [N]
+  std::vector<double> tx, ty, tz;   // torque [N m]
+  std::vector<double> radius;       // [m]
+  std::vector<double> mass;         // [kg]
+  std::vector<double> inv_mass;     // [1/kg]
+  std::vector<double> inv_inertia;  // 1 / (2/5 m R^2) [1/(kg m^2)]
 
  private:
   void push_back(ParticleId pid, const NewParticle& p);

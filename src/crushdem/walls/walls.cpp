@@ -35,7 +35,8 @@ void WallConfig::validate(const std::string& prefix) const {
     if (!(target_stress > 0.0) || !std::isfinite(target_stress)) {
       bad("target_stress", target_stress, "a positive compressive stress in Pa for a servo wall");
     }
-    if (!(servo_alpha > 0.0 && servo_alpha <= 1.0)) bad("servo_alpha", servo_alpha, "a gain in (0, 1]");
+    if (!(servo_alpha > 0.0 && servo_alpha <= 1.0))
+      bad("servo_alpha", servo_alpha, "a gain in (0, 1]");
     if (!(max_speed > 0.0) || !std::isfinite(max_speed)) {
       bad("max_speed", max_speed, "a positive speed in m/s");
     }

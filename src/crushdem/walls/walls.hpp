@@ -22,28 +22,32 @@ namespace crushdem {
 
 inline constexpr int kNumWalls = 6;
 const char* wall_name(int k);  // "xmin" ... "zmax"
-inline int wall_axis(int k) { return k / 2; }
-inline bool wall_is_low(int k) { return k % 2 == 0; }
+inline int wall_axis(int k) {
+  return k / 2;
+}
+inline bool wall_is_low(int k) {
+  return k % 2 == 0;
+}
 
 enum class WallMode { Fixed, Velocity, Servo };
 const char* to_string(WallMode m);
 
 struct WallConfig {
   WallMode mode = WallMode::Fixed;
-  double position = 0.0;        // initial plane coordinate along its axis [m]
-  double velocity = 0.0;        // Velocity mode: velocity along the coordinate axis [m/s]
-  double target_stress = 0.0;   // Servo mode: compressive normal stress [Pa]
-  double servo_alpha = 0.5;     // Servo gain factor alpha [-] (model-notes 4.2)
-  double max_speed = 0.05;      // Servo speed limit [m/s]
+  double position = 0.0;       // initial plane coordinate along its axis [m]
+  double velocity = 0.0;       // Velocity mode: velocity along the coordinate axis [m/s]
+  double target_stress = 0.0;  // Servo mode: compressive normal stress [Pa]
+  double servo_alpha = 0.5;    // Servo gain factor alpha [-] (model-notes 4.2)
+  double max_speed = 0.05;     // Servo speed limit [m/s]
   void validate(const std::string& prefix) const;
 };
 
 struct WallState {
   double position = 0.0;
-  double velocity = 0.0;     // along the coordinate axis [m/s]
-  double normal_force = 0.0; // sum of normal contact forces pressing on the wall [N]
-  Vec3 force;                // total force exerted by the particles on the wall [N]
-  double stiffness = 0.0;    // sum of k_n of its contacts [N/m]
+  double velocity = 0.0;                  // along the coordinate axis [m/s]
+  double normal_force = 0.0;              // sum of normal contact forces pressing on the wall [N]
+  Vec3 force;                             // total force exerted by the particles on the wall [N]
+  double stiffness = 0.0;                 // sum of k_n of its contacts [N/m]
   double displacement_since_build = 0.0;  // |travel| since the last neighbour build [m]
 };
 

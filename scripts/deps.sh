@@ -1,0 +1,24 @@
+# Sourced by the scripts: installs the build dependencies when they are missing (Debian 12).
+apt_install_missing() {
+  local missing=()
+  for p in "$@"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  echo "# installing Debian packages: ${missing[*]}" >&2
+  local sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
+  $sudo apt-get update -qq >&2
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+}
+
+ensure_build_deps() {
+  command -v cmake >/dev/null && command -v g++ >/dev/null && [ -f /usr/include/gtest/gtest.h ] \
+    || apt_install_missing cmake g++ make libgtest-dev
+}
+
+# A virtual environment in .venv with the Python build tools (PyPI).
+ensure_venv() {
+  local py=${PYTHON:-python3}
+  if [ ! -x .venv/bin/python ]; then
+    "$py" -m venv .venv 2>/dev/null || { apt_install_missing python3-venv; "$py" -m venv .venv; }
+  fi
+  .venv/bin/python -m pip install --quiet --upgrade pip >/dev/null
+}

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# The main job: installs crushdem (pip, into .venv) and runs the default experiment, a small
+# isotropic compression, then draws its figures. Results in runs/compression_small/.
+# Usage: bash scripts/main.sh [CONFIG.toml] [OUT_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/deps.sh
+ensure_build_deps
+ensure_venv
+.venv/bin/python -m pip install --quiet .
+CONFIG=${1:-examples/compression_small.toml}
+OUT=${2:-runs/$(basename "$CONFIG" .toml)}
+.venv/bin/crushdem run "$CONFIG" --out "$OUT"
+.venv/bin/crushdem plot "$OUT"

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Builds crushdem and runs every test: the C++ suite (GoogleTest via CTest) and the Python
+# suite (pytest on the pip-installed package). Installs what it needs on a fresh Debian 12
+# machine. Usage: bash scripts/test.sh            (from the repository root)
+# Env: JOBS (build parallelism, default nproc), CRUSHDEM_TEST_LABELS (extra CTest label
+#      regex, e.g. "slow" to include the long validation runs).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/deps.sh
+ensure_build_deps
+JOBS=${JOBS:-$(nproc)}
+
+echo "== C++: configure, build (warnings are errors), test"
+cmake -S . -B build/test -DCMAKE_BUILD_TYPE=Release -DCRUSHDEM_WERROR=ON -DCRUSHDEM_TESTS=ON >/dev/null
+cmake --build build/test -j "$JOBS"
+label_args=(-LE slow)
+[ -n "${CRUSHDEM_TEST_LABELS:-}" ] && label_args=()
+(cd build/test && ctest --output-on-failure -j "$JOBS" "${label_args[@]}")
+
+echo "== Python: install the package into .venv, run pytest"
+ensure_venv
+.venv/bin/python -m pip install --quiet ".[test]"
+.venv/bin/python -m pytest tests/python -q
