@@ -65,12 +65,38 @@ TEST_P(NeighborBruteForce, EqualsQuadraticSearch) {
     const double skin = 2e-5;
     nl.build(p, skin);
     EXPECT_EQ(list_pairs(nl, p), brute_pairs(p, skin));
-    // Reverse list: every entry appears exactly once, under its partner.
-    std::vector<int> seen(nl.neighbors.size(), 0);
-    for (std::size_t j = 0; j < p.size(); ++j) {
-      for (auto k = nl.rev_offsets[j]; k < nl.rev_offsets[j + 1]; ++k) {
-        EXPECT_EQ(nl.neighbors[nl.rev_entries[k]], j);
-        ++seen[nl.rev_entries[k]];
+    // Columns: every particle in exactly one column; no pair spans more than one column in y or
+    // z (the condition for the race-free coloured scatter).
+    std::vector<int> seen(p.size(), 0), column(p.size(), -1), color(p.size(), -1);
+    for (int k = 0; k < NeighborList::kColors; ++k) {
+      for (auto c = nl.color_offsets[k]; c < nl.color_offsets[k + 1]; ++c) {
+        for (auto m = nl.column_offsets[c]; m < nl.column_offsets[c + 1]; ++m) {
+          ++seen[nl.column_members[m]];
+          column[nl.column_members[m]] = static_cast<int>(c);
+          color[nl.column_members[m]] = k;
+        }
+      }
+    }
+    // Two columns of one colour never hold the two ends of pairs that reach a common particle:
+    // checked directly, each owner writes to itself and its partners; no particle may be written
+    // from two different columns of the same colour.
+    std::vector<std::vector<int>> writers(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      writers[i].push_back(column[i]);
+      for (auto e = nl.offsets[i]; e < nl.offsets[i + 1]; ++e)
+        writers[nl.neighbors[e]].push_back(column[i]);
+    }
+    std::vector<int> col_color(nl.column_offsets.size(), -1);
+    for (std::size_t i = 0; i < p.size(); ++i)
+      col_color[static_cast<std::size_t>(column[i])] = color[i];
+    for (const auto& w : writers) {
+      for (std::size_t a = 0; a < w.size(); ++a) {
+        for (std::size_t b = 0; b < w.size(); ++b) {
+          if (w[a] != w[b]) {
+            ASSERT_NE(col_color[static_cast<std::size_t>(w[a])],
+                      col_color[static_cast<std::size_t>(w[b])]);
+          }
+        }
       }
     }
     EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](int c) { return c == 1; }));

@@ -149,7 +149,7 @@ void Simulation::rebuild_neighbors() {
   if (skin_ <= 0.0 && N > 0) {
     skin_ = 0.5 * *std::min_element(p_.radius.begin(), p_.radius.end());
   }
-  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_));
+  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_, skin_));
 
   // A grain entirely outside a wall has escaped: the state is no longer a valid sample.
   for (std::size_t i = 0; i < N; ++i) {
@@ -168,7 +168,6 @@ void Simulation::rebuild_neighbors() {
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   const std::size_t M = nl_.neighbors.size();
   for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
-  reaction_.assign(M, Reaction{{0, 0, 0}, {0, 0, 0}});
   entry_R_star_.resize(M);
   entry_m_eff_.resize(M);
 #pragma omp parallel for schedule(static)
@@ -256,59 +255,77 @@ void Simulation::pair_forces(const Law& law, double h) {
   const double* RS = entry_R_star_.data();
   const double* ME = entry_m_eff_.data();
   double *ftx = ft_x_.data(), *fty = ft_y_.data(), *ftz = ft_z_.data();
-  Reaction* react = reaction_.data();
   std::uint8_t* touch = touching_.data();
   double *FX = p_.fx.data(), *FY = p_.fy.data(), *FZ = p_.fz.data();
   double *TX = p_.tx.data(), *TY = p_.ty.data(), *TZ = p_.tz.data();
+  const auto* col_off = nl_.column_offsets.data();
+  const auto* col_mem = nl_.column_members.data();
 
-#pragma omp parallel for schedule(static, 64)
-  for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
-    const auto i = static_cast<std::size_t>(ii);
-    const Vec3 xi{X[i], Y[i], Z[i]};
-    const Vec3 vi{VX[i], VY[i], VZ[i]};
-    const Vec3 wi{WX[i], WY[i], WZ[i]};
-    const double ri = R[i];
-    Vec3 F{}, T{};
-    for (auto e = off[i]; e < off[i + 1]; ++e) {
-      const auto j = nb[e];
-      const Vec3 dx{X[j] - xi.x, Y[j] - xi.y, Z[j] - xi.z};
-      const double d2 = dot(dx, dx);
-      const double rsum = ri + R[j];
-      if (d2 >= rsum * rsum) {
-        if (touch[e]) {
-          touch[e] = 0;
-          ftx[e] = fty[e] = ftz[e] = 0.0;
-          react[e] = Reaction{{0, 0, 0}, {0, 0, 0}};
-        }
-        continue;
-      }
-      const double dist = std::sqrt(d2);
-      const Vec3 n = (1.0 / dist) * dx;
-      const double delta = rsum - dist;
-      const double R_star = RS[e];
-      const double a_i = ri - 0.5 * delta, a_j = R[j] - 0.5 * delta;
-      const Vec3 wj{WX[j], WY[j], WZ[j]};
-      const Vec3 v_rel =
-          Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
-      const double m_eff = ME[e];
-      const ContactResponse c = contact_response(law, delta, R_star, m_eff, n, v_rel,
-                                                 Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
-      ftx[e] = c.F_t.x;
-      fty[e] = c.F_t.y;
-      ftz[e] = c.F_t.z;
-      touch[e] = 1;
-      const Vec3 tn = cross(n, c.tangential);
-      F += c.force;
-      T += a_i * tn;
-      react[e] =
-          Reaction{{-c.force.x, -c.force.y, -c.force.z}, {a_j * tn.x, a_j * tn.y, a_j * tn.z}};
+#pragma omp parallel
+  {
+#pragma omp for schedule(static)
+    for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+      const auto i = static_cast<std::size_t>(ii);
+      FX[i] = FY[i] = FZ[i] = TX[i] = TY[i] = TZ[i] = 0.0;
     }
-    FX[i] = F.x;
-    FY[i] = F.y;
-    FZ[i] = F.z;
-    TX[i] = T.x;
-    TY[i] = T.y;
-    TZ[i] = T.z;
+    // Colours one after another (implicit barrier after each loop); within a colour, columns
+    // never write to the same particle, so both members of a pair are updated directly.
+    for (int color = 0; color < NeighborList::kColors; ++color) {
+      const auto c0 = static_cast<Idx>(nl_.color_offsets[static_cast<std::size_t>(color)]);
+      const auto c1 = static_cast<Idx>(nl_.color_offsets[static_cast<std::size_t>(color) + 1]);
+#pragma omp for schedule(dynamic, 1)
+      for (Idx col = c0; col < c1; ++col) {
+        for (auto k = col_off[col]; k < col_off[col + 1]; ++k) {
+          const std::size_t i = col_mem[k];
+          const Vec3 xi{X[i], Y[i], Z[i]};
+          const Vec3 vi{VX[i], VY[i], VZ[i]};
+          const Vec3 wi{WX[i], WY[i], WZ[i]};
+          const double ri = R[i];
+          Vec3 F{}, T{};
+          for (auto e = off[i]; e < off[i + 1]; ++e) {
+            const auto j = nb[e];
+            const Vec3 dx{X[j] - xi.x, Y[j] - xi.y, Z[j] - xi.z};
+            const double d2 = dot(dx, dx);
+            const double rsum = ri + R[j];
+            if (d2 >= rsum * rsum) {
+              if (touch[e]) {
+                touch[e] = 0;
+                ftx[e] = fty[e] = ftz[e] = 0.0;
+              }
+              continue;
+            }
+            const double dist = std::sqrt(d2);
+            const Vec3 n = (1.0 / dist) * dx;
+            const double delta = rsum - dist;
+            const double a_i = ri - 0.5 * delta, a_j = R[j] - 0.5 * delta;
+            const Vec3 wj{WX[j], WY[j], WZ[j]};
+            const Vec3 v_rel =
+                Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
+            const ContactResponse c = contact_response(law, delta, RS[e], ME[e], n, v_rel,
+                                                       Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
+            ftx[e] = c.F_t.x;
+            fty[e] = c.F_t.y;
+            ftz[e] = c.F_t.z;
+            touch[e] = 1;
+            const Vec3 tn = cross(n, c.tangential);
+            F += c.force;
+            T += a_i * tn;
+            FX[j] -= c.force.x;
+            FY[j] -= c.force.y;
+            FZ[j] -= c.force.z;
+            TX[j] += a_j * tn.x;
+            TY[j] += a_j * tn.y;
+            TZ[j] += a_j * tn.z;
+          }
+          FX[i] += F.x;
+          FY[i] += F.y;
+          FZ[i] += F.z;
+          TX[i] += T.x;
+          TY[i] += T.y;
+          TZ[i] += T.z;
+        }
+      }
+    }
   }
 }
 
@@ -383,11 +400,6 @@ void Simulation::gather_and_damp(bool kick) {
     const auto j = static_cast<std::size_t>(jj);
     Vec3 F{p_.fx[j], p_.fy[j], p_.fz[j]};
     Vec3 T{p_.tx[j], p_.ty[j], p_.tz[j]};
-    for (auto k = nl_.rev_offsets[j]; k < nl_.rev_offsets[j + 1]; ++k) {
-      const Reaction& r = reaction_[nl_.rev_entries[k]];
-      F += Vec3{r.f[0], r.f[1], r.f[2]};
-      T += Vec3{r.t[0], r.t[1], r.t[2]};
-    }
     for (auto e = wall_offsets_[j]; e < wall_offsets_[j + 1]; ++e) {
       F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
       T += Vec3{wc_.tx[e], wc_.ty[e], wc_.tz[e]};
@@ -575,12 +587,11 @@ std::size_t Simulation::memory_bytes() const {
   add(p_.id);
   add(p_.parent);
   for (std::size_t k = 0; k < p_.field_names().size(); ++k) add(p_.field(k));
-  for (const auto* v : {&nl_.offsets, &nl_.neighbors, &nl_.rev_offsets, &nl_.rev_entries,
+  for (const auto* v : {&nl_.offsets, &nl_.neighbors, &nl_.column_offsets, &nl_.column_members,
                         &nl_.owner, &wall_offsets_}) {
     add(*v);
   }
   for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_}) add(*v);
-  add(reaction_);
   add(touching_);
   add(wc_.particle);
   add(wc_.wall);
@@ -598,25 +609,27 @@ std::size_t Simulation::num_contacts() const {
   return n;
 }
 
+ContactRecord Simulation::pair_record(std::size_t e) const {
+  const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
+  const Vec3 dx{p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
+  const double dist = norm(dx);
+  ContactRecord c;
+  c.id_i = p_.id[i];
+  c.id_j = p_.id[j];
+  c.delta = p_.radius[i] + p_.radius[j] - dist;
+  c.normal = (1.0 / dist) * dx;
+  c.F_n = cfg_.contact.law == NormalLaw::Hertz
+              ? hertz_normal(c.delta, entry_R_star_[e], cp_.E_star).F_n
+              : rough_hertz_normal(c.delta, entry_R_star_[e], cp_.E_star, cp_.rough_pp).F_n;
+  c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
+  return c;
+}
+
 std::vector<ContactRecord> Simulation::contacts() const {
   std::vector<ContactRecord> out;
   if (!forces_valid_) return out;
   for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
-    if (!touching_[e]) continue;
-    const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
-    const Vec3 dx{p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
-    const double dist = norm(dx);
-    ContactRecord c;
-    c.id_i = p_.id[i];
-    c.id_j = p_.id[j];
-    c.delta = p_.radius[i] + p_.radius[j] - dist;
-    c.normal = (1.0 / dist) * dx;
-    const double R_star = p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]);
-    c.F_n = cfg_.contact.law == NormalLaw::Hertz
-                ? hertz_normal(c.delta, R_star, cp_.E_star).F_n
-                : rough_hertz_normal(c.delta, R_star, cp_.E_star, cp_.rough_pp).F_n;
-    c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
-    out.push_back(c);
+    if (touching_[e]) out.push_back(pair_record(e));
   }
   for (std::size_t e = 0; e < wc_.size(); ++e) {
     if (wc_.delta[e] <= 0.0) continue;
@@ -626,10 +639,7 @@ std::vector<ContactRecord> Simulation::contacts() const {
     c.is_wall = true;
     c.delta = wc_.delta[e];
     c.normal = walls_.outward_normal(wc_.wall[e]);
-    const double r = p_.radius[wc_.particle[e]];
-    c.F_n = cfg_.contact.law == NormalLaw::Hertz
-                ? hertz_normal(c.delta, r, cp_.E_star).F_n
-                : rough_hertz_normal(c.delta, r, cp_.E_star, cp_.rough_pw).F_n;
+    c.F_n = wc_.F_n[e];
     c.F_t = {wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]};
     out.push_back(c);
   }
@@ -637,30 +647,40 @@ std::vector<ContactRecord> Simulation::contacts() const {
 }
 
 std::array<double, 9> Simulation::love_weber_stress() const {
+  // sigma_ab = (1/V) sum_c f_a l_b: f the contact force on j (or on the wall), l the branch
+  // vector from i to j (or from the grain centre to the wall contact). Elastic contact forces;
+  // viscous damping forces (zero at equilibrium) are left out.
   std::array<double, 9> s{};
   if (!forces_valid_) return s;
   const double V = walls_.volume();
-  // sum over contacts of f (force on j, or on the wall) times l (branch vector i -> j / contact)
-  for (int a = 0; a < 3; ++a) {
-    for (int b = 0; b < 3; ++b) {
-      const double pair = deterministic_sum(nl_.neighbors.size(), [&](std::size_t e) {
-        if (!touching_[e]) return 0.0;
-        const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
-        const double* f = reaction_[e].f;
-        const double l[3] = {p_.x[j] - p_.x[i], p_.y[j] - p_.y[i], p_.z[j] - p_.z[i]};
-        return f[a] * l[b];
-      });
-      double wall = 0.0;
-      for (std::size_t e = 0; e < wc_.size(); ++e) {
-        if (wc_.delta[e] <= 0.0) continue;
-        const Vec3 n = walls_.outward_normal(wc_.wall[e]);
-        const double dist = p_.radius[wc_.particle[e]] - wc_.delta[e];
-        const double f[3] = {-wc_.fx[e], -wc_.fy[e], -wc_.fz[e]};
-        const double l[3] = {dist * n.x, dist * n.y, dist * n.z};
-        wall += f[a] * l[b];
-      }
-      s[static_cast<std::size_t>(3 * a + b)] = (pair + wall) / V;
+  std::vector<std::array<double, 9>> per_entry(nl_.neighbors.size());
+#pragma omp parallel for schedule(static)
+  for (Idx ee = 0; ee < static_cast<Idx>(per_entry.size()); ++ee) {
+    const auto e = static_cast<std::size_t>(ee);
+    per_entry[e] = {};
+    if (!touching_[e]) continue;
+    const ContactRecord c = pair_record(e);
+    const Vec3 f = c.F_n * c.normal - c.F_t;  // force on j
+    const Vec3 l = (p_.radius[nl_.owner[e]] + p_.radius[nl_.neighbors[e]] - c.delta) * c.normal;
+    const double fa[3] = {f.x, f.y, f.z}, lb[3] = {l.x, l.y, l.z};
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) per_entry[e][static_cast<std::size_t>(3 * a + b)] = fa[a] * lb[b];
     }
+  }
+  for (std::size_t k = 0; k < 9; ++k) {
+    double pair =
+        deterministic_sum(per_entry.size(), [&](std::size_t e) { return per_entry[e][k]; });
+    double wall = 0.0;
+    const int a = static_cast<int>(k / 3), b = static_cast<int>(k % 3);
+    for (std::size_t e = 0; e < wc_.size(); ++e) {
+      if (wc_.delta[e] <= 0.0) continue;
+      const Vec3 n = walls_.outward_normal(wc_.wall[e]);
+      const double dist = p_.radius[wc_.particle[e]] - wc_.delta[e];
+      const Vec3 f = wc_.F_n[e] * n - Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]};  // on the wall
+      const double fa[3] = {f.x, f.y, f.z}, lb[3] = {dist * n.x, dist * n.y, dist * n.z};
+      wall += fa[a] * lb[b];
+    }
+    s[k] = (pair + wall) / V;
   }
   return s;
 }

@@ -124,6 +124,7 @@ class Simulation {
     double x, y, z;
   };
   void capture_history();
+  ContactRecord pair_record(std::size_t e) const;
   void rebuild_neighbors();
   template <class Law>
   void pair_forces(const Law& law, double increment_dt);
@@ -141,13 +142,6 @@ class Simulation {
   WallContacts wc_;
   // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.
   std::vector<double> ft_x_, ft_y_, ft_z_;
-  // Reaction on the partner j of each entry, force then torque, packed so the gather reads one
-  // cache line per entry; zero for entries not in contact.
-  struct Reaction {
-    double f[3];
-    double t[3];
-  };
-  std::vector<Reaction> reaction_;
   std::vector<std::uint8_t> touching_;
   // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
   std::vector<double> entry_R_star_, entry_m_eff_;

@@ -72,8 +72,9 @@ void NeighborList::build(const ParticleStore& p, double skin) {
   offsets.assign(N + 1, 0);
   neighbors.clear();
   owner.clear();
-  rev_offsets.assign(N + 1, 0);
-  rev_entries.clear();
+  column_offsets.assign(1, 0);
+  column_members.clear();
+  color_offsets.assign(kColors + 1, 0);
   if (N == 0) return;
 
   const Bounds B = particle_bounds(p);
@@ -187,13 +188,48 @@ void NeighborList::build(const ParticleStore& p, double skin) {
     std::sort(neighbors.begin() + offsets[i], neighbors.begin() + offsets[i + 1]);
   }
 
-  // Reverse CSR (serial counting sort over entries: keeps increasing entry order per particle).
-  for (Index j : neighbors) ++rev_offsets[j + 1];
-  std::partial_sum(rev_offsets.begin(), rev_offsets.end(), rev_offsets.begin());
-  rev_entries.resize(neighbors.size());
-  std::vector<Index> fill(rev_offsets.begin(), rev_offsets.end() - 1);
-  for (std::size_t e = 0; e < neighbors.size(); ++e) {
-    rev_entries[fill[neighbors[e]]++] = static_cast<Index>(e);
+  build_columns(p, B.lo, 2.0 * r_max + skin);
+}
+
+void NeighborList::build_columns(const ParticleStore& p, const double lo[3], double h) {
+  // Column (cy, cz) of side h >= the largest pair reach, coloured (cy mod 3, cz mod 3).
+  const std::size_t N = p.size();
+  long ny = 1, nz = 1;
+  std::vector<long> col(N);
+  for (std::size_t i = 0; i < N; ++i) {
+    const long cy = static_cast<long>(std::floor((p.y[i] - lo[1]) / h));
+    const long cz = static_cast<long>(std::floor((p.z[i] - lo[2]) / h));
+    ny = std::max(ny, cy + 1);
+    nz = std::max(nz, cz + 1);
+    col[i] = cz * (1L << 31) + cy;  // provisional, re-indexed below
+  }
+  // Order columns by colour, then by (cz, cy); count members per column.
+  auto column_key = [&](long c) {
+    const long cz = c >> 31, cy = c & ((1L << 31) - 1);
+    const long color = (cz % 3) * 3 + (cy % 3);
+    return (color * nz + cz) * ny + cy;
+  };
+  const long ncols = 9 * nz * ny;
+  std::vector<Index> count(static_cast<std::size_t>(ncols) + 1, 0);
+  for (std::size_t i = 0; i < N; ++i) {
+    col[i] = column_key(col[i]);
+    ++count[static_cast<std::size_t>(col[i]) + 1];
+  }
+  // Drop empty columns: offsets only for the occupied ones, in key order.
+  column_offsets.assign(1, 0);
+  color_offsets.assign(kColors + 1, 0);
+  std::vector<Index> slot(static_cast<std::size_t>(ncols), 0);
+  for (long c = 0; c < ncols; ++c) {
+    const Index n = count[static_cast<std::size_t>(c) + 1];
+    if (n == 0) continue;
+    slot[static_cast<std::size_t>(c)] = column_offsets.back();
+    column_offsets.push_back(column_offsets.back() + n);
+    const auto color = static_cast<std::size_t>(c / (nz * ny));
+    for (std::size_t k = color + 1; k <= kColors; ++k) ++color_offsets[k];
+  }
+  column_members.resize(N);
+  for (std::size_t i = 0; i < N; ++i) {
+    column_members[slot[static_cast<std::size_t>(col[i])]++] = static_cast<Index>(i);
   }
 }
 
@@ -211,14 +247,14 @@ bool NeighborList::needs_rebuild(const ParticleStore& p) const {
   return 2.0 * max_displacement(p) > skin_;
 }
 
-std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p) {
+std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, double skin) {
   const std::size_t N = p.size();
   std::vector<std::size_t> order(N);
   std::iota(order.begin(), order.end(), std::size_t{0});
   if (N == 0) return order;
   const Bounds B = particle_bounds(p);
   const double r_max = *std::max_element(p.radius.begin(), p.radius.end());
-  const double h = 2.0 * r_max;
+  const double h = 2.0 * r_max + skin;  // the column side used by build_columns()
   long n[3];
   for (int d = 0; d < 3; ++d) {
     n[d] = std::max(1L, static_cast<long>(std::ceil((B.hi[d] - B.lo[d]) / h)));

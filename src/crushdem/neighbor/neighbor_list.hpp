@@ -8,10 +8,15 @@
 // a fine grid.
 //
 // The list is a half list in CSR form: each pair (i, j) is stored once, owned by the smaller
-// particle (higher level), or by the lower index within a level. A reverse CSR gives, for each
-// particle, the entries where it is the second member, so that forces can be gathered in a
-// fixed order (results independent of the thread count). The list is rebuilt when any particle
-// has moved more than half the skin since the last build.
+// particle (higher level), or by the lower index within a level. The list is rebuilt when any
+// particle has moved more than half the skin since the last build.
+//
+// Race-free, deterministic scatter: particles are grouped into columns, the (y, z) cells of side
+// 2 r_max + skin. No pair can span more than one column in y or z, so an owner writes only into
+// its own column and the 8 around it. Columns are coloured (y mod 3, z mod 3): columns of one
+// colour never share a particle they write to, so each colour is processed in parallel and the
+// nine colours one after another. Each particle's force is then summed in an order fixed by the
+// columns, not by the threads, and the results are bit-identical for any thread count.
 #pragma once
 
 #include <cstddef>
@@ -34,8 +39,10 @@ class NeighborList {
   /// True when the list may miss a pair (2 max displacement > skin) or the particle count changed.
   bool needs_rebuild(const ParticleStore& p) const;
 
-  /// A permutation of particle indices in cell order (improves cache locality when applied).
-  static std::vector<std::size_t> spatial_order(const ParticleStore& p);
+  /// A permutation of particle indices in cell order (cells of side 2 r_max + skin, z then y
+  /// then x), so that each column of the coloured scatter is one contiguous range: better
+  /// cache locality, and threads never write to the same cache line.
+  static std::vector<std::size_t> spatial_order(const ParticleStore& p, double skin);
 
   std::size_t num_particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
   std::size_t num_pairs() const { return neighbors.size(); }
@@ -48,13 +55,17 @@ class NeighborList {
 
   // CSR half list: the partners of i are neighbors[offsets[i] .. offsets[i+1]).
   std::vector<Index> offsets, neighbors;
-  // Reverse CSR: entries e (indices into neighbors) with neighbors[e] == j are
-  // rev_entries[rev_offsets[j] .. rev_offsets[j+1]), in increasing e.
-  std::vector<Index> rev_offsets, rev_entries;
+  // Columns: the particles of column c are column_members[column_offsets[c] ..
+  // column_offsets[c+1]) in increasing index; the columns of colour k (0..8) are
+  // color_offsets[k] .. color_offsets[k+1].
+  static constexpr int kColors = 9;
+  std::vector<Index> column_offsets, column_members;
+  std::vector<Index> color_offsets;
   // Owner of each entry (i for entry e in i's range), kept to make entry loops flat.
   std::vector<Index> owner;
 
  private:
+  void build_columns(const ParticleStore& p, const double lo[3], double h);
   double skin_ = 0.0;
   std::size_t builds_ = 0;
   std::vector<double> x0_, y0_, z0_;  // positions at the last build
