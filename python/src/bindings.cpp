@@ -174,13 +174,6 @@ int wall_index(const std::string& name) {
   throw ConfigError(bad_value("wall", "'" + name + "'", "one of xmin, xmax, ymin, ymax, zmin, zmax"));
 }
 
-WallMode parse_wall_mode(const std::string& s, const std::string& key) {
-  if (s == "fixed") return WallMode::Fixed;
-  if (s == "velocity") return WallMode::Velocity;
-  if (s == "servo") return WallMode::Servo;
-  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"fixed\", \"velocity\" or \"servo\""));
-}
-
 void set_wall(Simulation& sim, const std::string& name, std::optional<std::string> mode,
               std::optional<double> velocity, std::optional<double> target_stress,
               std::optional<double> servo_alpha, std::optional<double> max_speed) {

@@ -32,7 +32,7 @@ CD_HD inline NormalForce hertz_normal(double delta, double R_star, double E_star
 /// Normal-law evaluator for smooth Hertz (template argument of the contact kernels).
 struct HertzLaw {
   double E_star = 0.0;
-  CD_HD NormalForce operator()(double delta, double R_star) const {
+  CD_HD NormalForce operator()(double delta, double R_star, double /*sqrt_R_star*/) const {
     return hertz_normal(delta, R_star, E_star);
   }
 };

@@ -22,6 +22,7 @@
 #include <cmath>
 
 #include "crushdem/contact/hertz.hpp"
+#include "crushdem/contact/power_table.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
@@ -33,6 +34,9 @@ struct RoughHertzParams {
   double d_p1 = 0.0, d_ps = 0.0, d_T1 = 0.0, d_T2 = 0.0;
   double b = 0.0, c = 0.0;
   double x_factor = 0.0;  // X / (E* sqrt(R*)) = s sqrt(2 s)
+  double inv_span = 0.0;  // 1 / (d_T2 - d_p1)
+  double inv_d_T1 = 0.0;  // 1 / d_T1
+  PowerTable pow_b, pow_c;  // x^b and x^c on [0, 1]
 };
 
 /// Derives every constant of the law from s, k1 and k2 (exact transcription of the list above).
@@ -54,11 +58,16 @@ inline RoughHertzParams make_rough_hertz(double s, double k1, double k2) {
   p.c = p.b * (N_T2 / N_T1) * p.d_T1 * std::pow(p.d_T2 - p.d_p1, -p.b) *
         std::pow(p.d_T1 - p.d_p1, p.b - 1.0);
   p.x_factor = X;
+  p.inv_span = 1.0 / (p.d_T2 - p.d_p1);
+  p.inv_d_T1 = 1.0 / p.d_T1;
+  p.pow_b = power_table(p.b);
+  p.pow_c = power_table(p.c);
   return p;
 }
 
-CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double E_star,
-                                            const RoughHertzParams& p) {
+/// sqrt_R_star = sqrt(R*), passed in because callers keep it per contact (saves a square root).
+CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double sqrt_R_star,
+                                            double E_star, const RoughHertzParams& p) {
   if (delta <= 0.0) return {};
   if (p.s <= 0.0 || delta > p.d_T2) {
     // Hertz branch, shifted by d_ps (d_ps = 0 when smooth).
@@ -66,22 +75,27 @@ CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double 
     const double k_n = 2.0 * E_star * std::sqrt(R_star * d);
     return {k_n * d * (2.0 / 3.0), k_n};
   }
-  const double X = E_star * std::sqrt(R_star) * p.x_factor;
+  const double X = E_star * sqrt_R_star * p.x_factor;
   if (delta > p.d_T1) {
     const double u = delta - p.d_p1;
-    const double F = p.k2 * X * std::pow(u / (p.d_T2 - p.d_p1), p.b);
+    const double F = p.k2 * X * p.pow_b(u * p.inv_span);
     return {F, p.b * F / u};
   }
-  const double F = p.k1 * X * std::pow(delta / p.d_T1, p.c);
+  const double F = p.k1 * X * p.pow_c(delta * p.inv_d_T1);
   return {F, p.c * F / delta};
+}
+
+CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double E_star,
+                                            const RoughHertzParams& p) {
+  return rough_hertz_normal(delta, R_star, std::sqrt(R_star), E_star, p);
 }
 
 /// Normal-law evaluator for the rough law; `rough` is chosen by the caller (grain-grain or wall).
 struct RoughHertzLaw {
   double E_star = 0.0;
   RoughHertzParams rough;
-  CD_HD NormalForce operator()(double delta, double R_star) const {
-    return rough_hertz_normal(delta, R_star, E_star, rough);
+  CD_HD NormalForce operator()(double delta, double R_star, double sqrt_R_star) const {
+    return rough_hertz_normal(delta, R_star, sqrt_R_star, E_star, rough);
   }
 };
 

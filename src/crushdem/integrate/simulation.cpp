@@ -170,12 +170,14 @@ void Simulation::rebuild_neighbors() {
   for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
   entry_R_star_.resize(M);
   entry_m_eff_.resize(M);
+  entry_sqrt_R_star_.resize(M);
 #pragma omp parallel for schedule(static)
   for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
     const auto e = static_cast<std::size_t>(ee);
     const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
     entry_R_star_[e] = p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]);
     entry_m_eff_[e] = 1.0 / (p_.inv_mass[i] + p_.inv_mass[j]);
+    entry_sqrt_R_star_[e] = std::sqrt(entry_R_star_[e]);
   }
   touching_.assign(M, 0);
 
@@ -254,6 +256,7 @@ void Simulation::pair_forces(const Law& law, double h) {
   const double *WX = p_.wx.data(), *WY = p_.wy.data(), *WZ = p_.wz.data();
   const double* RS = entry_R_star_.data();
   const double* ME = entry_m_eff_.data();
+  const double* SRS = entry_sqrt_R_star_.data();
   double *ftx = ft_x_.data(), *fty = ft_y_.data(), *ftz = ft_z_.data();
   std::uint8_t* touch = touching_.data();
   double *FX = p_.fx.data(), *FY = p_.fy.data(), *FZ = p_.fz.data();
@@ -301,7 +304,7 @@ void Simulation::pair_forces(const Law& law, double h) {
             const Vec3 wj{WX[j], WY[j], WZ[j]};
             const Vec3 v_rel =
                 Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
-            const ContactResponse c = contact_response(law, delta, RS[e], ME[e], n, v_rel,
+            const ContactResponse c = contact_response(law, delta, RS[e], SRS[e], ME[e], n, v_rel,
                                                        Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
             ftx[e] = c.F_t.x;
             fty[e] = c.F_t.y;
@@ -360,7 +363,7 @@ void Simulation::wall_forces(const Law& law, double h) {
     const Vec3 v_rel = Vec3{p_.vx[i], p_.vy[i], p_.vz[i]} + cross(w, dist * n) -
                        vel[ks] * n * (wall_is_low(k) ? -1.0 : 1.0);
     const ContactResponse r =
-        contact_response(law, delta, p_.radius[i], p_.mass[i], n, v_rel,
+        contact_response(law, delta, p_.radius[i], std::sqrt(p_.radius[i]), p_.mass[i], n, v_rel,
                          Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]}, cp.mu_wall, cp, h);
     wc_.ft_x[e] = r.F_t.x;
     wc_.ft_y[e] = r.F_t.y;
@@ -591,7 +594,8 @@ std::size_t Simulation::memory_bytes() const {
                         &nl_.owner, &wall_offsets_}) {
     add(*v);
   }
-  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_}) add(*v);
+  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_,
+                        &entry_sqrt_R_star_}) add(*v);
   add(touching_);
   add(wc_.particle);
   add(wc_.wall);

@@ -144,7 +144,7 @@ class Simulation {
   std::vector<double> ft_x_, ft_y_, ft_z_;
   std::vector<std::uint8_t> touching_;
   // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
-  std::vector<double> entry_R_star_, entry_m_eff_;
+  std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
   std::vector<WallHistory> saved_walls_;

@@ -180,16 +180,7 @@ void read_simulation(Section& root, SimulationConfig& c) {
       WallConfig& w = c.walls[static_cast<std::size_t>(k)];
       std::string mode = to_string(w.mode);
       s.string("mode", mode);
-      if (mode == "fixed") {
-        w.mode = WallMode::Fixed;
-      } else if (mode == "velocity") {
-        w.mode = WallMode::Velocity;
-      } else if (mode == "servo") {
-        w.mode = WallMode::Servo;
-      } else {
-        throw ConfigError(
-            bad_value(s.key("mode"), "\"" + mode + "\"", "\"fixed\", \"velocity\" or \"servo\""));
-      }
+      w.mode = parse_wall_mode(mode, s.key("mode"));
       s.number("velocity", w.velocity);
       s.number("target_stress", w.target_stress);
       s.number("servo_alpha", w.servo_alpha);

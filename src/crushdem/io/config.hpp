@@ -45,8 +45,8 @@ struct RunConfig {
   std::array<double, 6> box() const;
 };
 
-/// Reads [material] [contact] [damping] [timestep] [neighbor] [box] [walls.*]; any other
-/// top-level section is left for the caller. Unknown keys inside these sections are errors.
+/// Reads [material] [contact] [damping] [timestep] [neighbor] [box] [walls.*]; any other key,
+/// at the top level or inside these sections, is an error naming it.
 SimulationConfig simulation_config_from_toml(const toml::Table& root, const std::string& source);
 /// Reads a whole run file: the simulation sections plus [particles] [run] [output].
 /// Relative particle file paths are resolved against `base_dir`.

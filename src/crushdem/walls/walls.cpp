@@ -22,6 +22,13 @@ const char* to_string(WallMode m) {
   return "?";
 }
 
+WallMode parse_wall_mode(const std::string& s, const std::string& key) {
+  if (s == "fixed") return WallMode::Fixed;
+  if (s == "velocity") return WallMode::Velocity;
+  if (s == "servo") return WallMode::Servo;
+  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"fixed\", \"velocity\" or \"servo\""));
+}
+
 void WallConfig::validate(const std::string& prefix) const {
   auto bad = [&](const std::string& key, double v, const std::string& what) {
     std::ostringstream s;

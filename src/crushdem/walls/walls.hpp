@@ -31,6 +31,8 @@ inline bool wall_is_low(int k) {
 
 enum class WallMode { Fixed, Velocity, Servo };
 const char* to_string(WallMode m);
+/// "fixed" | "velocity" | "servo"; anything else throws ConfigError naming `key`.
+WallMode parse_wall_mode(const std::string& s, const std::string& key);
 
 struct WallConfig {
   WallMode mode = WallMode::Fixed;
