@@ -22,9 +22,9 @@ struct ContactResponse {
 /// the contact point; F_t_old: stored tangential force on body 1; mu: friction of this contact.
 template <class Law>
 CD_HD inline ContactResponse contact_response(const Law& law, double delta, double R_star,
-                                              double sqrt_R_star, double m_eff, Vec3 n,
-                                              Vec3 v_rel, Vec3 F_t_old, double mu,
-                                              const ContactParams& p, double dt) {
+                                              double sqrt_R_star, double m_eff, Vec3 n, Vec3 v_rel,
+                                              Vec3 F_t_old, double mu, const ContactParams& p,
+                                              double dt) {
   ContactResponse r;
   const NormalForce nf = law(delta, R_star, sqrt_R_star);
   r.F_n = nf.F_n;

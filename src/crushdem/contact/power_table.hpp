@@ -29,7 +29,8 @@ struct PowerTable {
     const double t = s - static_cast<double>(k);
     const double* d = nodes + 2 * k;
     const double f0 = d[0], m0 = d[1], f1 = d[2], m1 = d[3];
-    return f0 + t * (m0 + t * ((3.0 * (f1 - f0) - 2.0 * m0 - m1) + t * (2.0 * (f0 - f1) + m0 + m1)));
+    return f0 +
+           t * (m0 + t * ((3.0 * (f1 - f0) - 2.0 * m0 - m1) + t * (2.0 * (f0 - f1) + m0 + m1)));
   }
 };
 

@@ -33,9 +33,9 @@ struct RoughHertzParams {
   double k1 = 0.05, k2 = 5.0;
   double d_p1 = 0.0, d_ps = 0.0, d_T1 = 0.0, d_T2 = 0.0;
   double b = 0.0, c = 0.0;
-  double x_factor = 0.0;  // X / (E* sqrt(R*)) = s sqrt(2 s)
-  double inv_span = 0.0;  // 1 / (d_T2 - d_p1)
-  double inv_d_T1 = 0.0;  // 1 / d_T1
+  double x_factor = 0.0;    // X / (E* sqrt(R*)) = s sqrt(2 s)
+  double inv_span = 0.0;    // 1 / (d_T2 - d_p1)
+  double inv_d_T1 = 0.0;    // 1 / d_T1
   PowerTable pow_b, pow_c;  // x^b and x^c on [0, 1]
 };
 

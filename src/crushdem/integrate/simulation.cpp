@@ -245,88 +245,125 @@ void Simulation::rebuild_neighbors() {
 
 // --- forces ------------------------------------------------------------------------------------
 
+namespace {
+
+// Everything the pair loop touches, passed by value into the per-column worker so the compiler
+// sees plain locals (inside an OpenMP region shared variables are reached through a pointer and
+// reloaded after every store, which cost 10 % of the step).
+template <class Law>
+struct PairLoop {
+  Law law;
+  ContactParams cp;
+  double h;
+  const NeighborList::Index *off, *nb, *col_off, *col_mem;
+  const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ, *RS, *ME, *SRS;
+  double *ftx, *fty, *ftz, *FX, *FY, *FZ, *TX, *TY, *TZ;
+  std::uint8_t* touch;
+};
+
+template <class Law>
+void pair_column(const PairLoop<Law> L, Idx col) {
+  for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
+    const std::size_t i = L.col_mem[k];
+    const Vec3 xi{L.X[i], L.Y[i], L.Z[i]};
+    const Vec3 vi{L.VX[i], L.VY[i], L.VZ[i]};
+    const Vec3 wi{L.WX[i], L.WY[i], L.WZ[i]};
+    const double ri = L.R[i];
+    Vec3 F{}, T{};
+    for (auto e = L.off[i]; e < L.off[i + 1]; ++e) {
+      const auto j = L.nb[e];
+      const Vec3 dx{L.X[j] - xi.x, L.Y[j] - xi.y, L.Z[j] - xi.z};
+      const double d2 = dot(dx, dx);
+      const double rsum = ri + L.R[j];
+      if (d2 >= rsum * rsum) {
+        if (L.touch[e]) {
+          L.touch[e] = 0;
+          L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
+        }
+        continue;
+      }
+      const double dist = std::sqrt(d2);
+      const Vec3 n = (1.0 / dist) * dx;
+      const double delta = rsum - dist;
+      const double a_i = ri - 0.5 * delta, a_j = L.R[j] - 0.5 * delta;
+      const Vec3 wj{L.WX[j], L.WY[j], L.WZ[j]};
+      const Vec3 v_rel =
+          Vec3{vi.x - L.VX[j], vi.y - L.VY[j], vi.z - L.VZ[j]} + cross(a_i * wi + a_j * wj, n);
+      const ContactResponse c =
+          contact_response(L.law, delta, L.RS[e], L.SRS[e], L.ME[e], n, v_rel,
+                           Vec3{L.ftx[e], L.fty[e], L.ftz[e]}, L.cp.mu, L.cp, L.h);
+      L.ftx[e] = c.F_t.x;
+      L.fty[e] = c.F_t.y;
+      L.ftz[e] = c.F_t.z;
+      L.touch[e] = 1;
+      const Vec3 tn = cross(n, c.tangential);
+      F += c.force;
+      T += a_i * tn;
+      L.FX[j] -= c.force.x;
+      L.FY[j] -= c.force.y;
+      L.FZ[j] -= c.force.z;
+      L.TX[j] += a_j * tn.x;
+      L.TY[j] += a_j * tn.y;
+      L.TZ[j] += a_j * tn.z;
+    }
+    L.FX[i] += F.x;
+    L.FY[i] += F.y;
+    L.FZ[i] += F.z;
+    L.TX[i] += T.x;
+    L.TY[i] += T.y;
+    L.TZ[i] += T.z;
+  }
+}
+
+}  // namespace
+
 template <class Law>
 void Simulation::pair_forces(const Law& law, double h) {
   const std::size_t N = p_.size();
-  const ContactParams cp = cp_;
-  const auto* off = nl_.offsets.data();
-  const auto* nb = nl_.neighbors.data();
-  const double *X = p_.x.data(), *Y = p_.y.data(), *Z = p_.z.data(), *R = p_.radius.data();
-  const double *VX = p_.vx.data(), *VY = p_.vy.data(), *VZ = p_.vz.data();
-  const double *WX = p_.wx.data(), *WY = p_.wy.data(), *WZ = p_.wz.data();
-  const double* RS = entry_R_star_.data();
-  const double* ME = entry_m_eff_.data();
-  const double* SRS = entry_sqrt_R_star_.data();
-  double *ftx = ft_x_.data(), *fty = ft_y_.data(), *ftz = ft_z_.data();
-  std::uint8_t* touch = touching_.data();
-  double *FX = p_.fx.data(), *FY = p_.fy.data(), *FZ = p_.fz.data();
-  double *TX = p_.tx.data(), *TY = p_.ty.data(), *TZ = p_.tz.data();
-  const auto* col_off = nl_.column_offsets.data();
-  const auto* col_mem = nl_.column_members.data();
-
+  const PairLoop<Law> loop{law,
+                           cp_,
+                           h,
+                           nl_.offsets.data(),
+                           nl_.neighbors.data(),
+                           nl_.column_offsets.data(),
+                           nl_.column_members.data(),
+                           p_.x.data(),
+                           p_.y.data(),
+                           p_.z.data(),
+                           p_.radius.data(),
+                           p_.vx.data(),
+                           p_.vy.data(),
+                           p_.vz.data(),
+                           p_.wx.data(),
+                           p_.wy.data(),
+                           p_.wz.data(),
+                           entry_R_star_.data(),
+                           entry_m_eff_.data(),
+                           entry_sqrt_R_star_.data(),
+                           ft_x_.data(),
+                           ft_y_.data(),
+                           ft_z_.data(),
+                           p_.fx.data(),
+                           p_.fy.data(),
+                           p_.fz.data(),
+                           p_.tx.data(),
+                           p_.ty.data(),
+                           p_.tz.data(),
+                           touching_.data()};
+  const std::vector<NeighborList::Index>& colors = nl_.color_offsets;
 #pragma omp parallel
   {
 #pragma omp for schedule(static)
     for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
-      const auto i = static_cast<std::size_t>(ii);
-      FX[i] = FY[i] = FZ[i] = TX[i] = TY[i] = TZ[i] = 0.0;
+      loop.FX[ii] = loop.FY[ii] = loop.FZ[ii] = loop.TX[ii] = loop.TY[ii] = loop.TZ[ii] = 0.0;
     }
     // Colours one after another (implicit barrier after each loop); within a colour, columns
     // never write to the same particle, so both members of a pair are updated directly.
-    for (int color = 0; color < NeighborList::kColors; ++color) {
-      const auto c0 = static_cast<Idx>(nl_.color_offsets[static_cast<std::size_t>(color)]);
-      const auto c1 = static_cast<Idx>(nl_.color_offsets[static_cast<std::size_t>(color) + 1]);
+    for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
 #pragma omp for schedule(dynamic, 1)
-      for (Idx col = c0; col < c1; ++col) {
-        for (auto k = col_off[col]; k < col_off[col + 1]; ++k) {
-          const std::size_t i = col_mem[k];
-          const Vec3 xi{X[i], Y[i], Z[i]};
-          const Vec3 vi{VX[i], VY[i], VZ[i]};
-          const Vec3 wi{WX[i], WY[i], WZ[i]};
-          const double ri = R[i];
-          Vec3 F{}, T{};
-          for (auto e = off[i]; e < off[i + 1]; ++e) {
-            const auto j = nb[e];
-            const Vec3 dx{X[j] - xi.x, Y[j] - xi.y, Z[j] - xi.z};
-            const double d2 = dot(dx, dx);
-            const double rsum = ri + R[j];
-            if (d2 >= rsum * rsum) {
-              if (touch[e]) {
-                touch[e] = 0;
-                ftx[e] = fty[e] = ftz[e] = 0.0;
-              }
-              continue;
-            }
-            const double dist = std::sqrt(d2);
-            const Vec3 n = (1.0 / dist) * dx;
-            const double delta = rsum - dist;
-            const double a_i = ri - 0.5 * delta, a_j = R[j] - 0.5 * delta;
-            const Vec3 wj{WX[j], WY[j], WZ[j]};
-            const Vec3 v_rel =
-                Vec3{vi.x - VX[j], vi.y - VY[j], vi.z - VZ[j]} + cross(a_i * wi + a_j * wj, n);
-            const ContactResponse c = contact_response(law, delta, RS[e], SRS[e], ME[e], n, v_rel,
-                                                       Vec3{ftx[e], fty[e], ftz[e]}, cp.mu, cp, h);
-            ftx[e] = c.F_t.x;
-            fty[e] = c.F_t.y;
-            ftz[e] = c.F_t.z;
-            touch[e] = 1;
-            const Vec3 tn = cross(n, c.tangential);
-            F += c.force;
-            T += a_i * tn;
-            FX[j] -= c.force.x;
-            FY[j] -= c.force.y;
-            FZ[j] -= c.force.z;
-            TX[j] += a_j * tn.x;
-            TY[j] += a_j * tn.y;
-            TZ[j] += a_j * tn.z;
-          }
-          FX[i] += F.x;
-          FY[i] += F.y;
-          FZ[i] += F.z;
-          TX[i] += T.x;
-          TY[i] += T.y;
-          TZ[i] += T.z;
-        }
+      for (Idx col = static_cast<Idx>(colors[color]); col < static_cast<Idx>(colors[color + 1]);
+           ++col) {
+        pair_column(loop, col);
       }
     }
   }
@@ -594,8 +631,8 @@ std::size_t Simulation::memory_bytes() const {
                         &nl_.owner, &wall_offsets_}) {
     add(*v);
   }
-  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_,
-                        &entry_sqrt_R_star_}) add(*v);
+  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_, &entry_sqrt_R_star_})
+    add(*v);
   add(touching_);
   add(wc_.particle);
   add(wc_.wall);
