@@ -8,15 +8,8 @@
 namespace crushdem {
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 void require(bool ok, const std::string& key, double v, const std::string& expected) {
-  if (!ok || std::isnan(v)) throw ConfigError(bad_value(key, num(v), expected));
+  if (!ok || std::isnan(v)) throw ConfigError(bad_value(key, show_number(v), expected));
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // that was given and what was expected, so that a user can fix the input without reading code.
 #pragma once
 
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -12,6 +14,19 @@ class ConfigError : public std::runtime_error {
  public:
   explicit ConfigError(const std::string& what) : std::runtime_error(what) {}
 };
+
+/// A number as it appears in error messages: the shortest form that reads back exactly.
+inline std::string show_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  // Prefer a shorter form when it round-trips (1e6 rather than 1000000.0000000001-style noise).
+  for (int prec = 1; prec < 17; ++prec) {
+    char shorter[32];
+    std::snprintf(shorter, sizeof shorter, "%.*g", prec, v);
+    if (std::strtod(shorter, nullptr) == v) return shorter;
+  }
+  return buf;
+}
 
 /// Builds the standard message "key 'K' = V: expected E".
 inline std::string bad_value(const std::string& key, const std::string& value,

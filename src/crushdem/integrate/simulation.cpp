@@ -13,33 +13,28 @@
 namespace crushdem {
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
-
 using Idx = std::ptrdiff_t;
 
 }  // namespace
 
 void DampingConfig::validate() const {
   if (!(local_alpha >= 0.0 && local_alpha < 1.0)) {
-    throw ConfigError(bad_value("damping.local_alpha", num(local_alpha), "a value in [0, 1)"));
+    throw ConfigError(
+        bad_value("damping.local_alpha", show_number(local_alpha), "a value in [0, 1)"));
   }
 }
 
 void TimestepConfig::validate() const {
   if (!(dt >= 0.0) || !std::isfinite(dt)) {
-    throw ConfigError(bad_value("timestep.dt", num(dt), "a step >= 0 in s (0 = automatic)"));
+    throw ConfigError(
+        bad_value("timestep.dt", show_number(dt), "a step >= 0 in s (0 = automatic)"));
   }
   if (!(rayleigh_fraction > 0.0 && rayleigh_fraction <= 1.0)) {
-    throw ConfigError(
-        bad_value("timestep.rayleigh_fraction", num(rayleigh_fraction), "a value in (0, 1]"));
+    throw ConfigError(bad_value("timestep.rayleigh_fraction", show_number(rayleigh_fraction),
+                                "a value in (0, 1]"));
   }
   if (!(safety > 0.0 && safety <= 1.0)) {
-    throw ConfigError(bad_value("timestep.safety", num(safety), "a value in (0, 1]"));
+    throw ConfigError(bad_value("timestep.safety", show_number(safety), "a value in (0, 1]"));
   }
   if (update_interval == 0) {
     throw ConfigError(bad_value("timestep.update_interval", "0", "a positive number of steps"));
@@ -48,7 +43,8 @@ void TimestepConfig::validate() const {
 
 void NeighborConfig::validate() const {
   if (!(skin >= 0.0) || !std::isfinite(skin)) {
-    throw ConfigError(bad_value("neighbor.skin", num(skin), "a skin >= 0 in m (0 = automatic)"));
+    throw ConfigError(
+        bad_value("neighbor.skin", show_number(skin), "a skin >= 0 in m (0 = automatic)"));
   }
 }
 
@@ -65,9 +61,10 @@ void SimulationConfig::validate() const {
     const double lo = walls[static_cast<std::size_t>(2 * a)].position;
     const double hi = walls[static_cast<std::size_t>(2 * a + 1)].position;
     if (!(hi > lo)) {
-      throw ConfigError(bad_value(
-          std::string("walls.") + wall_name(2 * a + 1) + ".position", num(hi),
-          std::string("a position above walls.") + wall_name(2 * a) + ".position = " + num(lo)));
+      throw ConfigError(bad_value(std::string("walls.") + wall_name(2 * a + 1) + ".position",
+                                  show_number(hi),
+                                  std::string("a position above walls.") + wall_name(2 * a) +
+                                      ".position = " + show_number(lo)));
     }
   }
 }
@@ -160,7 +157,7 @@ void Simulation::rebuild_neighbors() {
       if (!(dist > -p_.radius[i])) {
         throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) +
                              " left the box through wall " + wall_name(k) +
-                             " at t = " + num(time_) + " s");
+                             " at t = " + show_number(time_) + " s");
       }
     }
   }
@@ -600,7 +597,7 @@ double Simulation::dt() {
 
 void Simulation::set_dt(double dt) {
   if (!(dt > 0.0) || !std::isfinite(dt)) {
-    throw ConfigError(bad_value("timestep.dt", num(dt), "a positive time step in s"));
+    throw ConfigError(bad_value("timestep.dt", show_number(dt), "a positive time step in s"));
   }
   dt_ = dt;
   dt_fixed_ = true;

@@ -19,12 +19,7 @@ std::string show(const Value& v) {
   switch (v.type) {
     case Type::String: return "\"" + v.str + "\"";
     case Type::Integer: return std::to_string(v.integer);
-    case Type::Float: {
-      std::ostringstream s;
-      s.precision(17);
-      s << v.real;
-      return s.str();
-    }
+    case Type::Float: return show_number(v.real);
     case Type::Boolean: return v.boolean ? "true" : "false";
     case Type::Array: return "an array";
     case Type::Table: return "a table";
@@ -278,25 +273,20 @@ std::array<double, 6> RunConfig::box() const {
 }
 
 void GenerateConfig::validate(const std::array<double, 6>& box) const {
-  auto show_d = [](double v) {
-    std::ostringstream s;
-    s.precision(17);
-    s << v;
-    return s.str();
-  };
   if (count == 0) throw ConfigError(bad_value("particles.generate.count", "0", "a positive count"));
   if (!(diameter_min > 0.0) || !std::isfinite(diameter_min)) {
-    throw ConfigError(bad_value("particles.generate.diameter_min", show_d(diameter_min),
+    throw ConfigError(bad_value("particles.generate.diameter_min", show_number(diameter_min),
                                 "a positive diameter in m"));
   }
   if (!(diameter_max >= diameter_min) || !std::isfinite(diameter_max)) {
-    throw ConfigError(bad_value("particles.generate.diameter_max", show_d(diameter_max),
+    throw ConfigError(bad_value("particles.generate.diameter_max", show_number(diameter_max),
                                 "a diameter >= particles.generate.diameter_min in m"));
   }
   const double side = std::min({box[1] - box[0], box[3] - box[2], box[5] - box[4]});
   if (diameter_max >= side) {
-    throw ConfigError(bad_value("particles.generate.diameter_max", show_d(diameter_max),
-                                "a diameter smaller than the box side " + show_d(side) + " m"));
+    throw ConfigError(
+        bad_value("particles.generate.diameter_max", show_number(diameter_max),
+                  "a diameter smaller than the box side " + show_number(side) + " m"));
   }
   // Random sequential addition jams near a solid fraction of 0.38 for spheres; ask for less.
   const double V = (box[1] - box[0]) * (box[3] - box[2]) * (box[5] - box[4]);

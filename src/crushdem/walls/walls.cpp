@@ -31,10 +31,7 @@ WallMode parse_wall_mode(const std::string& s, const std::string& key) {
 
 void WallConfig::validate(const std::string& prefix) const {
   auto bad = [&](const std::string& key, double v, const std::string& what) {
-    std::ostringstream s;
-    s.precision(17);
-    s << v;
-    throw ConfigError(bad_value(prefix + "." + key, s.str(), what));
+    throw ConfigError(bad_value(prefix + "." + key, show_number(v), what));
   };
   if (!std::isfinite(position)) bad("position", position, "a finite coordinate in m");
   if (!std::isfinite(velocity)) bad("velocity", velocity, "a finite velocity in m/s");
