@@ -5,11 +5,14 @@
 // Coulomb, Tsuji viscous damping from the restitution REST, walls with the same friction), and
 // prints particle_steps_per_s=<N*STEPS/seconds> as the last line. Values come from the command
 // line, else from the environment variables the peer harness sets, else from its lib.sh defaults.
+// --backend cuda runs the warm-up and the timed steps on the GPU (GpuStepper, builds with
+// -DCRUSHDEM_CUDA=ON only); the clock stops after the device has finished.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +20,10 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/packing.hpp"
+
+#ifdef CRUSHDEM_HAVE_CUDA
+#include "crushdem/integrate/gpu_stepper.hpp"
+#endif
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -59,7 +66,17 @@ int bench_main(const std::vector<std::string>& args) {
   const std::string law = a.value("--law", "hertz");
   const char* env_state_out = std::getenv("STATE_OUT");
   const std::string state_out = a.value("--state-out", env_state_out ? env_state_out : "");
+  const std::string backend = a.value("--backend", "cpu");
   a.finish();
+  if (backend != "cpu" && backend != "cuda") {
+    throw ConfigError(bad_value("--backend", backend, "cpu or cuda"));
+  }
+#ifndef CRUSHDEM_HAVE_CUDA
+  if (backend == "cuda") {
+    throw ConfigError(
+        "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
+  }
+#endif
   if (steps <= 0)
     throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
@@ -93,20 +110,40 @@ int bench_main(const std::vector<std::string>& args) {
   sim.invalidate();
   const auto N = static_cast<double>(sim.particles().size());
 
-  sim.step(static_cast<std::uint64_t>(warm));
+#ifdef CRUSHDEM_HAVE_CUDA
+  std::unique_ptr<GpuStepper> gpu;
+  if (backend == "cuda") {
+    if (!GpuStepper::available()) throw RuntimeFailure("--backend cuda: no CUDA device found");
+    gpu = std::make_unique<GpuStepper>(sim);
+  }
+  auto advance = [&](long n) {
+    if (gpu) {
+      gpu->step(static_cast<std::uint64_t>(n));  // returns when the device has finished
+    } else {
+      sim.step(static_cast<std::uint64_t>(n));
+    }
+  };
+#else
+  auto advance = [&](long n) { sim.step(static_cast<std::uint64_t>(n)); };
+#endif
+  advance(warm);
   sim.compute_forces();
   const std::size_t builds0 = sim.neighbors().builds();
   const auto t0 = std::chrono::steady_clock::now();
-  sim.step(static_cast<std::uint64_t>(steps));
+  advance(steps);
   const auto t1 = std::chrono::steady_clock::now();
+#ifdef CRUSHDEM_HAVE_CUDA
+  if (gpu) gpu->download();
+#endif
   const double secs = std::chrono::duration<double>(t1 - t0).count();
 
   const auto& walls = sim.walls();
   double p_wall = 0.0;
   for (int k = 0; k < kNumWalls; ++k) p_wall += walls.stress(k) / kNumWalls;
   const auto s = sim.love_weber_stress();
-  std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e\n", N, steps, warm,
-              current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin);
+  std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e backend=%s\n", N,
+              steps, warm, current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin,
+              backend.c_str());
   std::printf("neighbor_pairs=%zu contacts=%zu neigh_builds_timed=%zu\n",
               sim.neighbors().num_pairs(), sim.num_contacts(), sim.neighbors().builds() - builds0);
   std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,

@@ -114,6 +114,7 @@ class Simulation {
   double stiffness_dt() const;
 
  private:
+  friend class GpuStepper;
   struct PairHistory {
     ParticleId a, b;  // a < b
     double x, y, z;   // tangential force on a
