@@ -52,7 +52,7 @@ ContactParams make_contact_params(const MaterialConfig& m, const ContactConfig& 
   p.tangential_ratio = mindlin_stiffness_ratio(m.poisson_ratio);
   p.mu = m.friction;
   p.mu_wall = c.wall_friction;
-  if (c.restitution < 1.0) p.viscous.alpha_n = tsuji_alpha(c.restitution);
+  if (c.restitution < 1.0) p.viscous.alpha_n = std::sqrt(2.0) * tsuji_alpha(c.restitution);
   const double Sq = c.law == NormalLaw::Rough ? c.roughness_Sq : 0.0;
   p.rough_pp = make_rough_hertz(std::sqrt(2.0) * Sq, c.k1, c.k2);
   p.rough_pw = make_rough_hertz(Sq, c.k1, c.k2);

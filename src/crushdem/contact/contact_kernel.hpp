@@ -34,10 +34,15 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
   r.F_t = mindlin_tangential(F_t_old, n, dt * v_t, p.tangential_ratio * nf.k_n, mu, nf.F_n);
   double F_normal = nf.F_n;
   Vec3 F_damp_t{};
-  if (p.viscous.alpha_n > 0.0) {
-    const double eta_n = viscous_coefficient(p.viscous.alpha_n, m_eff, nf.k_n);
-    F_normal += eta_n * v_n;
+  if (p.viscous.alpha_n > 0.0 && delta > 0.0) {
+    const double eta_n = viscous_coefficient(p.viscous.alpha_n, m_eff, nf.F_n / delta);
+    // No cohesion: damping may slow a separating pair but never pull it together.
+    F_normal = F_normal + eta_n * v_n > 0.0 ? F_normal + eta_n * v_n : 0.0;
     F_damp_t = (-p.viscous.tangential_factor * eta_n) * v_t;
+    // The total tangential force obeys the Coulomb cap as well.
+    const Vec3 total = r.F_t + F_damp_t;
+    const double t2 = dot(total, total), cap = mu * nf.F_n;
+    if (t2 > cap * cap) F_damp_t = (cap / std::sqrt(t2)) * total - r.F_t;
   }
   r.tangential = r.F_t + F_damp_t;
   r.force = (-F_normal) * n + r.tangential;

@@ -1,8 +1,10 @@
 // Viscous contact damping (optional; off by default, model-notes 1.4 uses local damping).
 //
-// Tsuji et al. (1992), Powder Technol. 71: F_d = -eta v, eta = alpha(e) sqrt(m_eff k_n), with
-// alpha(e) the polynomial fit of the coefficient of restitution e used by LAMMPS' `damping
-// tsuji`. The peer benchmark uses it (e = 0.5) so crushdem can run the same problem.
+// Tsuji et al. (1992), Powder Technol. 71: F_d = -eta v with eta = alpha sqrt(m* F_n / delta)
+// (for Hertz F_n / delta = K sqrt(delta), Tsuji's form), alpha = sqrt(2) alpha_fit(e) where
+// alpha_fit is the polynomial fit of the coefficient of restitution e (Marshall 2009, eq. 53) and
+// sqrt(2) the effective-mass convention of Tsuji 1992, as in LAMMPS `damping tsuji`. The peer
+// benchmark uses it (e = 0.5) so crushdem can run the same problem. Optional; off by default.
 #pragma once
 
 #include <cmath>
@@ -22,8 +24,9 @@ struct ViscousDamping {
   double tangential_factor = 1.0;
 };
 
-CD_HD inline double viscous_coefficient(double alpha, double m_eff, double k_n) {
-  return alpha * std::sqrt(m_eff * k_n);
+/// eta = alpha sqrt(m* F_n / delta); `stiffness` is F_n / delta (the secant stiffness).
+CD_HD inline double viscous_coefficient(double alpha, double m_eff, double stiffness) {
+  return alpha * std::sqrt(m_eff * stiffness);
 }
 
 }  // namespace crushdem

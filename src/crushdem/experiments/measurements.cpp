@@ -72,15 +72,18 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   m.emplace_back("std_Fn_N", sd(sum_fn, sum_fn2));
   m.emplace_back("mean_Ft_N", mean(sum_ft));
   m.emplace_back("std_Ft_N", sd(sum_ft, sum_ft2));
-  // Unbalanced-force ratio: mean resultant force on a grain over the mean contact force.
+  // Unbalanced-force ratio: mean resultant force on a grain (before local damping) over the
+  // mean contact force.
+  const auto &ux = sim.resultant_force(0), &uy = sim.resultant_force(1),
+             &uz = sim.resultant_force(2);
   const double mean_unbalanced =
-      p.size() ? deterministic_sum(
-                     p.size(),
-                     [&](std::size_t i) {
-                       return std::sqrt(p.fx[i] * p.fx[i] + p.fy[i] * p.fy[i] + p.fz[i] * p.fz[i]);
-                     }) /
-                     static_cast<double>(p.size())
-               : 0.0;
+      p.size() && ux.size() == p.size()
+          ? deterministic_sum(p.size(),
+                              [&](std::size_t i) {
+                                return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]);
+                              }) /
+                static_cast<double>(p.size())
+          : 0.0;
   m.emplace_back("unbalanced_force_ratio",
                  n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
   m.emplace_back("kinetic_energy_J", sim.kinetic_energy());

@@ -430,6 +430,9 @@ void Simulation::wall_forces(const Law& law, double h) {
 
 void Simulation::gather_and_damp(bool kick) {
   const std::size_t N = p_.size();
+  fu_x_.resize(N);
+  fu_y_.resize(N);
+  fu_z_.resize(N);
   const double alpha = cfg_.damping.local_alpha;
   const double hh = 0.5 * dt_;
 #pragma omp parallel for schedule(static, 256)
@@ -441,6 +444,9 @@ void Simulation::gather_and_damp(bool kick) {
       F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
       T += Vec3{wc_.tx[e], wc_.ty[e], wc_.tz[e]};
     }
+    fu_x_[j] = F.x;
+    fu_y_[j] = F.y;
+    fu_z_[j] = F.z;
     if (alpha > 0.0) {
       // PFC local damping: opposes the motion with a fraction of the unbalanced force.
       auto damp = [alpha](double f, double v) {

@@ -96,6 +96,11 @@ class Simulation {
   /// Number of grain-grain contacts with positive overlap.
   std::size_t num_contacts() const;
   double kinetic_energy() const;
+  /// The resultant of contact and wall forces on each grain before local damping (the store's
+  /// fx, fy, fz hold the damped force the integrator uses). Axis 0, 1, 2.
+  const std::vector<double>& resultant_force(int axis) const {
+    return axis == 0 ? fu_x_ : (axis == 1 ? fu_y_ : fu_z_);
+  }
   /// Bytes held by the engine's arrays (particles, neighbour list, contacts).
   std::size_t memory_bytes() const;
 
@@ -144,6 +149,7 @@ class Simulation {
   // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.
   std::vector<double> ft_x_, ft_y_, ft_z_;
   std::vector<std::uint8_t> touching_;
+  std::vector<double> fu_x_, fu_y_, fu_z_;  // undamped resultant force per grain
   // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
   std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i

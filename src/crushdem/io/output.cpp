@@ -89,7 +89,9 @@ void write_text_file(const std::string& path, const std::string& text) {
   if (!f) throw ConfigError("cannot write '" + path + "'");
 }
 
-void write_vtk_particles(const std::string& path, const ParticleStore& p) {
+void write_vtk_particles(const std::string& path, const ParticleStore& p,
+                         const std::vector<double>& fx, const std::vector<double>& fy,
+                         const std::vector<double>& fz) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw ConfigError("cannot write '" + path + "'");
   const std::size_t N = p.size();
@@ -118,7 +120,7 @@ void write_vtk_particles(const std::string& path, const ParticleStore& p) {
   });
   vectors("velocity", p.vx, p.vy, p.vz);
   vectors("angular_velocity", p.wx, p.wy, p.wz);
-  vectors("force", p.fx, p.fy, p.fz);
+  if (fx.size() == N) vectors("force", fx, fy, fz);
   for (std::size_t k = 0; k < p.field_names().size(); ++k) {
     const auto& fld = p.field(k);
     scalars(p.field_names()[k].c_str(), [&](std::size_t i) { return fld[i]; });

@@ -39,8 +39,11 @@ struct JsonObject {
 };
 void write_text_file(const std::string& path, const std::string& text);
 
-/// Particle snapshot: positions, radius, id, parent id, velocity, angular velocity, force.
-void write_vtk_particles(const std::string& path, const ParticleStore& p);
+/// Particle snapshot: positions, radius, id, parent id, velocity, angular velocity, the force
+/// given as three arrays (the resultant before damping when the caller has it), extra fields.
+void write_vtk_particles(const std::string& path, const ParticleStore& p,
+                         const std::vector<double>& fx, const std::vector<double>& fy,
+                         const std::vector<double>& fz);
 /// The six walls as quadrilaterals, for display with the particles.
 void write_vtk_box(const std::string& path, const double box[6]);
 

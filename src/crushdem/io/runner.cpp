@@ -82,7 +82,8 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   auto snapshot = [&]() {
     const std::string k = stamp(snapshots++);
     write_vtk_particles((fs::path(opt.out_dir) / "vtk" / ("particles_" + k + ".vtk")).string(),
-                        sim.particles());
+                        sim.particles(), sim.resultant_force(0), sim.resultant_force(1),
+                        sim.resultant_force(2));
     double b[6];
     for (int w = 0; w < kNumWalls; ++w) b[w] = sim.walls().position(w);
     write_vtk_box((fs::path(opt.out_dir) / "vtk" / ("box_" + k + ".vtk")).string(), b);
