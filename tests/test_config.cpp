@@ -86,7 +86,7 @@ TEST(Config, BoxSmallerThanGrain) {
 
 TEST(Config, InvertedBox) {
   expect_error(edit("max = [1e-3, 1e-3, 1e-3]", "max = [1e-3, 1e-3, -1e-3]"),
-               {"walls.zmax.position"});
+               {"box.max[2]", "-0.001", "box.min[2] = 0"});
 }
 
 TEST(Config, BadWallMode) {
@@ -99,6 +99,11 @@ TEST(Config, MissingParticleFile) {
   const auto k = text.find("[particles.generate]");
   text = text.substr(0, k) + "[particles]\nfile = \"no_such_file.txt\"\n[run]\nsteps = 10\n";
   expect_error(text, {"particles.file", "no_such_file.txt"});
+}
+
+TEST(Config, KeyForAnotherWallMode) {
+  // target_stress without mode = "servo" would silently run a fixed wall
+  expect_error(edit("mode = \"servo\"\n", ""), {"walls.zmax.target_stress", "fixed"});
 }
 
 TEST(Config, RunLength) {

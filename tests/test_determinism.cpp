@@ -53,7 +53,7 @@ target_stress = 5e5
 max_speed = 2.0
 [particles.generate]
 count = 300
-diameter_min = 0.1e-3
+diameter_min = 0.06e-3
 diameter_max = 0.2e-3
 seed = 3
 [run]

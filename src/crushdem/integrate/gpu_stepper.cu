@@ -145,7 +145,8 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
     return;
   }
   const double dist = std::sqrt(d2);
-  const Vec3 n = (1.0 / dist) * dx;
+  // Coincident centres have no normal; any fixed one keeps the numbers finite (as the CPU).
+  const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
   const double delta = rsum - dist;
   const double a_i = ri - 0.5 * delta, a_j = v.radius[j] - 0.5 * delta;
   const Vec3 vi{v.vx[i], v.vy[i], v.vz[i]};

@@ -61,10 +61,10 @@ void SimulationConfig::validate() const {
     const double lo = walls[static_cast<std::size_t>(2 * a)].position;
     const double hi = walls[static_cast<std::size_t>(2 * a + 1)].position;
     if (!(hi > lo)) {
-      throw ConfigError(bad_value(std::string("walls.") + wall_name(2 * a + 1) + ".position",
-                                  show_number(hi),
-                                  std::string("a position above walls.") + wall_name(2 * a) +
-                                      ".position = " + show_number(lo)));
+      std::string idx = "[0]";
+      idx[1] = static_cast<char>('0' + a);
+      throw ConfigError(bad_value("box.max" + idx, show_number(hi),
+                                  "a value above box.min" + idx + " = " + show_number(lo)));
     }
   }
 }
@@ -126,11 +126,10 @@ void Simulation::capture_history() {
 
 std::vector<ParticleId> Simulation::apply_topology(const TopologyChange& change) {
   capture_history();  // read with the old indices, before the arrays are compacted
-  auto ids = p_.apply(change);
   nl_valid_ = false;
   forces_valid_ = false;
   dt_valid_ = false;
-  return ids;
+  return p_.apply(change);  // validates everything before changing anything
 }
 
 void Simulation::invalidate() {
@@ -146,11 +145,15 @@ void Simulation::rebuild_neighbors() {
   if (skin_ <= 0.0 && N > 0) {
     skin_ = 0.5 * *std::min_element(p_.radius.begin(), p_.radius.end());
   }
-  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_, skin_));
-
-  // A grain entirely outside a wall has escaped: the state is no longer a valid sample.
+  // A non-finite coordinate or a grain entirely outside a wall: the state is no longer a valid
+  // sample (checked before sorting, which needs finite coordinates).
   for (std::size_t i = 0; i < N; ++i) {
     const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    if (!std::isfinite(c[0]) || !std::isfinite(c[1]) || !std::isfinite(c[2])) {
+      throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) +
+                           " has a non-finite position at t = " + show_number(time_) +
+                           " s (time step too large for the contact stiffness?)");
+    }
     for (int k = 0; k < kNumWalls; ++k) {
       const double pos = walls_.position(k);
       const double dist = wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)];
@@ -161,6 +164,7 @@ void Simulation::rebuild_neighbors() {
       }
     }
   }
+  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_, skin_));
 
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   const std::size_t M = nl_.neighbors.size();
@@ -280,7 +284,8 @@ void pair_column(const PairLoop<Law> L, Idx col) {
         continue;
       }
       const double dist = std::sqrt(d2);
-      const Vec3 n = (1.0 / dist) * dx;
+      // Coincident centres have no normal; any fixed one keeps the numbers finite.
+      const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
       const double delta = rsum - dist;
       const double a_i = ri - 0.5 * delta, a_j = L.R[j] - 0.5 * delta;
       const Vec3 wj{L.WX[j], L.WY[j], L.WZ[j]};
@@ -521,7 +526,9 @@ double Simulation::kick_drift() {
     p_.y[i] += h * p_.vy[i];
     p_.z[i] += h * p_.vz[i];
     const double dx = p_.x[i] - x0[i], dy = p_.y[i] - y0[i], dz = p_.z[i] - z0[i];
-    m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    // A NaN must not be lost by max(): make it infinite so the rebuild (and its check) runs.
+    m2 = std::max(m2, d2 == d2 ? d2 : std::numeric_limits<double>::infinity());
   }
   return m2;
 }

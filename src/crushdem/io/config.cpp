@@ -176,6 +176,16 @@ void read_simulation(Section& root, SimulationConfig& c) {
       std::string mode = to_string(w.mode);
       s.string("mode", mode);
       w.mode = parse_wall_mode(mode, s.key("mode"));
+      // A key that the chosen mode does not use is almost always a forgotten `mode` line.
+      for (const char* key : {"velocity", "target_stress", "servo_alpha", "max_speed"}) {
+        const bool used = std::string(key) == "velocity" ? w.mode == WallMode::Velocity
+                                                         : w.mode == WallMode::Servo;
+        if (s.has(key) && !used) {
+          throw ConfigError(bad_value(s.key(key), "given",
+                                      std::string("no '") + key + "' for a wall in mode \"" + mode +
+                                          "\" (set mode or remove the key)"));
+        }
+      }
       s.number("velocity", w.velocity);
       s.number("target_stress", w.target_stress);
       s.number("servo_alpha", w.servo_alpha);
@@ -379,10 +389,12 @@ toml::Table to_toml(const SimulationConfig& c) {
     const WallConfig& w = c.walls[static_cast<std::size_t>(k)];
     Table wt;
     wt["mode"] = Value::make_string(to_string(w.mode));
-    wt["velocity"] = num(w.velocity);
-    wt["target_stress"] = num(w.target_stress);
-    wt["servo_alpha"] = num(w.servo_alpha);
-    wt["max_speed"] = num(w.max_speed);
+    if (w.mode == WallMode::Velocity) wt["velocity"] = num(w.velocity);
+    if (w.mode == WallMode::Servo) {
+      wt["target_stress"] = num(w.target_stress);
+      wt["servo_alpha"] = num(w.servo_alpha);
+      wt["max_speed"] = num(w.max_speed);
+    }
     walls[wall_name(k)] = Value::make_table(wt);
   }
   t["walls"] = Value::make_table(walls);

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <unordered_set>
 
 #include "crushdem/core/error.hpp"
 
@@ -29,6 +30,7 @@ Packing read_packing(const std::string& path) {
   Packing pk;
   std::string line;
   int lineno = 0;
+  std::unordered_set<ParticleId> seen;
   while (std::getline(in, line)) {
     ++lineno;
     if (line.empty() || line.find_first_not_of(" \t\r") == std::string::npos) continue;
@@ -54,6 +56,10 @@ Packing read_packing(const std::string& path) {
         !std::isfinite(r.position.z)) {
       throw ConfigError(path + ":" + std::to_string(lineno) +
                         ": expected finite coordinates and a positive diameter");
+    }
+    if (!seen.insert(r.id).second) {
+      throw ConfigError(path + ":" + std::to_string(lineno) + ": particle id " +
+                        std::to_string(r.id) + " appears twice: expected unique ids");
     }
     pk.rows.push_back(r);
   }

@@ -25,16 +25,21 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
       const double rad = 0.5 * r.diameter;
       const double c[3] = {r.position.x, r.position.y, r.position.z};
       for (int a = 0; a < 3; ++a) {
-        if (c[a] - rad < box[static_cast<std::size_t>(2 * a)] - rad ||
-            c[a] + rad > box[static_cast<std::size_t>(2 * a + 1)] + rad) {
-          throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) +
-                            " lies outside the box given by [box]");
+        // The centre must lie inside the box (grains may overlap a wall: samples prepared
+        // under stress do); the grain must fit between the walls.
+        const double lo = box[static_cast<std::size_t>(2 * a)];
+        const double hi = box[static_cast<std::size_t>(2 * a + 1)];
+        const char axis = static_cast<char>('x' + a);
+        if (!(c[a] > lo && c[a] < hi)) {
+          throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) + " has " +
+                            axis + " = " + show_number(c[a]) +
+                            " m: expected a centre inside the box [" + show_number(lo) + ", " +
+                            show_number(hi) + "] given by [box]");
         }
-        if (2.0 * rad >
-            box[static_cast<std::size_t>(2 * a + 1)] - box[static_cast<std::size_t>(2 * a)]) {
+        if (2.0 * rad > hi - lo) {
           throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) +
-                            " (diameter " + format_double(r.diameter) +
-                            " m) is larger than the box");
+                            " (diameter " + show_number(r.diameter) +
+                            " m) is wider than the box along " + axis);
         }
       }
       NewParticle np;

@@ -1,6 +1,7 @@
 #include "crushdem/particles/particle_store.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "crushdem/core/deterministic.hpp"
@@ -39,10 +40,28 @@ void ParticleStore::for_each_array(Fn&& fn) {
   for (auto& e : extra_) fn(e);
 }
 
-void ParticleStore::push_back(ParticleId pid, const NewParticle& p) {
-  if (!(p.radius > 0.0) || !(p.density > 0.0)) {
-    throw std::invalid_argument("particle radius and density must be positive");
+namespace {
+// Checked before any array changes, so a rejected insertion leaves the store as it was.
+void check_new(const NewParticle& p, std::size_t k) {
+  auto finite = [](Vec3 v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+  };
+  auto where = [&]() { return "new particle " + std::to_string(k) + ": "; };
+  if (!(p.radius > 0.0) || !std::isfinite(p.radius)) {
+    throw std::invalid_argument(where() + "radius " + std::to_string(p.radius) +
+                                ": expected a positive radius in m");
   }
+  if (!(p.density > 0.0) || !std::isfinite(p.density)) {
+    throw std::invalid_argument(where() + "density " + std::to_string(p.density) +
+                                ": expected a positive density in kg/m^3");
+  }
+  if (!finite(p.position) || !finite(p.velocity) || !finite(p.angular_velocity)) {
+    throw std::invalid_argument(where() + "non-finite position or velocity");
+  }
+}
+}  // namespace
+
+void ParticleStore::push_back(ParticleId pid, const NewParticle& p) {
   id.push_back(pid);
   parent.push_back(p.parent);
   x.push_back(p.position.x);
@@ -67,6 +86,7 @@ void ParticleStore::push_back(ParticleId pid, const NewParticle& p) {
 }
 
 void ParticleStore::insert_with_id(ParticleId pid, const NewParticle& p) {
+  check_new(p, 0);
   if (pid < next_id_ && std::find(id.begin(), id.end(), pid) != id.end()) {
     throw std::invalid_argument("particle id " + std::to_string(pid) + " is already used");
   }
@@ -75,12 +95,13 @@ void ParticleStore::insert_with_id(ParticleId pid, const NewParticle& p) {
 }
 
 std::vector<ParticleId> ParticleStore::apply(const TopologyChange& change) {
+  for (std::size_t k = 0; k < change.add.size(); ++k) check_new(change.add[k], k);
+  for (std::size_t i : change.remove) {
+    if (i >= size()) throw std::out_of_range("topology change removes a non-existent index");
+  }
   if (!change.remove.empty()) {
     std::vector<char> gone(size(), 0);
-    for (std::size_t i : change.remove) {
-      if (i >= size()) throw std::out_of_range("topology change removes a non-existent index");
-      gone[i] = 1;
-    }
+    for (std::size_t i : change.remove) gone[i] = 1;
     // Stable compaction: survivors keep their order.
     for_each_array([&](auto& arr) {
       std::size_t w = 0;
@@ -104,6 +125,17 @@ void ParticleStore::permute(const std::vector<std::size_t>& order) {
     auto copy = arr;
     for (std::size_t k = 0; k < order.size(); ++k) arr[k] = copy[order[k]];
   });
+}
+
+void ParticleStore::set_radius(std::size_t i, double r) {
+  if (!(r > 0.0) || !std::isfinite(r)) {
+    throw std::invalid_argument("radius " + std::to_string(r) + ": expected a positive radius");
+  }
+  const double scale = r / radius[i];
+  mass[i] *= scale * scale * scale;  // same density
+  radius[i] = r;
+  inv_mass[i] = 1.0 / mass[i];
+  inv_inertia[i] = 1.0 / (0.4 * mass[i] * r * r);
 }
 
 double ParticleStore::total_mass() const {

@@ -66,6 +66,9 @@ class ParticleStore {
   void insert_with_id(ParticleId pid, const NewParticle& p);
 
   double total_mass() const;
+  /// Changes a radius keeping the density (mass and inertia follow). Call
+  /// Simulation::invalidate() afterwards.
+  void set_radius(std::size_t i, double r);
 
   // --- the arrays (public: kernels read and write them directly) ---
   std::vector<ParticleId> id, parent;
