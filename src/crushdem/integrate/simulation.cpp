@@ -549,10 +549,17 @@ void Simulation::step(std::uint64_t n) {
 }
 
 double Simulation::rayleigh_dt() const {
+  // T_R = pi r sqrt(rho / G) / (0.1631 nu + 0.8766), smallest over the grains (each its own
+  // density: fragments or density-scaled grains may differ).
   if (p_.size() == 0) return std::numeric_limits<double>::infinity();
-  const double r_min = *std::min_element(p_.radius.begin(), p_.radius.end());
+  double r_sqrt_rho = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < p_.size(); ++i) {
+    const double r = p_.radius[i];
+    const double rho = p_.mass[i] / (4.0 / 3.0 * kPi * r * r * r);
+    r_sqrt_rho = std::min(r_sqrt_rho, r * std::sqrt(rho));
+  }
   const double G = cfg_.material.shear_modulus, nu = cfg_.material.poisson_ratio;
-  return kPi * r_min * std::sqrt(cfg_.material.density / G) / (0.1631 * nu + 0.8766);
+  return kPi * r_sqrt_rho / std::sqrt(G) / (0.1631 * nu + 0.8766);
 }
 
 double Simulation::stiffness_dt() const {

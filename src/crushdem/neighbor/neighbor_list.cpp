@@ -47,6 +47,12 @@ struct Level {
   }
 };
 
+// Side of the scatter columns: the largest pair reach 2 r_max + skin, widened by a relative 1e-12
+// so that two grains closer than the reach can never round into columns two apart.
+double column_side(double r_max, double skin) {
+  return (2.0 * r_max + skin) * (1.0 + 1e-12);
+}
+
 int level_of(double r, double r_max, int nlevels) {
   // level L holds r in (r_max / 2^(L+1), r_max / 2^L]
   int L = 0;
@@ -173,6 +179,11 @@ void NeighborList::build(const ParticleStore& p, double skin) {
     visit(i, [&](std::uint32_t) { ++n; });
     count[i] = n;
   }
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < N; ++i) total += count[i];
+  if (total > std::numeric_limits<Index>::max()) {
+    throw std::length_error("neighbour list: more than 2^32 pairs; reduce the skin or the sample");
+  }
   for (std::size_t i = 0; i < N; ++i) offsets[i + 1] = offsets[i] + count[i];
   neighbors.resize(offsets[N]);
   owner.resize(offsets[N]);
@@ -188,49 +199,34 @@ void NeighborList::build(const ParticleStore& p, double skin) {
     std::sort(neighbors.begin() + offsets[i], neighbors.begin() + offsets[i + 1]);
   }
 
-  build_columns(p, B.lo, 2.0 * r_max + skin);
+  build_columns(p, B.lo, column_side(r_max, skin));
 }
 
 void NeighborList::build_columns(const ParticleStore& p, const double lo[3], double h) {
-  // Column (cy, cz) of side h >= the largest pair reach, coloured (cy mod 3, cz mod 3).
+  // Column (cy, cz) of side h >= the largest pair reach, coloured (cy mod 3, cz mod 3). Only
+  // occupied columns are stored (sorting keys, not a dense grid), so a sparse sample in a large
+  // box costs memory in proportion to its grains.
   const std::size_t N = p.size();
-  long ny = 1, nz = 1;
-  std::vector<long> col(N);
+  std::vector<std::pair<std::uint64_t, Index>> key(N);
   for (std::size_t i = 0; i < N; ++i) {
-    const long cy = static_cast<long>(std::floor((p.y[i] - lo[1]) / h));
-    const long cz = static_cast<long>(std::floor((p.z[i] - lo[2]) / h));
-    ny = std::max(ny, cy + 1);
-    nz = std::max(nz, cz + 1);
-    col[i] = cz * (1L << 31) + cy;  // provisional, re-indexed below
+    const auto cy = static_cast<std::uint64_t>(std::floor((p.y[i] - lo[1]) / h));
+    const auto cz = static_cast<std::uint64_t>(std::floor((p.z[i] - lo[2]) / h));
+    const std::uint64_t color = (cz % 3) * 3 + (cy % 3);
+    key[i] = {(color << 56) | (cz << 28) | cy, static_cast<Index>(i)};
   }
-  // Order columns by colour, then by (cz, cy); count members per column.
-  auto column_key = [&](long c) {
-    const long cz = c >> 31, cy = c & ((1L << 31) - 1);
-    const long color = (cz % 3) * 3 + (cy % 3);
-    return (color * nz + cz) * ny + cy;
-  };
-  const long ncols = 9 * nz * ny;
-  std::vector<Index> count(static_cast<std::size_t>(ncols) + 1, 0);
-  for (std::size_t i = 0; i < N; ++i) {
-    col[i] = column_key(col[i]);
-    ++count[static_cast<std::size_t>(col[i]) + 1];
-  }
-  // Drop empty columns: offsets only for the occupied ones, in key order.
+  std::sort(key.begin(), key.end());  // by colour, cz, cy, then particle index
   column_offsets.assign(1, 0);
   color_offsets.assign(kColors + 1, 0);
-  std::vector<Index> slot(static_cast<std::size_t>(ncols), 0);
-  for (long c = 0; c < ncols; ++c) {
-    const Index n = count[static_cast<std::size_t>(c) + 1];
-    if (n == 0) continue;
-    slot[static_cast<std::size_t>(c)] = column_offsets.back();
-    column_offsets.push_back(column_offsets.back() + n);
-    const auto color = static_cast<std::size_t>(c / (nz * ny));
-    for (std::size_t k = color + 1; k <= kColors; ++k) ++color_offsets[k];
-  }
   column_members.resize(N);
-  for (std::size_t i = 0; i < N; ++i) {
-    column_members[slot[static_cast<std::size_t>(col[i])]++] = static_cast<Index>(i);
+  for (std::size_t k = 0; k < N; ++k) {
+    column_members[k] = key[k].second;
+    if (k > 0 && key[k].first != key[k - 1].first) column_offsets.push_back(static_cast<Index>(k));
+    if (k == 0 || key[k].first != key[k - 1].first) {
+      const auto color = static_cast<std::size_t>(key[k].first >> 56);
+      for (std::size_t c = color + 1; c <= kColors; ++c) ++color_offsets[c];
+    }
   }
+  if (N > 0) column_offsets.push_back(static_cast<Index>(N));
 }
 
 double NeighborList::max_displacement(const ParticleStore& p) const {
@@ -254,7 +250,7 @@ std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, dou
   if (N == 0) return order;
   const Bounds B = particle_bounds(p);
   const double r_max = *std::max_element(p.radius.begin(), p.radius.end());
-  const double h = 2.0 * r_max + skin;  // the column side used by build_columns()
+  const double h = column_side(r_max, skin);  // the column side used by build_columns()
   long n[3];
   for (int d = 0; d < 3; ++d) {
     n[d] = std::max(1L, static_cast<long>(std::ceil((B.hi[d] - B.lo[d]) / h)));
