@@ -38,7 +38,8 @@ std::string join_key(const std::string& prefix, const std::string& key) {
 }
 
 std::string type_name_of(nb::handle obj) {
-  return nb::cast<std::string>(nb::str(nb::handle(reinterpret_cast<PyObject*>(Py_TYPE(obj.ptr()))).attr("__name__")));
+  return nb::cast<std::string>(
+      nb::str(nb::handle(reinterpret_cast<PyObject*>(Py_TYPE(obj.ptr()))).attr("__name__")));
 }
 
 toml::Table to_table(nb::handle dict, const std::string& prefix);
@@ -50,8 +51,8 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
     int overflow = 0;
     const long long v = PyLong_AsLongLongAndOverflow(obj.ptr(), &overflow);
     if (overflow != 0) {
-      throw ConfigError(bad_value(key, nb::cast<std::string>(nb::str(obj)),
-                                  "an integer that fits in 64 bits"));
+      throw ConfigError(
+          bad_value(key, nb::cast<std::string>(nb::str(obj)), "an integer that fits in 64 bits"));
     }
     if (v == -1 && PyErr_Occurred()) throw nb::python_error();
     return toml::Value::make_integer(static_cast<std::int64_t>(v));
@@ -75,10 +76,12 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
     if (!nb::hasattr(plain, "dtype")) return to_value(plain, key);
   }
   if (obj.is_none()) {
-    throw ConfigError("<python>: key '" + key + "' = None: expected a value (leave the key out for the default)");
+    throw ConfigError("<python>: key '" + key +
+                      "' = None: expected a value (leave the key out for the default)");
   }
-  throw ConfigError("<python>: key '" + key + "': a Python " + type_name_of(obj) +
-                    " cannot be a configuration value (expected bool, int, float, str, list or dict)");
+  throw ConfigError(
+      "<python>: key '" + key + "': a Python " + type_name_of(obj) +
+      " cannot be a configuration value (expected bool, int, float, str, list or dict)");
 }
 
 toml::Table to_table(nb::handle dict, const std::string& prefix) {
@@ -158,10 +161,11 @@ void check_shape(const InArray& a, const char* name, std::size_t n, bool vec3) {
       got += (d ? ", " : "") + std::to_string(a.shape(d));
     }
     got += a.ndim() == 1 ? ",)" : ")";
-    throw nb::value_error((std::string(name) + ": expected shape " +
-                           (vec3 ? "(" + std::to_string(n) + ", 3)" : "(" + std::to_string(n) + ",)") +
-                           ", got " + got)
-                              .c_str());
+    throw nb::value_error(
+        (std::string(name) + ": expected shape " +
+         (vec3 ? "(" + std::to_string(n) + ", 3)" : "(" + std::to_string(n) + ",)") + ", got " +
+         got)
+            .c_str());
   }
 }
 
@@ -171,7 +175,8 @@ int wall_index(const std::string& name) {
   for (int k = 0; k < kNumWalls; ++k) {
     if (name == wall_name(k)) return k;
   }
-  throw ConfigError(bad_value("wall", "'" + name + "'", "one of xmin, xmax, ymin, ymax, zmin, zmax"));
+  throw ConfigError(
+      bad_value("wall", "'" + name + "'", "one of xmin, xmax, ymin, ymax, zmin, zmax"));
 }
 
 void set_wall(Simulation& sim, const std::string& name, std::optional<std::string> mode,
@@ -222,10 +227,13 @@ NB_MODULE(_core, m) {
   nb::class_<Simulation>(m, "Simulation",
                          "The time-stepping engine. Build it from a nested dict with the sections "
                          "of a TOML configuration file (SI units).")
-      .def("__init__",
-           [](Simulation* self, nb::dict config) { new (self) Simulation(config_from_dict(config)); },
-           "config"_a = nb::dict(),
-           "Validates the configuration; bad or unknown keys raise ValueError naming the key.")
+      .def(
+          "__init__",
+          [](Simulation* self, nb::dict config) {
+            new (self) Simulation(config_from_dict(config));
+          },
+          "config"_a = nb::dict(),
+          "Validates the configuration; bad or unknown keys raise ValueError naming the key.")
 
       .def(
           "add_particles",
@@ -242,14 +250,15 @@ NB_MODULE(_core, m) {
             ch.add.reserve(n);
             for (std::size_t i = 0; i < n; ++i) {
               if (!(r[i] > 0.0) || !std::isfinite(r[i])) {
-                throw nb::value_error(("radii[" + std::to_string(i) + "] = " + std::to_string(r[i]) +
-                                       ": expected a positive radius in m")
+                throw nb::value_error(("radii[" + std::to_string(i) + "] = " +
+                                       std::to_string(r[i]) + ": expected a positive radius in m")
                                           .c_str());
               }
               for (int c = 0; c < 3; ++c) {
                 if (!std::isfinite(x[3 * i + c]) || (v && !std::isfinite(v[3 * i + c]))) {
                   throw nb::value_error(
-                      ("particle " + std::to_string(i) + ": non-finite position or velocity").c_str());
+                      ("particle " + std::to_string(i) + ": non-finite position or velocity")
+                          .c_str());
                 }
               }
               NewParticle p;
@@ -280,39 +289,62 @@ NB_MODULE(_core, m) {
 
       .def_prop_ro("time", &Simulation::time, "Simulated time [s].")
       .def_prop_ro("step_count", &Simulation::step_count, "Steps taken.")
-      .def_prop_ro("dt", [](Simulation& sim) { return sim.dt(); },
-                   "The time step the next step uses [s] (computed if automatic).")
+      .def_prop_ro(
+          "dt", [](Simulation& sim) { return sim.dt(); },
+          "The time step the next step uses [s] (computed if automatic).")
       .def("set_dt", &Simulation::set_dt, "dt"_a, "Fixes the time step [s] (overrides automatic).")
       .def("rayleigh_dt", &Simulation::rayleigh_dt, "Rayleigh time-step estimate [s].")
       .def("stiffness_dt", &Simulation::stiffness_dt, "Stiffness time-step estimate [s].")
       .def_prop_ro("num_particles", [](const Simulation& sim) { return sim.particles().size(); })
 
       // Particle arrays (copies).
-      .def("positions", [](const Simulation& s) {
-        const auto& p = s.particles();
-        return triple(p.x, p.y, p.z);
-      }, "Positions (N,3) [m].")
-      .def("velocities", [](const Simulation& s) {
-        const auto& p = s.particles();
-        return triple(p.vx, p.vy, p.vz);
-      }, "Velocities (N,3) [m/s].")
-      .def("angular_velocities", [](const Simulation& s) {
-        const auto& p = s.particles();
-        return triple(p.wx, p.wy, p.wz);
-      }, "Angular velocities (N,3) [rad/s].")
-      .def("forces", [](const Simulation& s) {
-        const auto& p = s.particles();
-        return triple(p.fx, p.fy, p.fz);
-      }, "Forces (N,3) [N] of the last evaluation (after local damping).")
-      .def("torques", [](const Simulation& s) {
-        const auto& p = s.particles();
-        return triple(p.tx, p.ty, p.tz);
-      }, "Torques (N,3) [N m].")
-      .def("radii", [](const Simulation& s) { return column(s.particles().radius); }, "Radii (N,) [m].")
-      .def("masses", [](const Simulation& s) { return column(s.particles().mass); }, "Masses (N,) [kg].")
-      .def("ids", [](const Simulation& s) { return id_column(s.particles().id); }, "Ids (N,) uint64.")
-      .def("parent_ids", [](const Simulation& s) { return id_column(s.particles().parent); },
-           "Parent ids (N,) uint64; 2**64-1 for no parent.")
+      .def(
+          "positions",
+          [](const Simulation& s) {
+            const auto& p = s.particles();
+            return triple(p.x, p.y, p.z);
+          },
+          "Positions (N,3) [m].")
+      .def(
+          "velocities",
+          [](const Simulation& s) {
+            const auto& p = s.particles();
+            return triple(p.vx, p.vy, p.vz);
+          },
+          "Velocities (N,3) [m/s].")
+      .def(
+          "angular_velocities",
+          [](const Simulation& s) {
+            const auto& p = s.particles();
+            return triple(p.wx, p.wy, p.wz);
+          },
+          "Angular velocities (N,3) [rad/s].")
+      .def(
+          "forces",
+          [](const Simulation& s) {
+            const auto& p = s.particles();
+            return triple(p.fx, p.fy, p.fz);
+          },
+          "Forces (N,3) [N] of the last evaluation (after local damping).")
+      .def(
+          "torques",
+          [](const Simulation& s) {
+            const auto& p = s.particles();
+            return triple(p.tx, p.ty, p.tz);
+          },
+          "Torques (N,3) [N m].")
+      .def(
+          "radii", [](const Simulation& s) { return column(s.particles().radius); },
+          "Radii (N,) [m].")
+      .def(
+          "masses", [](const Simulation& s) { return column(s.particles().mass); },
+          "Masses (N,) [kg].")
+      .def(
+          "ids", [](const Simulation& s) { return id_column(s.particles().id); },
+          "Ids (N,) uint64.")
+      .def(
+          "parent_ids", [](const Simulation& s) { return id_column(s.particles().parent); },
+          "Parent ids (N,) uint64; 2**64-1 for no parent.")
 
       .def(
           "contacts",
@@ -432,5 +464,6 @@ NB_MODULE(_core, m) {
   m.def(
       "resolved_config",
       [](nb::dict config) { return toml::serialize(to_toml(config_from_dict(config))); },
-      "config"_a, "Validates a configuration dict and returns it with every default filled in, as TOML.");
+      "config"_a,
+      "Validates a configuration dict and returns it with every default filled in, as TOML.");
 }

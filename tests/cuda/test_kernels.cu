@@ -29,14 +29,14 @@ __global__ void evaluate(Law law, ContactParams cp, const Input* in, ContactResp
                             cp.mu, cp, dt);
 }
 
-#define CHECK_CUDA(x)                                                                      \
-  do {                                                                                     \
-    cudaError_t err_ = (x);                                                                \
-    if (err_ != cudaSuccess) {                                                             \
+#define CHECK_CUDA(x)                                                                        \
+  do {                                                                                       \
+    cudaError_t err_ = (x);                                                                  \
+    if (err_ != cudaSuccess) {                                                               \
       std::printf("CUDA error %s at %s:%d\n", cudaGetErrorString(err_), __FILE__, __LINE__); \
-      std::printf("0 passed, 1 failed\n");                                                 \
-      std::exit(1);                                                                        \
-    }                                                                                      \
+      std::printf("0 passed, 1 failed\n");                                                   \
+      std::exit(1);                                                                          \
+    }                                                                                        \
   } while (0)
 
 // Copies a power table to the device and points the view at it.

@@ -49,4 +49,31 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
   return r;
 }
 
+/// One grain-grain contact from its geometry, shared by every backend's pair loop.
+struct PairContact {
+  ContactResponse c;            // force and new tangential history on grain i
+  Vec3 tn;                      // n x (tangential force): torque on i is a_i tn, on j a_j tn
+  double a_i = 0.0, a_j = 0.0;  // lever arms r - delta/2
+};
+
+/// dx = x_j - x_i (d2 = |dx|^2 < (r_i + r_j)^2), dv = v_i - v_j; R*, sqrt(R*) and the effective
+/// mass come cached per pair. n points from i to j; v_rel = dv + (a_i w_i + a_j w_j) x n.
+template <class Law>
+CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double r_i, double r_j,
+                                      Vec3 dv, Vec3 w_i, Vec3 w_j, double R_star,
+                                      double sqrt_R_star, double m_eff, Vec3 F_t_old,
+                                      const ContactParams& p, double dt) {
+  PairContact out;
+  const double dist = std::sqrt(d2);
+  // Coincident centres have no normal; any fixed one keeps the numbers finite.
+  const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
+  const double delta = r_i + r_j - dist;
+  out.a_i = r_i - 0.5 * delta;
+  out.a_j = r_j - 0.5 * delta;
+  const Vec3 v_rel = dv + cross(out.a_i * w_i + out.a_j * w_j, n);
+  out.c = contact_response(law, delta, R_star, sqrt_R_star, m_eff, n, v_rel, F_t_old, p.mu, p, dt);
+  out.tn = cross(n, out.c.tangential);
+  return out;
+}
+
 }  // namespace crushdem

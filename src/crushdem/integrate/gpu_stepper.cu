@@ -144,24 +144,18 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
     }
     return;
   }
-  const double dist = std::sqrt(d2);
-  // Coincident centres have no normal; any fixed one keeps the numbers finite (as the CPU).
-  const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
-  const double delta = rsum - dist;
-  const double a_i = ri - 0.5 * delta, a_j = v.radius[j] - 0.5 * delta;
-  const Vec3 vi{v.vx[i], v.vy[i], v.vz[i]};
   const Vec3 wi{v.wx[i], v.wy[i], v.wz[i]};
   const Vec3 wj{v.wx[j], v.wy[j], v.wz[j]};
-  const Vec3 v_rel =
-      Vec3{vi.x - v.vx[j], vi.y - v.vy[j], vi.z - v.vz[j]} + cross(a_i * wi + a_j * wj, n);
-  const ContactResponse c =
-      contact_response(law, delta, v.RS[e], v.SRS[e], v.ME[e], n, v_rel,
-                       Vec3{v.ftx[e], v.fty[e], v.ftz[e]}, v.cp.mu, v.cp, v.h);
+  const PairContact pc = pair_contact(
+      law, dx, d2, ri, v.radius[j], Vec3{v.vx[i] - v.vx[j], v.vy[i] - v.vy[j], v.vz[i] - v.vz[j]},
+      wi, wj, v.RS[e], v.SRS[e], v.ME[e], Vec3{v.ftx[e], v.fty[e], v.ftz[e]}, v.cp, v.h);
+  const ContactResponse& c = pc.c;
+  const double a_i = pc.a_i, a_j = pc.a_j;
   v.ftx[e] = c.F_t.x;
   v.fty[e] = c.F_t.y;
   v.ftz[e] = c.F_t.z;
   v.touch[e] = 1;
-  const Vec3 tn = cross(n, c.tangential);
+  const Vec3& tn = pc.tn;
   const Vec3 ti = a_i * tn;
   v.rfx[e] = c.force.x;
   v.rfy[e] = c.force.y;

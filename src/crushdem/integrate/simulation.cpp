@@ -283,22 +283,17 @@ void pair_column(const PairLoop<Law> L, Idx col) {
         }
         continue;
       }
-      const double dist = std::sqrt(d2);
-      // Coincident centres have no normal; any fixed one keeps the numbers finite.
-      const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
-      const double delta = rsum - dist;
-      const double a_i = ri - 0.5 * delta, a_j = L.R[j] - 0.5 * delta;
       const Vec3 wj{L.WX[j], L.WY[j], L.WZ[j]};
-      const Vec3 v_rel =
-          Vec3{vi.x - L.VX[j], vi.y - L.VY[j], vi.z - L.VZ[j]} + cross(a_i * wi + a_j * wj, n);
-      const ContactResponse c =
-          contact_response(L.law, delta, L.RS[e], L.SRS[e], L.ME[e], n, v_rel,
-                           Vec3{L.ftx[e], L.fty[e], L.ftz[e]}, L.cp.mu, L.cp, L.h);
+      const PairContact pc = pair_contact(
+          L.law, dx, d2, ri, L.R[j], Vec3{vi.x - L.VX[j], vi.y - L.VY[j], vi.z - L.VZ[j]}, wi, wj,
+          L.RS[e], L.SRS[e], L.ME[e], Vec3{L.ftx[e], L.fty[e], L.ftz[e]}, L.cp, L.h);
+      const ContactResponse& c = pc.c;
+      const Vec3& tn = pc.tn;
+      const double a_i = pc.a_i, a_j = pc.a_j;
       L.ftx[e] = c.F_t.x;
       L.fty[e] = c.F_t.y;
       L.ftz[e] = c.F_t.z;
       L.touch[e] = 1;
-      const Vec3 tn = cross(n, c.tangential);
       F += c.force;
       T += a_i * tn;
       L.FX[j] -= c.force.x;
