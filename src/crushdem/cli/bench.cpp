@@ -82,6 +82,10 @@ int bench_main(const std::vector<std::string>& args) {
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
   set_threads(threads);
 
+  if (!std::ifstream(packing_path) && std::ifstream(packing_path + ".gz")) {
+    throw ConfigError("--packing '" + packing_path + "' does not exist, but '" + packing_path +
+                      ".gz' does: unpack it first (gunzip -k '" + packing_path + ".gz')");
+  }
   const Packing pk = read_packing(packing_path);
   const double L = pk.header_number("L_m", packing_path);
 
