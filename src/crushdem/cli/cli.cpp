@@ -101,10 +101,11 @@ int current_threads() {
 namespace {
 const char* kUsage =
     "usage: crushdem <command> [options]\n"
-    "  run CONFIG.toml --out DIR [--threads N]   run a simulation described by a TOML file\n"
+    "  run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]\n"
+    "                                            run a simulation described by a TOML file\n"
     "  check CONFIG.toml                         validate a configuration without running\n"
     "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
-    "        [--state-out FILE]                  peer reference benchmark\n";
+    "        [--state-out FILE] [--backend cpu|cuda]  peer reference benchmark\n";
 }
 
 int cli_main(const std::vector<std::string>& args) {

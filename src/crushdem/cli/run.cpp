@@ -5,6 +5,12 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/runner.hpp"
 
+#ifdef CRUSHDEM_HAVE_CUDA
+#include <memory>
+
+#include "crushdem/integrate/gpu_stepper.hpp"
+#endif
+
 namespace crushdem::cli {
 
 int run_main(const std::vector<std::string>& args) {
@@ -12,15 +18,42 @@ int run_main(const std::vector<std::string>& args) {
   const std::string out = a.value("--out", "");
   const long threads = a.integer("--threads", 0);
   const bool quiet = a.flag("--quiet");
+  const std::string backend = a.value("--backend", "cpu");
   a.finish();
+  if (backend != "cpu" && backend != "cuda") {
+    throw ConfigError(bad_value("--backend", backend, "cpu or cuda"));
+  }
+#ifndef CRUSHDEM_HAVE_CUDA
+  if (backend == "cuda") {
+    throw ConfigError(
+        "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
+  }
+#endif
   const auto pos = a.positionals();
-  if (pos.size() != 1) throw ConfigError("usage: crushdem run CONFIG.toml --out DIR [--threads N]");
+  if (pos.size() != 1)
+    throw ConfigError(
+        "usage: crushdem run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]");
   if (out.empty()) throw ConfigError("crushdem run: missing --out DIR (where results are written)");
   const RunConfig cfg = load_run_config(pos[0]);  // validated before anything runs
   set_threads(threads);
   RunOptions opt;
   opt.out_dir = out;
   opt.progress = !quiet;
+  opt.backend = backend;
+#ifdef CRUSHDEM_HAVE_CUDA
+  // The GPU stepper takes over after the set-up; the Simulation is refreshed before each output.
+  std::unique_ptr<GpuStepper> gpu;
+  if (backend == "cuda") {
+    if (!GpuStepper::available()) throw RuntimeFailure("--backend cuda: no CUDA device found");
+    opt.advance = [&gpu](Simulation& sim, std::uint64_t n) {
+      if (!gpu) gpu = std::make_unique<GpuStepper>(sim);
+      gpu->step(n);
+    };
+    opt.sync = [&gpu](Simulation&) {
+      if (gpu) gpu->download();
+    };
+  }
+#endif
   const RunSummary s = run_to_directory(cfg, opt);
   std::printf(
       "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",

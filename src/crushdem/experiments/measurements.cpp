@@ -1,6 +1,7 @@
 #include "crushdem/experiments/measurements.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include "crushdem/core/deterministic.hpp"
 
@@ -83,7 +84,7 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
                                 return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]);
                               }) /
                 static_cast<double>(p.size())
-          : 0.0;
+          : std::numeric_limits<double>::quiet_NaN();  // not available: say so, not 0
   m.emplace_back("unbalanced_force_ratio",
                  n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
   m.emplace_back("kinetic_energy_J", sim.kinetic_energy());

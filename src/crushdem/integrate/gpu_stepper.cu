@@ -79,6 +79,7 @@ struct Control {
 // Everything a kernel touches, passed by value (fixed between uploads that do not reallocate).
 struct View {
   double *x, *y, *z, *vx, *vy, *vz, *wx, *wy, *wz, *fx, *fy, *fz, *tx, *ty, *tz;
+  double *fux, *fuy, *fuz;  // resultant force before local damping (for output)
   const double *radius, *mass, *inv_mass, *inv_inertia, *x0, *y0, *z0;
   const Index *owner, *nb, *off, *roff, *rev;
   const double *RS, *SRS, *ME;
@@ -285,6 +286,9 @@ CD_HD inline void gather_item(const View& v, Index j) {
     F += Vec3{v.wfx[e], v.wfy[e], v.wfz[e]};
     T += Vec3{v.wtx[e], v.wty[e], v.wtz[e]};
   }
+  v.fux[j] = F.x;
+  v.fuy[j] = F.y;
+  v.fuz[j] = F.z;
   if (v.alpha > 0.0) {
     F = {damp(F.x, v.vx[j], v.alpha), damp(F.y, v.vy[j], v.alpha), damp(F.z, v.vz[j], v.alpha)};
     T = {damp(T.x, v.wx[j], v.alpha), damp(T.y, v.wy[j], v.alpha), damp(T.z, v.wz[j], v.alpha)};
@@ -388,7 +392,7 @@ struct GpuStepper::Impl {
   RoughHertzLaw rough_pp, rough_pw;  // their power tables point at device copies
   Buffer<double> tables[4];
 
-  Buffer<double> x, y, z, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz;
+  Buffer<double> x, y, z, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz, fux, fuy, fuz;
   Buffer<double> radius, mass, inv_mass, inv_inertia, x0, y0, z0;
   Buffer<Index> owner, nb, off, roff, rev, wp, woff;
   Buffer<std::uint8_t> touch, ww;
@@ -442,6 +446,7 @@ struct GpuStepper::Impl {
                     &wfx, &wfy, &wfz, &wtx, &wty, &wtz,    &wFn,  &wkn,      &wdelta}) {
       release(*b);
     }
+    for (auto* b : {&fux, &fuy, &fuz}) release(*b);
     for (auto* b : {&owner, &nb, &off, &roff, &rev, &wp, &woff}) release(*b);
     release(touch);
     release(ww);
@@ -533,6 +538,9 @@ struct GpuStepper::Impl {
     put(tx, p.tx);
     put(ty, p.ty);
     put(tz, p.tz);
+    put(fux, sim.fu_x_);
+    put(fuy, sim.fu_y_);
+    put(fuz, sim.fu_z_);
     put(radius, p.radius);
     put(mass, p.mass);
     put(inv_mass, p.inv_mass);
@@ -598,6 +606,9 @@ struct GpuStepper::Impl {
     u.wy = wy.p;
     u.wz = wz.p;
     u.fx = fx.p;
+    u.fux = fux.p;
+    u.fuy = fuy.p;
+    u.fuz = fuz.p;
     u.fy = fy.p;
     u.fz = fz.p;
     u.tx = tx.p;
@@ -694,6 +705,9 @@ struct GpuStepper::Impl {
     get(tx, p.tx, N);
     get(ty, p.ty, N);
     get(tz, p.tz, N);
+    get(fux, sim.fu_x_, N);
+    get(fuy, sim.fu_y_, N);
+    get(fuz, sim.fu_z_, N);
     get(ftx, sim.ft_x_, M);
     get(fty, sim.ft_y_, M);
     get(ftz, sim.ft_z_, M);

@@ -16,6 +16,11 @@ namespace crushdem {
 struct RunOptions {
   std::string out_dir;
   bool progress = true;  // progress lines on stderr
+  /// Advances the simulation by n steps; empty = Simulation::step. Another backend (the GPU
+  /// stepper) plugs in here, and `sync` then brings the Simulation up to date before each output.
+  std::function<void(Simulation&, std::uint64_t)> advance;
+  std::function<void(Simulation&)> sync;
+  std::string backend = "cpu";  // recorded in timing.json
 };
 
 struct RunSummary {
