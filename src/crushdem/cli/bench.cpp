@@ -68,15 +68,7 @@ int bench_main(const std::vector<std::string>& args) {
   const std::string state_out = a.value("--state-out", env_state_out ? env_state_out : "");
   const std::string backend = a.value("--backend", "cpu");
   a.finish();
-  if (backend != "cpu" && backend != "cuda") {
-    throw ConfigError(bad_value("--backend", backend, "cpu or cuda"));
-  }
-#ifndef CRUSHDEM_HAVE_CUDA
-  if (backend == "cuda") {
-    throw ConfigError(
-        "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
-  }
-#endif
+  check_backend(backend);
   if (steps <= 0)
     throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));

@@ -81,6 +81,18 @@ void Args::finish() const {
   }
 }
 
+void check_backend(const std::string& backend) {
+  if (backend != "cpu" && backend != "cuda") {
+    throw ConfigError(bad_value("--backend", backend, "cpu or cuda"));
+  }
+#ifndef CRUSHDEM_HAVE_CUDA
+  if (backend == "cuda") {
+    throw ConfigError(
+        "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
+  }
+#endif
+}
+
 void set_threads(long n) {
   if (n < 0) throw ConfigError(bad_value("--threads", std::to_string(n), "a count >= 1"));
 #ifdef CRUSHDEM_HAVE_OPENMP

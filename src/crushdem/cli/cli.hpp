@@ -14,6 +14,9 @@ int bench_main(const std::vector<std::string>& args);
 int run_main(const std::vector<std::string>& args);
 int check_main(const std::vector<std::string>& args);
 
+/// "cpu" or "cuda" (the latter only in a build with CUDA); anything else is a ConfigError.
+void check_backend(const std::string& backend);
+
 /// Sets the OpenMP thread count (0 = leave the default).
 void set_threads(long n);
 int current_threads();

@@ -20,15 +20,7 @@ int run_main(const std::vector<std::string>& args) {
   const bool quiet = a.flag("--quiet");
   const std::string backend = a.value("--backend", "cpu");
   a.finish();
-  if (backend != "cpu" && backend != "cuda") {
-    throw ConfigError(bad_value("--backend", backend, "cpu or cuda"));
-  }
-#ifndef CRUSHDEM_HAVE_CUDA
-  if (backend == "cuda") {
-    throw ConfigError(
-        "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
-  }
-#endif
+  check_backend(backend);
   const auto pos = a.positionals();
   if (pos.size() != 1)
     throw ConfigError(

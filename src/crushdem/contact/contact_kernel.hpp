@@ -76,4 +76,25 @@ CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   return out;
 }
 
+/// One grain-wall contact, shared by every backend's wall loop. n: the wall's outward normal;
+/// dist: centre-to-plane distance (delta = r - dist > 0); wall_velocity: the wall's velocity
+/// vector. The contact point is dist n from the centre; the wall uses R* = r and m* = m.
+struct WallContact {
+  ContactResponse c;
+  Vec3 torque;            // on the grain
+  double F_n_wall = 0.0;  // normal force on the wall (elastic + viscous)
+};
+
+template <class Law>
+CD_HD inline WallContact wall_contact(const Law& law, Vec3 n, double dist, double delta, double r,
+                                      double m, Vec3 v, Vec3 w, Vec3 wall_velocity, Vec3 F_t_old,
+                                      const ContactParams& p, double dt) {
+  WallContact out;
+  const Vec3 v_rel = v + cross(w, dist * n) - wall_velocity;
+  out.c = contact_response(law, delta, r, std::sqrt(r), m, n, v_rel, F_t_old, p.mu_wall, p, dt);
+  out.torque = dist * cross(n, out.c.tangential);
+  out.F_n_wall = -dot(out.c.force, n);
+  return out;
+}
+
 }  // namespace crushdem

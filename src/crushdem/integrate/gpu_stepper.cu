@@ -190,23 +190,21 @@ CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
   if (axis == 0) n.x = s;
   if (axis == 1) n.y = s;
   if (axis == 2) n.z = s;
-  const Vec3 w{v.wx[i], v.wy[i], v.wz[i]};
-  const Vec3 v_rel =
-      Vec3{v.vx[i], v.vy[i], v.vz[i]} + cross(w, dist * n) - W.velocity * n * (low ? -1.0 : 1.0);
-  const ContactResponse r =
-      contact_response(law, delta, v.radius[i], std::sqrt(v.radius[i]), v.mass[i], n, v_rel,
-                       Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, v.cp.mu_wall, v.cp, v.h);
+  const WallContact wcon =
+      wall_contact(law, n, dist, delta, v.radius[i], v.mass[i], Vec3{v.vx[i], v.vy[i], v.vz[i]},
+                   Vec3{v.wx[i], v.wy[i], v.wz[i]}, W.velocity * n * (low ? -1.0 : 1.0),
+                   Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, v.cp, v.h);
+  const ContactResponse& r = wcon.c;
   v.wftx[e] = r.F_t.x;
   v.wfty[e] = r.F_t.y;
   v.wftz[e] = r.F_t.z;
-  const Vec3 t = dist * cross(n, r.tangential);
   v.wfx[e] = r.force.x;
   v.wfy[e] = r.force.y;
   v.wfz[e] = r.force.z;
-  v.wtx[e] = t.x;
-  v.wty[e] = t.y;
-  v.wtz[e] = t.z;
-  v.wFn[e] = -dot(r.force, n);
+  v.wtx[e] = wcon.torque.x;
+  v.wty[e] = wcon.torque.y;
+  v.wtz[e] = wcon.torque.z;
+  v.wFn[e] = wcon.F_n_wall;
   v.wkn[e] = r.k_n;
   v.wdelta[e] = delta;
 }

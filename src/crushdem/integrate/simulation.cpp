@@ -393,23 +393,21 @@ void Simulation::wall_forces(const Law& law, double h) {
       continue;
     }
     const Vec3 n = n_out[ks];
-    const Vec3 w{p_.wx[i], p_.wy[i], p_.wz[i]};
-    const Vec3 v_rel = Vec3{p_.vx[i], p_.vy[i], p_.vz[i]} + cross(w, dist * n) -
-                       vel[ks] * n * (wall_is_low(k) ? -1.0 : 1.0);
-    const ContactResponse r =
-        contact_response(law, delta, p_.radius[i], std::sqrt(p_.radius[i]), p_.mass[i], n, v_rel,
-                         Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]}, cp.mu_wall, cp, h);
+    const WallContact wcon = wall_contact(
+        law, n, dist, delta, p_.radius[i], p_.mass[i], Vec3{p_.vx[i], p_.vy[i], p_.vz[i]},
+        Vec3{p_.wx[i], p_.wy[i], p_.wz[i]}, vel[ks] * n * (wall_is_low(k) ? -1.0 : 1.0),
+        Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]}, cp, h);
+    const ContactResponse& r = wcon.c;
     wc_.ft_x[e] = r.F_t.x;
     wc_.ft_y[e] = r.F_t.y;
     wc_.ft_z[e] = r.F_t.z;
-    const Vec3 t = dist * cross(n, r.tangential);
     wc_.fx[e] = r.force.x;
     wc_.fy[e] = r.force.y;
     wc_.fz[e] = r.force.z;
-    wc_.tx[e] = t.x;
-    wc_.ty[e] = t.y;
-    wc_.tz[e] = t.z;
-    wc_.F_n[e] = -dot(r.force, n);
+    wc_.tx[e] = wcon.torque.x;
+    wc_.ty[e] = wcon.torque.y;
+    wc_.tz[e] = wcon.torque.z;
+    wc_.F_n[e] = wcon.F_n_wall;
     wc_.k_n[e] = r.k_n;
     wc_.delta[e] = delta;
   }
