@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "../helpers.hpp"
 #include "crushdem/core/random.hpp"
 #include "crushdem/integrate/gpu_stepper.hpp"
 #include "crushdem/integrate/simulation.hpp"
@@ -48,15 +49,7 @@ std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
   return buf;
 }
 
-SimulationConfig box_config(double lo, double hi, NormalLaw law) {
-  SimulationConfig c;
-  c.contact.law = law;
-  c.damping.local_alpha = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) {
-    c.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? lo : hi;
-  }
-  return c;
-}
+using crushdem::testing::box_config;  // shared with the C++ tests
 
 // Particle indices sorted by id (the two runs may order particles differently).
 std::vector<std::size_t> by_id(const Simulation& s) {

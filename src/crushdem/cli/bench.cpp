@@ -20,6 +20,7 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/packing.hpp"
+#include "crushdem/io/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_CUDA
 #include "crushdem/integrate/gpu_stepper.hpp"
@@ -96,14 +97,7 @@ int bench_main(const std::vector<std::string>& args) {
     cfg.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? 0.0 : L;
   }
   Simulation sim(cfg);
-  for (const PackingRow& r : pk.rows) {
-    NewParticle np;
-    np.position = r.position;
-    np.radius = 0.5 * r.diameter;
-    np.density = cfg.material.density;
-    sim.particles().insert_with_id(r.id, np);
-  }
-  sim.invalidate();
+  add_packing_particles(sim, pk);
   const auto N = static_cast<double>(sim.particles().size());
 
 #ifdef CRUSHDEM_HAVE_CUDA

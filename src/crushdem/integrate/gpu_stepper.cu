@@ -127,7 +127,7 @@ CD_HD inline void finish_drift(const View& v, double m2) {
     travel = travel < s.displacement ? s.displacement : travel;
   }
   const double d = std::sqrt(m2);
-  if (2.0 * d > v.skin || d + travel > v.skin) c.halt = 1;
+  if (rebuild_due(d, travel, v.skin)) c.halt = 1;
 }
 
 template <class Law>

@@ -533,7 +533,7 @@ void Simulation::step(std::uint64_t n) {
     const double h = dt_;
     const double d = std::sqrt(kick_drift());
     walls_.move(h);
-    if (2.0 * d > skin_ || d + walls_.max_displacement_since_build() > skin_) rebuild_neighbors();
+    if (rebuild_due(d, walls_.max_displacement_since_build(), skin_)) rebuild_neighbors();
     evaluate_forces(h, true);
     walls_.update_velocities(h);
     time_ += h;
@@ -555,25 +555,24 @@ double Simulation::rayleigh_dt() const {
   return kPi * r_sqrt_rho / std::sqrt(G) / (0.1631 * nu + 0.8766);
 }
 
+NormalForce Simulation::normal_force(double delta, double R_star, bool wall) const {
+  if (cfg_.contact.law == NormalLaw::Hertz) return hertz_normal(delta, R_star, cp_.E_star);
+  return rough_hertz_normal(delta, R_star, cp_.E_star, wall ? cp_.rough_pw : cp_.rough_pp);
+}
+
 double Simulation::stiffness_dt() const {
   // min_i sqrt(m_i / sum k_i) over grains with contacts, k = k_n + k_t of each contact.
   const std::size_t N = p_.size();
   if (!nl_valid_ || N == 0) return std::numeric_limits<double>::infinity();
   std::vector<double> ksum(N, 0.0);
   const double kt_ratio = 1.0 + cp_.tangential_ratio;
-  auto law_k = [&](double delta, double R_star, bool wall) {
-    if (cfg_.contact.law == NormalLaw::Hertz) return hertz_normal(delta, R_star, cp_.E_star).k_n;
-    return rough_hertz_normal(delta, R_star, cp_.E_star, wall ? cp_.rough_pw : cp_.rough_pp).k_n;
-  };
   for (std::size_t i = 0; i < N; ++i) {
     for (auto e = nl_.offsets[i]; e < nl_.offsets[i + 1]; ++e) {
       const auto j = nl_.neighbors[e];
       const double dx = p_.x[j] - p_.x[i], dy = p_.y[j] - p_.y[i], dz = p_.z[j] - p_.z[i];
       const double delta = p_.radius[i] + p_.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
       if (delta <= 0.0) continue;
-      const double k =
-          kt_ratio *
-          law_k(delta, p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]), false);
+      const double k = kt_ratio * normal_force(delta, entry_R_star_[e], false).k_n;
       ksum[i] += k;
       ksum[j] += k;
     }
@@ -585,7 +584,7 @@ double Simulation::stiffness_dt() const {
     const double pos = walls_.position(k);
     const double delta =
         p_.radius[i] - (wall_is_low(k) ? c[wall_axis(k)] - pos : pos - c[wall_axis(k)]);
-    if (delta > 0.0) ksum[i] += kt_ratio * law_k(delta, p_.radius[i], true);
+    if (delta > 0.0) ksum[i] += kt_ratio * normal_force(delta, p_.radius[i], true).k_n;
   }
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < N; ++i) {
@@ -669,9 +668,7 @@ ContactRecord Simulation::pair_record(std::size_t e) const {
   c.id_j = p_.id[j];
   c.delta = p_.radius[i] + p_.radius[j] - dist;
   c.normal = (1.0 / dist) * dx;
-  c.F_n = cfg_.contact.law == NormalLaw::Hertz
-              ? hertz_normal(c.delta, entry_R_star_[e], cp_.E_star).F_n
-              : rough_hertz_normal(c.delta, entry_R_star_[e], cp_.E_star, cp_.rough_pp).F_n;
+  c.F_n = normal_force(c.delta, entry_R_star_[e], false).F_n;
   c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
   return c;
 }

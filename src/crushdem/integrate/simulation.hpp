@@ -131,6 +131,8 @@ class Simulation {
   };
   void capture_history();
   ContactRecord pair_record(std::size_t e) const;
+  /// The configured normal law outside the force loops (reporting, time step).
+  NormalForce normal_force(double delta, double R_star, bool wall) const;
   void rebuild_neighbors();
   template <class Law>
   void pair_forces(const Law& law, double increment_dt);

@@ -19,6 +19,17 @@
 
 namespace crushdem {
 
+void add_packing_particles(Simulation& sim, const Packing& pk) {
+  for (const PackingRow& r : pk.rows) {
+    NewParticle np;
+    np.position = r.position;
+    np.radius = 0.5 * r.diameter;
+    np.density = sim.config().material.density;
+    sim.particles().insert_with_id(r.id, np);
+  }
+  sim.invalidate();
+}
+
 void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
   const auto box = cfg.box();
   if (!cfg.particles.file.empty()) {
@@ -44,13 +55,8 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
                             " m) is wider than the box along " + axis);
         }
       }
-      NewParticle np;
-      np.position = r.position;
-      np.radius = rad;
-      np.density = cfg.simulation.material.density;
-      sim.particles().insert_with_id(r.id, np);
     }
-    sim.invalidate();
+    add_packing_particles(sim, pk);
     return;
   }
   const GenerateConfig& g = cfg.particles.generate;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "crushdem/io/config.hpp"
+#include "crushdem/io/packing.hpp"
 
 namespace crushdem {
 
@@ -29,6 +30,9 @@ struct RunSummary {
   double wall_seconds = 0.0;
   std::size_t particles = 0;
 };
+
+/// Adds the rows of a particle file to a simulation (ids kept, the configured density).
+void add_packing_particles(Simulation& sim, const Packing& pk);
 
 /// Adds the configured particles (from a file or generated) to a simulation.
 void add_configured_particles(Simulation& sim, const RunConfig& cfg);

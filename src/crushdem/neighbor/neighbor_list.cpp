@@ -240,7 +240,7 @@ double NeighborList::max_displacement(const ParticleStore& p) const {
 
 bool NeighborList::needs_rebuild(const ParticleStore& p) const {
   if (builds_ == 0 || x0_.size() != p.size()) return true;
-  return 2.0 * max_displacement(p) > skin_;
+  return rebuild_due(max_displacement(p), 0.0, skin_);
 }
 
 std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, double skin) {

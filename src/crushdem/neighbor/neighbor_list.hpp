@@ -27,6 +27,13 @@
 
 namespace crushdem {
 
+/// The rebuild rule, used by every backend: a pair can appear only after its two grains have
+/// together moved more than the skin (2 max|dx| > skin), a wall contact only after grain and wall
+/// together have (max|dx| + wall travel > skin).
+CD_HD inline bool rebuild_due(double max_displacement, double wall_travel, double skin) {
+  return 2.0 * max_displacement > skin || max_displacement + wall_travel > skin;
+}
+
 class NeighborList {
  public:
   using Index = std::uint32_t;
