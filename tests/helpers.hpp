@@ -17,3 +17,71 @@ inline SimulationConfig box_config(double lo, double hi, NormalLaw law = NormalL
 }
 
 }  // namespace crushdem::testing
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/runner.hpp"
+#include "crushdem/io/toml.hpp"
+
+namespace crushdem::testing {
+
+/// A CSV file as columns of numbers.
+inline std::map<std::string, std::vector<double>> read_csv(const std::string& path) {
+  std::ifstream f(path);
+  std::string line;
+  std::getline(f, line);
+  std::vector<std::string> names;
+  {
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) names.push_back(c);
+  }
+  std::map<std::string, std::vector<double>> cols;
+  while (std::getline(f, line)) {
+    std::stringstream ss(line);
+    std::string c;
+    for (std::size_t k = 0; k < names.size() && std::getline(ss, c, ','); ++k) {
+      cols[names[k]].push_back(std::stod(c));
+    }
+  }
+  return cols;
+}
+
+/// Runs a TOML configuration (paths relative to `base_dir`) into `out` quietly.
+inline RunSummary run_toml(const std::string& text, const std::filesystem::path& out,
+                           const std::filesystem::path& base_dir) {
+  const RunConfig cfg =
+      run_config_from_toml(toml::parse(text, "test.toml"), "test.toml", base_dir.string());
+  std::filesystem::remove_all(out);
+  RunOptions opt;
+  opt.out_dir = out.string();
+  opt.progress = false;
+  return run_to_directory(cfg, opt);
+}
+
+inline std::string read_file(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// A number from a flat "key": value in a JSON text (the n-th occurrence).
+inline double json_number(const std::string& json, const std::string& key, int nth = 0) {
+  std::size_t at = 0;
+  for (int k = 0; k <= nth; ++k) {
+    at = json.find("\"" + key + "\":", at);
+    if (at == std::string::npos) return std::nan("");
+    at += key.size() + 3;
+  }
+  return std::stod(json.substr(at));
+}
+
+}  // namespace crushdem::testing

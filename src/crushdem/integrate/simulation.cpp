@@ -496,6 +496,14 @@ void Simulation::evaluate_forces(double increment_dt, bool kick) {
 
 // --- time integration --------------------------------------------------------------------------
 
+void Simulation::set_friction(double mu) {
+  if (!(mu >= 0.0) || !std::isfinite(mu)) {
+    throw ConfigError(bad_value("friction", show_number(mu), "a coefficient >= 0"));
+  }
+  cfg_.material.friction = mu;
+  cp_.mu = mu;
+}
+
 double Simulation::kick_drift() {
   // First half kick and drift in one pass; returns the largest squared displacement since the
   // last neighbour build (the rebuild criterion), also computed in the same pass.

@@ -88,7 +88,11 @@ class Simulation {
   std::uint64_t step_count() const { return steps_; }
   /// The step the next call to step() uses (computes it if automatic).
   double dt();
-  void set_dt(double dt);                    // fixes the step (overrides automatic)
+  void set_dt(double dt);  // fixes the step (overrides automatic)
+  /// Changes the grain-grain friction coefficient from the next step on (sample preparation
+  /// lowers it, then restores the material's); stored tangential forces above the new Coulomb
+  /// limit are capped at the next force evaluation.
+  void set_friction(double mu);
   double current_dt() const { return dt_; }  // the step last used (0 before the first)
 
   /// Touching contacts at the current state (grain-grain then grain-wall).

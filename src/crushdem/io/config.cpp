@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/io/packing.hpp"
 
 namespace crushdem {
 namespace {
@@ -82,6 +83,33 @@ class Section {
       present = true;
     }
   }
+  /// An array of numbers (at least one).
+  void numbers(const std::string& k, std::vector<double>& out, const char* expected) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array || v->array.empty() ||
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.is_number(); })) {
+        fail(k, *v, expected);
+      }
+      out.clear();
+      for (const Value& x : v->array) out.push_back(x.as_number());
+    }
+  }
+  /// An array of tables ([[k]] sections); returns one Section per element.
+  std::vector<Section> table_array(const std::string& k) {
+    std::vector<Section> out;
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array ||
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.type == Type::Table; })) {
+        fail(k, *v, "an array of tables [[" + key(k) + "]]");
+      }
+      for (std::size_t i = 0; i < v->array.size(); ++i) {
+        out.emplace_back(v->array[i].table.get(), key(k) + "[" + std::to_string(i) + "]", source_);
+      }
+    }
+    return out;
+  }
   Section sub(const std::string& k) {
     const Value* v = find(k);
     if (v && v->type != Type::Table) fail(k, *v, "a table [" + key(k) + "]");
@@ -107,7 +135,7 @@ class Section {
   std::set<std::string> known_;
 };
 
-void read_simulation(Section& root, SimulationConfig& c) {
+void read_simulation(Section& root, SimulationConfig& c, bool box_required = true) {
   {
     Section s = root.sub("material");
     s.number("density", c.material.density);
@@ -148,27 +176,6 @@ void read_simulation(Section& root, SimulationConfig& c) {
     s.finish();
   }
   {
-    Section s = root.sub("box");
-    if (!root.has("box")) {
-      throw ConfigError(
-          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, "
-          "m)");
-    }
-    double lo[3], hi[3];
-    bool has_lo = false, has_hi = false;
-    s.vec3("min", lo, has_lo);
-    s.vec3("max", hi, has_hi);
-    if (!has_lo || !has_hi) {
-      throw ConfigError(std::string("missing key 'box.") + (has_lo ? "max" : "min") +
-                        "': expected an array of 3 numbers [x, y, z] in m");
-    }
-    s.finish();
-    for (int a = 0; a < 3; ++a) {
-      c.walls[static_cast<std::size_t>(2 * a)].position = lo[a];
-      c.walls[static_cast<std::size_t>(2 * a + 1)].position = hi[a];
-    }
-  }
-  {
     Section walls = root.sub("walls");
     for (int k = 0; k < kNumWalls; ++k) {
       Section s = walls.sub(wall_name(k));
@@ -193,6 +200,28 @@ void read_simulation(Section& root, SimulationConfig& c) {
       s.finish();
     }
     walls.finish();
+  }
+  {
+    Section s = root.sub("box");
+    if (!root.has("box") && !box_required) return;
+    if (!root.has("box")) {
+      throw ConfigError(
+          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, "
+          "m)");
+    }
+    double lo[3], hi[3];
+    bool has_lo = false, has_hi = false;
+    s.vec3("min", lo, has_lo);
+    s.vec3("max", hi, has_hi);
+    if (!has_lo || !has_hi) {
+      throw ConfigError(std::string("missing key 'box.") + (has_lo ? "max" : "min") +
+                        "': expected an array of 3 numbers [x, y, z] in m");
+    }
+    s.finish();
+    for (int a = 0; a < 3; ++a) {
+      c.walls[static_cast<std::size_t>(2 * a)].position = lo[a];
+      c.walls[static_cast<std::size_t>(2 * a + 1)].position = hi[a];
+    }
   }
 }
 
@@ -223,17 +252,108 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
   return c;
 }
 
+namespace {
+
+void read_sample(Section& s, SampleConfig& c) {
+  Section g = s.sub("grading");
+  g.numbers("diameter", c.grading.diameter, "an array of sieve sizes in m, increasing");
+  g.numbers("passing", c.grading.passing,
+            "an array of mass fractions passing (0 ... 1), one per size");
+  g.finish();
+  s.number("side", c.side);
+  s.count("count", c.count);
+  s.number("void_ratio", c.void_ratio);
+  s.number("tolerance", c.tolerance);
+  s.number("stress", c.stress);
+  s.count("seed", c.seed);
+  s.number("friction_start", c.friction_start);
+  s.number("friction_factor", c.friction_factor);
+  s.number("placement_fraction", c.placement_fraction);
+  s.number("max_speed", c.max_speed);
+  s.number("unbalanced", c.unbalanced);
+  s.number("stress_tolerance", c.stress_tolerance);
+  s.count("check_interval", c.check_interval);
+  s.count("max_steps", c.max_steps);
+  s.finish();
+}
+
+void read_stage(Section& s, StageConfig& c) {
+  if (!s.has("type")) {
+    throw ConfigError("missing key '" + s.key("type") +
+                      "': expected \"isotropic\", \"oedometric\", \"triaxial\" or \"hold\"");
+  }
+  std::string type;
+  s.string("type", type);
+  c.kind = parse_stage_kind(type, s.key("type"));
+  s.string("name", c.name);
+  // Only the keys the stage type uses are accepted (a stray key is a mistake, not a no-op).
+  const auto uses = [&](const char* k) {
+    switch (c.kind) {
+      case StageKind::Isotropic: return std::string(k) == "stress";
+      case StageKind::Oedometric:
+        return std::string(k) == "stress" || std::string(k) == "strain_rate";
+      case StageKind::Triaxial:
+        return std::string(k) == "sigma_3" || std::string(k) == "strain_rate" ||
+               std::string(k) == "axial_strain" || std::string(k) == "stop_q";
+      case StageKind::Hold:
+        for (const char* h :
+             {"axial", "lateral", "axial_stress", "lateral_stress", "steps", "duration"}) {
+          if (std::string(k) == h) return true;
+        }
+        return false;
+    }
+    return false;
+  };
+  for (const char* k : {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial",
+                        "lateral", "axial_stress", "lateral_stress", "steps", "duration"}) {
+    if (s.has(k) && !uses(k)) {
+      throw ConfigError(
+          bad_value(s.key(k), "given", std::string("no '") + k + "' in a \"" + type + "\" stage"));
+    }
+  }
+  s.number("stress", c.stress);
+  s.number("strain_rate", c.strain_rate);
+  s.number("sigma_3", c.sigma_3);
+  s.number("axial_strain", c.axial_strain);
+  s.number("stop_q", c.stop_q);
+  s.string("axial", c.axial);
+  s.string("lateral", c.lateral);
+  s.number("axial_stress", c.axial_stress);
+  s.number("lateral_stress", c.lateral_stress);
+  s.count("steps", c.steps);
+  s.number("duration", c.duration);
+  s.number("tolerance", c.tolerance);
+  s.number("unbalanced", c.unbalanced);
+  s.number("max_strain_rate", c.max_strain_rate);
+  s.count("check_interval", c.check_interval);
+  s.count("max_steps", c.max_steps);
+  s.finish();
+}
+
+}  // namespace
+
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
                                const std::string& base_dir) {
   RunConfig c;
   Section r(&root, "", source);
-  read_simulation(r, c.simulation);
-  {
+  read_simulation(r, c.simulation, /*box_required=*/false);
+  c.has_sample = root.count("sample") > 0;
+  const bool has_particles = root.count("particles") > 0;
+  if (c.has_sample && has_particles) {
+    throw ConfigError(
+        "give either [sample] (prepare a sample from a grading curve) or [particles] (a "
+        "particle file or a random cloud), not both");
+  }
+  if (!c.has_sample && !has_particles) {
+    throw ConfigError(
+        "missing section [particles] or [sample]: expected particles.file = \"...\", "
+        "[particles.generate] or a [sample] to prepare");
+  }
+  if (c.has_sample) {
+    Section s = r.sub("sample");
+    read_sample(s, c.sample);
+  } else {
     Section s = r.sub("particles");
-    if (!root.count("particles")) {
-      throw ConfigError(
-          "missing section [particles]: expected file = \"...\" or [particles.generate]");
-    }
     s.string("file", c.particles.file);
     if (!c.particles.file.empty() && std::filesystem::path(c.particles.file).is_relative()) {
       c.particles.file = (std::filesystem::path(base_dir) / c.particles.file).string();
@@ -251,7 +371,58 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.finish();
   }
   {
+    auto stages = r.table_array("stage");
+    for (Section& s : stages) {
+      StageConfig st;
+      read_stage(s, st);
+      c.stages.push_back(st);
+    }
+  }
+  if ((c.has_sample || !c.stages.empty()) && root.count("walls")) {
+    throw ConfigError(
+        "walls: a [sample] or [[stage]] run sets the walls itself; remove the [walls] sections "
+        "(stage keys such as max_strain_rate set the servo)");
+  }
+  if (c.has_sample && root.count("box")) {
+    throw ConfigError(
+        "box: a [sample] makes its own cube (sample.side or sample.count); remove "
+        "the [box] section");
+  }
+  if (c.has_sample) {
+    const double L = c.sample.cube_side();
+    for (int a = 0; a < 3; ++a) {
+      c.simulation.walls[static_cast<std::size_t>(2 * a)].position = 0.0;
+      c.simulation.walls[static_cast<std::size_t>(2 * a + 1)].position = L;
+    }
+  } else if (!root.count("box")) {
+    // The box of a prepared sample is in its file's header.
+    if (c.particles.file.empty()) {
+      throw ConfigError(
+          "missing section [box]: expected min = [x, y, z] and max = [x, y, z] (wall positions, "
+          "m)");
+    }
+    if (!std::filesystem::exists(c.particles.file)) {
+      throw ConfigError(
+          bad_value("particles.file", "\"" + c.particles.file + "\"", "an existing particle file"));
+    }
+    const Packing pk = read_packing(c.particles.file);
+    if (!pk.header.count("box_xmin")) {
+      throw ConfigError("missing section [box]: " + c.particles.file +
+                        " has no '# box_xmin=' header (only prepared samples carry their box); "
+                        "expected [box] min = [x, y, z] and max = [x, y, z]");
+    }
+    for (int k = 0; k < kNumWalls; ++k) {
+      c.simulation.walls[static_cast<std::size_t>(k)].position =
+          pk.header_number(std::string("box_") + wall_name(k), c.particles.file);
+    }
+  }
+  {
     Section s = r.sub("run");
+    if (root.count("run") && (c.has_sample || !c.stages.empty())) {
+      throw ConfigError(
+          "run: a [sample] or [[stage]] run ends with its last stage; remove [run] (a 'hold' "
+          "stage runs for a set time)");
+    }
     s.count("steps", c.steps);
     s.number("duration", c.duration);
     s.finish();
@@ -334,8 +505,21 @@ void OutputConfig::validate() const {
 
 void RunConfig::validate() const {
   simulation.validate();
-  particles.validate(box());
+  if (has_sample) {
+    sample.validate(simulation);
+  } else {
+    particles.validate(box());
+  }
+  for (std::size_t i = 0; i < stages.size(); ++i) {
+    stages[i].validate("stage[" + std::to_string(i) + "]");
+  }
   output.validate();
+  if (has_sample || !stages.empty()) {
+    if (steps != 0 || duration != 0.0) {
+      throw ConfigError("run: a [sample] or [[stage]] run ends with its last stage; remove [run]");
+    }
+    return;
+  }
   if ((steps == 0) == (duration <= 0.0)) {
     throw ConfigError(
         "run: expected exactly one of 'run.steps' (a positive count) or "
@@ -403,6 +587,80 @@ toml::Table to_toml(const SimulationConfig& c) {
 
 toml::Table to_toml(const RunConfig& c) {
   Table t = to_toml(c.simulation);
+  if (c.has_sample || !c.stages.empty()) t.erase("walls");  // the stages set the walls
+  if (c.has_sample) {
+    t.erase("box");
+    const SampleConfig& s = c.sample;
+    Table st, g;
+    std::vector<Value> d, pa;
+    for (double x : s.grading.diameter) d.push_back(num(x));
+    for (double x : s.grading.passing) pa.push_back(num(x));
+    g["diameter"] = Value::make_array(d);
+    g["passing"] = Value::make_array(pa);
+    st["grading"] = Value::make_table(g);
+    if (s.count > 0) {
+      st["count"] = cnt(s.count);
+    } else {
+      st["side"] = num(s.cube_side());
+    }
+    st["void_ratio"] = num(s.void_ratio);
+    st["tolerance"] = num(s.tolerance);
+    st["stress"] = num(s.stress);
+    st["seed"] = cnt(s.seed);
+    st["friction_start"] = num(s.friction_start);
+    st["friction_factor"] = num(s.friction_factor);
+    st["placement_fraction"] = num(s.placement_fraction);
+    st["max_speed"] = num(s.max_speed);
+    st["unbalanced"] = num(s.unbalanced);
+    st["stress_tolerance"] = num(s.stress_tolerance);
+    st["check_interval"] = cnt(s.check_interval);
+    st["max_steps"] = cnt(s.max_steps);
+    t["sample"] = Value::make_table(st);
+  }
+  if (!c.stages.empty()) {
+    std::vector<Value> arr;
+    for (const StageConfig& s : c.stages) {
+      Table st;
+      st["type"] = Value::make_string(to_string(s.kind));
+      st["name"] = Value::make_string(s.label());
+      switch (s.kind) {
+        case StageKind::Isotropic: st["stress"] = num(s.stress); break;
+        case StageKind::Oedometric:
+          st["stress"] = num(s.stress);
+          st["strain_rate"] = num(s.strain_rate);
+          break;
+        case StageKind::Triaxial:
+          st["sigma_3"] = num(s.sigma_3);
+          st["strain_rate"] = num(s.strain_rate);
+          st["axial_strain"] = num(s.axial_strain);
+          st["stop_q"] = num(s.stop_q);
+          break;
+        case StageKind::Hold:
+          st["axial"] = Value::make_string(s.axial);
+          st["lateral"] = Value::make_string(s.lateral);
+          if (s.axial == "servo") st["axial_stress"] = num(s.axial_stress);
+          if (s.lateral == "servo") st["lateral_stress"] = num(s.lateral_stress);
+          if (s.steps > 0) st["steps"] = cnt(s.steps);
+          if (s.duration > 0.0) st["duration"] = num(s.duration);
+          break;
+      }
+      st["tolerance"] = num(s.tolerance);
+      st["unbalanced"] = num(s.unbalanced);
+      st["max_strain_rate"] = num(s.max_strain_rate);
+      st["check_interval"] = cnt(s.check_interval);
+      st["max_steps"] = cnt(s.max_steps);
+      arr.push_back(Value::make_table(st));
+    }
+    t["stage"] = Value::make_array(arr);
+  }
+  if (c.has_sample || !c.stages.empty()) {
+    Table o;
+    o["interval"] = cnt(c.output.interval);
+    o["vtk_interval"] = cnt(c.output.vtk_interval);
+    o["progress_seconds"] = num(c.output.progress_seconds);
+    t["output"] = Value::make_table(o);
+    if (c.has_sample) return t;
+  }
   Table p;
   if (!c.particles.file.empty()) {
     p["file"] = Value::make_string(c.particles.file);
@@ -415,6 +673,7 @@ toml::Table to_toml(const RunConfig& c) {
     p["generate"] = Value::make_table(g);
   }
   t["particles"] = Value::make_table(p);
+  if (!c.stages.empty()) return t;
   Table r;
   if (c.steps > 0) r["steps"] = cnt(c.steps);
   if (c.duration > 0.0) r["duration"] = num(c.duration);

@@ -6,7 +6,9 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
 
+#include "crushdem/experiments/protocol.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/toml.hpp"
 
@@ -22,7 +24,9 @@ struct GenerateConfig {
 };
 
 struct ParticlesConfig {
-  std::string file;         // "id x y z diameter" rows (relative to the config file)
+  std::string file;         // "id x y z diameter" rows (relative to the config file); a
+                            // "# box_xmin=..." header (written by sample preparation) gives the
+                            // box when there is no [box] section
   GenerateConfig generate;  // used when file is empty
   void validate(const std::array<double, 6>& box) const;
 };
@@ -36,9 +40,12 @@ struct OutputConfig {
 
 struct RunConfig {
   SimulationConfig simulation;
-  ParticlesConfig particles;
+  ParticlesConfig particles;  // unless has_sample
+  bool has_sample = false;    // [sample]: prepare a sample from a grading curve first
+  SampleConfig sample;
+  std::vector<StageConfig> stages;  // [[stage]]: a laboratory test, stage after stage
   OutputConfig output;
-  std::uint64_t steps = 0;  // run length in steps, or
+  std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)
   void validate() const;
   /// Box as [xmin, xmax, ymin, ymax, zmin, zmax] from the wall positions.
@@ -48,7 +55,8 @@ struct RunConfig {
 /// Reads [material] [contact] [damping] [timestep] [neighbor] [box] [walls.*]; any other key,
 /// at the top level or inside these sections, is an error naming it.
 SimulationConfig simulation_config_from_toml(const toml::Table& root, const std::string& source);
-/// Reads a whole run file: the simulation sections plus [particles] [run] [output].
+/// Reads a whole run file: the simulation sections plus [particles] or [sample], [run] or
+/// [[stage]], and [output].
 /// Relative particle file paths are resolved against `base_dir`.
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
                                const std::string& base_dir);

@@ -72,6 +72,19 @@ void JsonObject::object(const std::string& key, const JsonObject& v) {
   fields.emplace_back(key, v.dump(2));
 }
 
+void JsonObject::array(const std::string& key, const std::vector<JsonObject>& v) {
+  std::string o = "[";
+  for (std::size_t k = 0; k < v.size(); ++k) o += (k ? ", " : "") + v[k].dump(4);
+  fields.emplace_back(key, o + "]");
+}
+void JsonObject::numbers(const std::string& key, const std::vector<double>& v) {
+  std::string o = "[";
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    o += (k ? ", " : "") + (std::isfinite(v[k]) ? format_double(v[k]) : std::string("null"));
+  }
+  fields.emplace_back(key, o + "]");
+}
+
 std::string JsonObject::dump(int indent) const {
   const std::string pad(static_cast<std::size_t>(indent) + 2, ' ');
   std::string o = "{\n";

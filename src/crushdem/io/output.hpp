@@ -35,6 +35,8 @@ struct JsonObject {
   void integer(const std::string& key, long long v);
   void string(const std::string& key, const std::string& v);
   void object(const std::string& key, const JsonObject& v);
+  void array(const std::string& key, const std::vector<JsonObject>& v);
+  void numbers(const std::string& key, const std::vector<double>& v);
   std::string dump(int indent = 0) const;
 };
 void write_text_file(const std::string& path, const std::string& text);

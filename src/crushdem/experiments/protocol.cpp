@@ -1,0 +1,482 @@
+#include "crushdem/experiments/protocol.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "crushdem/core/deterministic.hpp"
+#include "crushdem/core/error.hpp"
+#include "crushdem/particles/generate.hpp"
+
+namespace crushdem {
+
+namespace {
+
+void require(bool ok, const std::string& key, double v, const std::string& expected) {
+  if (!ok) throw ConfigError(bad_value(key, show_number(v), expected));
+}
+
+double solid_volume(const ParticleStore& p) {
+  return deterministic_sum(p.size(), [&](std::size_t i) {
+    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
+  });
+}
+
+double axial_stress(const Walls& w) {
+  return 0.5 * (w.stress(4) + w.stress(5));
+}
+double lateral_stress(const Walls& w) {
+  return 0.25 * (w.stress(0) + w.stress(1) + w.stress(2) + w.stress(3));
+}
+
+/// Every servo wall within `tol` of its target.
+bool servo_walls_at_target(const Walls& w, double tol) {
+  for (int k = 0; k < kNumWalls; ++k) {
+    const WallConfig& c = w.config(k);
+    if (c.mode != WallMode::Servo) continue;
+    if (!(std::abs(w.stress(k) / c.target_stress - 1.0) <= tol)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+double SampleConfig::cube_side() const {
+  if (side > 0.0) return side;
+  if (count > 0) {
+    return std::cbrt(static_cast<double>(count) * grading.mean_grain_volume() * (1.0 + void_ratio));
+  }
+  return 4e-3;
+}
+
+void SampleConfig::validate(const SimulationConfig& sim) const {
+  grading.validate("sample.grading");
+  if (side != 0.0 && count != 0) {
+    throw ConfigError(
+        "sample: give either 'sample.side' (the cube side in m) or 'sample.count' (about how "
+        "many grains), not both");
+  }
+  require(side >= 0.0 && std::isfinite(side), "sample.side", side, "a cube side in m (> 0)");
+  require(void_ratio > 0.0 && std::isfinite(void_ratio), "sample.void_ratio", void_ratio,
+          "a positive void ratio");
+  if (void_ratio < densest_void_ratio(grading, cube_side())) {
+    const double e_min = densest_void_ratio(grading, cube_side());
+    throw ConfigError(bad_value(
+        "sample.void_ratio", show_number(void_ratio),
+        "a void ratio this grading can reach in this cube: random close packing gives about e = " +
+            show_number(std::round(e_min * 1000.0) / 1000.0) +
+            " here (Desmond & Weeks 2014, with a looser layer along the walls), and no random "
+            "packing is denser: more grains than fit (a wider cube packs denser)"));
+  }
+  require(tolerance > 0.0 && tolerance < 0.1, "sample.tolerance", tolerance,
+          "a void-ratio tolerance in (0, 0.1)");
+  require(stress > 0.0 && std::isfinite(stress), "sample.stress", stress,
+          "a positive isotropic stress in Pa");
+  require(friction_start >= sim.material.friction && friction_start <= 2.0, "sample.friction_start",
+          friction_start,
+          "a friction coefficient in [material.friction, 2] to start the preparation from");
+  require(friction_factor > 0.0 && friction_factor < 1.0, "sample.friction_factor", friction_factor,
+          "a factor in (0, 1)");
+  require(placement_fraction > 0.0 && placement_fraction <= 0.3, "sample.placement_fraction",
+          placement_fraction, "a solid fraction in (0, 0.3] (random placement jams above)");
+  require(max_speed > 0.0 && std::isfinite(max_speed), "sample.max_speed", max_speed,
+          "a positive speed in m/s");
+  require(unbalanced > 0.0 && unbalanced < 1.0, "sample.unbalanced", unbalanced,
+          "an unbalanced-force ratio in (0, 1)");
+  require(stress_tolerance > 0.0 && stress_tolerance < 0.5, "sample.stress_tolerance",
+          stress_tolerance, "a relative tolerance in (0, 0.5)");
+  if (check_interval == 0) throw ConfigError(bad_value("sample.check_interval", "0", "> 0 steps"));
+  if (max_steps == 0) throw ConfigError(bad_value("sample.max_steps", "0", "> 0 steps"));
+  const double L = cube_side();
+  const double d_max = grading.diameter.back();
+  if (L < 5.0 * d_max) {
+    throw ConfigError(
+        bad_value(side > 0 ? "sample.side" : "sample.count",
+                  side > 0 ? show_number(side) : std::to_string(count),
+                  "a cube at least 5 largest grains wide (side >= " + show_number(5.0 * d_max) +
+                      " m; this gives " + show_number(L) + " m)"));
+  }
+  const double n = L * L * L / (1.0 + void_ratio) / grading.mean_grain_volume();
+  if (n > 5e7) {
+    throw ConfigError(bad_value(
+        side > 0 ? "sample.side" : "sample.count",
+        side > 0 ? show_number(side) : std::to_string(count),
+        "a sample of at most 5e7 grains (this is about " + show_number(std::round(n)) + ")"));
+  }
+}
+
+LooseCloud make_loose_cloud(const SampleConfig& cfg) {
+  const double L = cfg.cube_side();
+  const double Vs = L * L * L / (1.0 + cfg.void_ratio);
+  const std::vector<double> d = draw_diameters(cfg.grading, Vs, cfg.seed);
+  double vol = 0.0;
+  for (double x : d) vol += kPi / 6.0 * x * x * x;
+  LooseCloud c;
+  c.side = std::cbrt(vol / cfg.placement_fraction);
+  std::vector<double> radii(d.size());
+  for (std::size_t i = 0; i < d.size(); ++i) radii[i] = 0.5 * d[i];
+  const std::array<double, 6> box{0.0, c.side, 0.0, c.side, 0.0, c.side};
+  for (const PlacedSphere& s : random_sequential_addition(radii, box, cfg.seed)) {
+    c.position.push_back(s.position);
+    c.radius.push_back(s.radius);
+  }
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+double inertial_number(const Walls& w, double d50, double density) {
+  double rate = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    const double L = w.length(a);
+    if (L > 0)
+      rate = std::max(rate, std::abs(w.state(2 * a).velocity - w.state(2 * a + 1).velocity) / L);
+  }
+  double p = 0.0;
+  for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
+  if (!(p > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return rate * d50 * std::sqrt(density / p);
+}
+
+double unbalanced_force_ratio(const Simulation& sim) {
+  const ParticleStore& p = sim.particles();
+  const auto &ux = sim.resultant_force(0), &uy = sim.resultant_force(1),
+             &uz = sim.resultant_force(2);
+  if (p.size() == 0 || ux.size() != p.size()) return std::numeric_limits<double>::quiet_NaN();
+  double sum_fn = 0.0;
+  std::size_t n = 0;
+  for (const ContactRecord& c : sim.contacts()) {
+    if (c.is_wall) continue;
+    sum_fn += c.F_n;
+    ++n;
+  }
+  if (n == 0 || !(sum_fn > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  const double mean_res =
+      deterministic_sum(
+          p.size(),
+          [&](std::size_t i) { return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]); }) /
+      static_cast<double>(p.size());
+  return mean_res / (sum_fn / static_cast<double>(n));
+}
+
+// ---------------------------------------------------------------------------------------------
+
+PreparationController::PreparationController(const SampleConfig& cfg, double material_friction)
+    : cfg_(cfg), mu_material_(material_friction) {}
+
+void PreparationController::begin(Simulation& sim) {
+  Walls& w = sim.walls();
+  for (int k = 0; k < kNumWalls; ++k) {
+    WallConfig& c = w.config(k);
+    c.mode = WallMode::Servo;
+    c.target_stress = cfg_.stress;
+    c.max_speed = cfg_.max_speed;
+  }
+  w.update_velocities(sim.current_dt());
+  mu_ = cfg_.friction_start;
+  sim.set_friction(mu_);
+  start_step_ = sim.step_count();
+  phase_ = Phase::Compact;
+}
+
+bool PreparationController::update(Simulation& sim) {
+  const double Vs = solid_volume(sim.particles());
+  e_ = (sim.walls().volume() - Vs) / Vs;
+  const std::uint64_t done = sim.step_count() - start_step_;
+  if (done >= cfg_.max_steps) {
+    throw RuntimeFailure("sample preparation did not finish within sample.max_steps = " +
+                         std::to_string(cfg_.max_steps) + " steps (e = " + show_number(e_) +
+                         ", preparation friction " + show_number(mu_) +
+                         "); raise sample.max_steps or sample.max_speed");
+  }
+  const bool at_stress = servo_walls_at_target(sim.walls(), cfg_.stress_tolerance);
+  const double ub = unbalanced_force_ratio(sim);
+  const bool equilibrium = at_stress && ub <= cfg_.unbalanced;
+  const double e_target = cfg_.void_ratio;
+  switch (phase_) {
+    case Phase::Compact:
+      // Restore the material friction a little before the target: the packing still settles.
+      if (e_ <= e_target + 0.5 * cfg_.tolerance) {
+        mu_found_ = mu_;
+        sim.set_friction(mu_material_);
+        phase_ = Phase::Settle;
+      } else if (equilibrium) {
+        if (mu_ == 0.0) {
+          throw RuntimeFailure(
+              "sample.void_ratio = " + show_number(e_target) +
+              " cannot be reached: even frictionless compaction to sample.stress stops at e = " +
+              show_number(e_) + " with this grading and box; ask for a looser sample");
+        }
+        mu_ *= cfg_.friction_factor;
+        if (mu_ < 1e-3) mu_ = 0.0;
+        sim.set_friction(mu_);
+      }
+      return false;
+    case Phase::Settle:
+      if (!equilibrium) return false;
+      if (std::abs(e_ - e_target) > cfg_.tolerance) {
+        warning_ = "prepared void ratio " + show_number(e_) +
+                   " differs from sample.void_ratio = " + show_number(e_target) +
+                   " by more than sample.tolerance = " + show_number(cfg_.tolerance) +
+                   (e_ < e_target ? " (too dense: raise sample.friction_start)" : " (too loose)");
+      }
+      phase_ = Phase::Done;
+      return true;
+    case Phase::Done: return true;
+  }
+  return true;
+}
+
+Measurement PreparationController::columns(const Simulation& sim) const {
+  return {{"friction", sim.contact_params().mu},
+          {"phase", static_cast<double>(static_cast<int>(phase_))}};
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const char* to_string(StageKind k) {
+  switch (k) {
+    case StageKind::Isotropic: return "isotropic";
+    case StageKind::Oedometric: return "oedometric";
+    case StageKind::Triaxial: return "triaxial";
+    case StageKind::Hold: return "hold";
+  }
+  return "?";
+}
+
+StageKind parse_stage_kind(const std::string& s, const std::string& key) {
+  if (s == "isotropic") return StageKind::Isotropic;
+  if (s == "oedometric") return StageKind::Oedometric;
+  if (s == "triaxial") return StageKind::Triaxial;
+  if (s == "hold") return StageKind::Hold;
+  throw ConfigError(
+      bad_value(key, "\"" + s + "\"", "\"isotropic\", \"oedometric\", \"triaxial\" or \"hold\""));
+}
+
+void StageConfig::validate(const std::string& prefix) const {
+  auto key = [&](const char* k) { return prefix + "." + k; };
+  auto positive = [&](const char* k, double v, const char* what) {
+    require(v > 0.0 && std::isfinite(v), key(k), v, what);
+  };
+  switch (kind) {
+    case StageKind::Isotropic: positive("stress", stress, "a positive stress in Pa"); break;
+    case StageKind::Oedometric:
+      positive("stress", stress, "a positive target vertical stress in Pa");
+      require(std::isfinite(strain_rate) && std::abs(strain_rate) < 1e4, key("strain_rate"),
+              strain_rate, "an axial strain rate in 1/s (> 0 loading, < 0 unloading, 0 servo)");
+      break;
+    case StageKind::Triaxial:
+      positive("sigma_3", sigma_3, "a positive confining stress in Pa");
+      positive("strain_rate", strain_rate, "a positive axial strain rate in 1/s");
+      require(axial_strain > 0.0 && axial_strain < 0.9, key("axial_strain"), axial_strain,
+              "a final axial strain in (0, 0.9)");
+      require(stop_q >= 0.0 && std::isfinite(stop_q), key("stop_q"), stop_q,
+              "a deviator stress in Pa to stop at (0 = not used)");
+      break;
+    case StageKind::Hold:
+      if (axial != "fixed" && axial != "servo") {
+        throw ConfigError(bad_value(key("axial"), "\"" + axial + "\"", "\"fixed\" or \"servo\""));
+      }
+      if (lateral != "fixed" && lateral != "servo") {
+        throw ConfigError(
+            bad_value(key("lateral"), "\"" + lateral + "\"", "\"fixed\" or \"servo\""));
+      }
+      if (axial == "servo") positive("axial_stress", axial_stress, "a positive stress in Pa");
+      if (lateral == "servo") {
+        positive("lateral_stress", lateral_stress, "a positive stress in Pa");
+      }
+      if ((steps == 0) == !(duration > 0.0)) {
+        throw ConfigError(prefix + ": a hold stage needs exactly one of '" + key("steps") +
+                          "' (> 0) or '" + key("duration") + "' (> 0 s)");
+      }
+      require(std::isfinite(duration) && duration >= 0.0, key("duration"), duration, "a time in s");
+      break;
+  }
+  require(tolerance > 0.0 && tolerance < 0.5, key("tolerance"), tolerance,
+          "a relative stress tolerance in (0, 0.5)");
+  require(unbalanced > 0.0 && unbalanced < 1.0, key("unbalanced"), unbalanced,
+          "an unbalanced-force ratio in (0, 1)");
+  require(max_strain_rate >= 0.0 && std::isfinite(max_strain_rate), key("max_strain_rate"),
+          max_strain_rate, "a servo strain-rate limit in 1/s (0 = automatic)");
+  if (check_interval == 0) throw ConfigError(bad_value(key("check_interval"), "0", "> 0 steps"));
+  if (max_steps == 0) throw ConfigError(bad_value(key("max_steps"), "0", "> 0 steps"));
+}
+
+StageController::StageController(const StageConfig& cfg, double d50) : cfg_(cfg), d50_(d50) {
+  res_.name = cfg_.label();
+  res_.kind = to_string(cfg_.kind);
+}
+
+void StageController::set_servo(Walls& w, int k, double stress) const {
+  WallConfig& c = w.config(k);
+  c.mode = WallMode::Servo;
+  c.target_stress = stress;
+  c.max_speed = 0.5 * cfg_.servo_strain_rate() * w.length(wall_axis(k));
+}
+
+double StageConfig::servo_strain_rate() const {
+  if (max_strain_rate > 0.0) return max_strain_rate;
+  return kind == StageKind::Triaxial ? std::max(10.0, 2.0 * strain_rate) : 10.0;
+}
+
+void StageController::begin(Simulation& sim) {
+  Walls& w = sim.walls();
+  ref_ = StrainReference::from(w);
+  start_step_ = sim.step_count();
+  start_time_ = sim.time();
+  for (int k = 0; k < kNumWalls; ++k) {
+    w.config(k).mode = WallMode::Fixed;
+    w.config(k).velocity = 0.0;
+  }
+  const double Lz = w.length(2);
+  switch (cfg_.kind) {
+    case StageKind::Isotropic:
+      for (int k = 0; k < kNumWalls; ++k) set_servo(w, k, cfg_.stress);
+      break;
+    case StageKind::Oedometric:
+      if (cfg_.strain_rate == 0.0) {
+        set_servo(w, 5, cfg_.stress);
+      } else {
+        w.config(5).mode = WallMode::Velocity;
+        w.config(5).velocity = -cfg_.strain_rate * Lz;  // the top moves down in compression
+      }
+      break;
+    case StageKind::Triaxial:
+      for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.sigma_3);
+      w.config(4).mode = WallMode::Velocity;
+      w.config(4).velocity = 0.5 * cfg_.strain_rate * Lz;
+      w.config(5).mode = WallMode::Velocity;
+      w.config(5).velocity = -0.5 * cfg_.strain_rate * Lz;
+      break;
+    case StageKind::Hold:
+      if (cfg_.axial == "servo") set_servo(w, 5, cfg_.axial_stress);
+      if (cfg_.lateral == "servo") {
+        for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.lateral_stress);
+      }
+      break;
+  }
+  w.update_velocities(sim.current_dt());
+  observe(sim);
+}
+
+double StageController::stage_axial_strain(const Simulation& sim) const {
+  return ref_.length[2] > 0 ? 1.0 - sim.walls().length(2) / ref_.length[2] : 0.0;
+}
+
+void StageController::observe(const Simulation& sim) {
+  const Walls& w = sim.walls();
+  const double sa = axial_stress(w), sr = lateral_stress(w);
+  const double q = sa - sr;
+  if (!observed_ || q > res_.q_max) {
+    observed_ = true;
+    res_.q_max = q;
+    res_.axial_strain_at_q_max = stage_axial_strain(sim);
+    res_.sigma_3_at_q_max = sr;
+    res_.friction_angle_deg = q > 0 && sr > 0 ? std::asin(q / (q + 2.0 * sr)) * 180.0 / kPi : 0.0;
+  }
+  res_.K0 = sa > 0 ? sr / sa : 0.0;
+  if (cfg_.kind == StageKind::Triaxial) {
+    for (int k = 0; k < 4; ++k) {
+      res_.max_lateral_stress_error =
+          std::max(res_.max_lateral_stress_error, std::abs(w.stress(k) / cfg_.sigma_3 - 1.0));
+    }
+  }
+  if (cfg_.kind == StageKind::Oedometric) {
+    for (int a = 0; a < 2; ++a) {
+      res_.max_lateral_strain =
+          std::max(res_.max_lateral_strain, std::abs(1.0 - w.length(a) / ref_.length[a]));
+    }
+  }
+  const double I = inertial_number(w, d50_, sim.config().material.density);
+  if (I > res_.max_inertial_number) res_.max_inertial_number = I;
+  if (I > 1e-3 && !warned_inertia_) {
+    warned_inertia_ = true;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "inertial number %.3g exceeds 1e-3 in stage '%s' at t = %.4e s: the test is not "
+                  "quasi-static (lower strain_rate or max_strain_rate)",
+                  I, res_.name.c_str(), sim.time());
+    res_.warning = buf;
+    std::fprintf(stderr, "[crushdem] warning: %s\n", buf);
+  }
+}
+
+bool StageController::update(Simulation& sim) {
+  res_.steps = sim.step_count() - start_step_;
+  observe(sim);
+  const Walls& w = sim.walls();
+  auto finish = [&](const char* why) {
+    res_.end_reason = why;
+    return true;
+  };
+  auto equilibrium = [&]() {
+    return servo_walls_at_target(w, cfg_.tolerance) &&
+           unbalanced_force_ratio(sim) <= cfg_.unbalanced;
+  };
+  switch (cfg_.kind) {
+    case StageKind::Isotropic:
+      if (equilibrium()) return finish("equilibrium");
+      break;
+    case StageKind::Oedometric: {
+      const double sv = axial_stress(w);
+      if (cfg_.strain_rate == 0.0 && equilibrium()) return finish("equilibrium");
+      if (cfg_.strain_rate > 0.0 && sv >= cfg_.stress) return finish("target stress");
+      if (cfg_.strain_rate < 0.0 && sv <= cfg_.stress) return finish("target stress");
+      break;
+    }
+    case StageKind::Triaxial:
+      if (cfg_.stop_q > 0.0 && axial_stress(w) - lateral_stress(w) >= cfg_.stop_q) {
+        return finish("target q");
+      }
+      if (stage_axial_strain(sim) >= cfg_.axial_strain) {
+        if (cfg_.stop_q > 0.0) {
+          res_.warning += (res_.warning.empty() ? "" : "; ") +
+                          std::string("q never reached stop_q before the final axial strain");
+        }
+        return finish("target axial strain");
+      }
+      break;
+    case StageKind::Hold:
+      if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return finish("duration");
+      if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
+        return finish("duration");
+      }
+      break;
+  }
+  if (res_.steps >= cfg_.max_steps) {
+    res_.warning += (res_.warning.empty() ? "" : "; ") + std::string("stopped at max_steps = ") +
+                    std::to_string(cfg_.max_steps) + " before its end condition";
+    std::fprintf(stderr, "[crushdem] warning: stage '%s' %s\n", res_.name.c_str(),
+                 res_.warning.c_str());
+    return finish("max_steps");
+  }
+  return false;
+}
+
+std::uint64_t StageController::steps_to_check(Simulation& sim) {
+  const std::uint64_t done = sim.step_count() - start_step_;
+  std::uint64_t n = cfg_.check_interval - done % cfg_.check_interval;
+  if (cfg_.kind == StageKind::Hold) {
+    if (cfg_.steps > 0) n = std::min(n, cfg_.steps - std::min(cfg_.steps, done));
+    if (cfg_.duration > 0.0) {
+      const double left = std::ceil((start_time_ + cfg_.duration - sim.time()) / sim.dt());
+      n = std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
+    }
+  }
+  return std::max<std::uint64_t>(n, 1);
+}
+
+std::uint64_t PreparationController::steps_to_check(Simulation& sim) {
+  const std::uint64_t done = sim.step_count() - start_step_;
+  return cfg_.check_interval - done % cfg_.check_interval;
+}
+
+Measurement StageController::columns(const Simulation& sim) const {
+  return {{"stage_axial_strain", stage_axial_strain(sim)},
+          {"inertial_number", inertial_number(sim.walls(), d50_, sim.config().material.density)}};
+}
+
+}  // namespace crushdem
