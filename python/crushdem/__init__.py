@@ -32,6 +32,8 @@ import numpy as np
 
 from . import _core
 from ._core import ConfigError, RuntimeFailure, cli_main
+from . import lab
+from .lab import isotropic_test, oedometric_test, prepare_sample, triaxial_test
 
 __all__ = [
     "Simulation",
@@ -41,6 +43,11 @@ __all__ = [
     "NO_PARENT",
     "cli_main",
     "resolved_config",
+    "lab",
+    "prepare_sample",
+    "isotropic_test",
+    "oedometric_test",
+    "triaxial_test",
 ]
 
 __version__ = "0.1.0"

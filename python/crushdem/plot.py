@@ -1,26 +1,50 @@
-"""``crushdem plot DIR``: figures of a run's DIR/timeseries.csv.
+"""``crushdem plot DIR``: figures of a run's DIR/timeseries.csv (and DIR/summary.json).
 
 The CSV has one header row whose column names carry their SI unit (``time_s``,
-``wall_zmax_stress_Pa``, ``kinetic_energy_J``, ...). Every figure is drawn only when the columns
-it needs exist, so the command works for any experiment. Figures written (PNG, into DIR unless
+``wall_zmax_stress_Pa``, ``kinetic_energy_J``, ...); strains are fractions, compression positive,
+counted from the start of the test. Every figure is drawn only when the columns (and, for the
+laboratory figures, the stages listed in summary.json) it needs exist, so the command works for
+any experiment. Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless
 ``--out`` is given):
 
 * ``stress_time.png``      wall normal stresses (and mean stress p) [MPa] against time [s]
 * ``strain_stress.png``    deviator stress q (or axial wall stress) [MPa] against axial strain [%],
                            with volumetric strain [%] on a second panel when present
-* ``void_ratio.png``       void ratio e against mean stress p [MPa] on a log axis
+* ``void_ratio.png``       void ratio e against mean stress p [MPa] on a log axis (the e - log p
+                           compression curve), one colour per test stage when there is a
+                           ``stage`` column
 * ``coordination.png``     coordination number against time
 * ``kinetic_energy.png``   kinetic energy [J] against time (log axis)
+
+Laboratory tests (a ``stage`` column, stages described in summary.json ``"stages"``):
+
+* ``triaxial.png``         for each triaxial stage, deviator stress q [MPa] (peak marked with
+                           q_max and the peak friction angle from summary.json) and the change of
+                           volumetric strain during the stage [%] against the stage's axial
+                           strain [%]
+* ``q_p_path.png``         stress path q [MPa] against p [MPa], one colour per stage (drawn for
+                           any run with both columns)
+* ``oedometer.png``        for oedometric stages: void ratio e against vertical stress
+                           sigma_v = mean of the zmin/zmax wall stresses [MPa] (log axis), each
+                           stage labelled loading or unloading, with its K0 = sigma_h/sigma_v
+* ``inertial_number.png``  inertial number I against time (log axis) with the quasi-static
+                           limit I = 1e-3 dashed
+
+Sample preparation (a ``friction`` column):
+
+* ``preparation.png``      void ratio (with the target) and the preparation friction coefficient
+                           against time
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import os
 import sys
-from typing import Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -68,6 +92,64 @@ def _save(fig, out_dir: str, name: str, written: List[str]) -> None:
     written.append(path)
 
 
+def read_summary(run_dir: str) -> Dict[str, Any]:
+    """DIR/summary.json as a dict; {} when it is missing or not valid JSON."""
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            s = json.load(f)
+    except (OSError, ValueError):
+        return {}
+    return s if isinstance(s, dict) else {}
+
+
+def _num(x: Any) -> float:
+    """A summary.json value as a float (NaN when missing or not a number)."""
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _stages(d: Dict[str, np.ndarray],
+            summary: Dict[str, Any]) -> List[Tuple[int, np.ndarray, Dict[str, Any]]]:
+    """[(stage index, row mask, stage description from summary.json or {})] in stage order.
+
+    Empty when the CSV has no ``stage`` column. A run writes the row at a stage boundary twice
+    (last row of one stage, first row of the next), so consecutive stages share a point.
+    """
+    if not _has(d, "stage"):
+        return []
+    listed = summary.get("stages")
+    listed = listed if isinstance(listed, list) else []
+    s = d["stage"]
+    out = []
+    for k in sorted({int(v) for v in s[np.isfinite(s)]}):
+        info = listed[k] if 0 <= k < len(listed) and isinstance(listed[k], dict) else {}
+        out.append((k, s == k, info))
+    return out
+
+
+def _stage_name(k: int, info: Dict[str, Any]) -> str:
+    name = info.get("name") or info.get("type") or ""
+    return f"stage {k}: {name}" if name else f"stage {k}"
+
+
+def _stage_color(k: int):
+    import matplotlib.pyplot as plt
+
+    cycle = plt.rcParams["axes.prop_cycle"].by_key().get("color", ["C0"])
+    return cycle[k % len(cycle)]
+
+
+def _vertical_stress(d: Dict[str, np.ndarray]) -> Optional[np.ndarray]:
+    """sigma_v: mean of the zmin and zmax wall stresses [Pa] (whichever exist)."""
+    cols = [d[c] for c in ("wall_zmin_stress_Pa", "wall_zmax_stress_Pa") if _has(d, c)]
+    if not cols:
+        return None
+    with np.errstate(all="ignore"):
+        return np.nanmean(np.vstack(cols), axis=0)
+
+
 def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     """Draws the figures for ``run_dir``/timeseries.csv; returns the paths written."""
     import matplotlib
@@ -77,11 +159,13 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
 
     csv_path = os.path.join(run_dir, "timeseries.csv")
     d = read_timeseries(csv_path)
+    summary = read_summary(run_dir)
     out_dir = out_dir or run_dir
     os.makedirs(out_dir, exist_ok=True)
     t, t_label = _time_axis(d)
     written: List[str] = []
     title = os.path.basename(os.path.normpath(run_dir))
+    stages = _stages(d, summary)
 
     # Wall stresses against time.
     wall_cols = [(w, f"wall_{w}_stress_Pa") for w in WALLS if _has(d, f"wall_{w}_stress_Pa")]
@@ -130,7 +214,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
             _save(fig, out_dir, "strain_stress.png", written)
             plt.close(fig)
 
-    # Compression curve e - log p.
+    # Compression curve e - log p (one colour per stage in a staged test).
     if _has(d, "void_ratio"):
         p = None
         if _has(d, "mean_stress_Pa"):
@@ -138,15 +222,192 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
         elif wall_cols:
             p = np.nanmean(np.vstack([d[c] for _, c in wall_cols]), axis=0)
         if p is not None and np.any(p > 0):
-            keep = p > 0
+            e = d["void_ratio"]
             fig, ax = plt.subplots(figsize=(6, 4.5))
-            ax.semilogx(p[keep] * MPA, d["void_ratio"][keep], "o-", ms=3)
+            if stages:
+                for k, rows, info in stages:
+                    keep = rows & (p > 0) & np.isfinite(e)
+                    if keep.any():
+                        ax.semilogx(p[keep] * MPA, e[keep], "o-", ms=3, color=_stage_color(k),
+                                    label=_stage_name(k, info))
+                ax.legend()
+            else:
+                keep = p > 0
+                ax.semilogx(p[keep] * MPA, e[keep], "o-", ms=3)
             ax.set_xlabel("mean stress $p$ [MPa] (log scale)")
             ax.set_ylabel("void ratio $e$ [-]")
-            ax.set_title(f"{title}: compression curve")
+            ax.set_title(f"{title}: compression curve $e$ - log $p$")
             ax.grid(True, which="both", alpha=0.3)
             _save(fig, out_dir, "void_ratio.png", written)
             plt.close(fig)
+
+    # Triaxial stages: q and the change of volumetric strain against the stage's axial strain.
+    triaxial = [(k, rows, info) for k, rows, info in stages
+                if info.get("type") == "triaxial" and rows.any()]
+    if triaxial and _has(d, "deviator_stress_Pa"):
+        with_vol = _has(d, "volumetric_strain")
+        fig, axes = plt.subplots(2 if with_vol else 1, 1, figsize=(7, 7.5 if with_vol else 4.5),
+                                 sharex=True, squeeze=False)
+        ax_q = axes[0, 0]
+        for i, (k, rows, info) in enumerate(triaxial):
+            color = _stage_color(k)
+            idx = np.flatnonzero(rows)
+            if _has(d, "stage_axial_strain"):
+                eps = d["stage_axial_strain"][idx]
+            elif _has(d, "axial_strain"):
+                eps = d["axial_strain"][idx] - d["axial_strain"][idx[0]]
+            else:
+                continue
+            q = d["deviator_stress_Pa"][idx]
+            label = _stage_name(k, info)
+            s3 = _num(info.get("sigma_3_at_q_max_Pa"))
+            if math.isfinite(s3):
+                label += f", $\\sigma_3$ = {s3 * MPA:.3g} MPa"
+            ax_q.plot(eps * 100.0, q * MPA, "-", color=color, label=label)
+            # Peak: summary.json tracks every step; fall back to the sampled rows.
+            q_max = _num(info.get("q_max_Pa"))
+            eps_peak = _num(info.get("axial_strain_at_q_max"))
+            if not (math.isfinite(q_max) and math.isfinite(eps_peak)) and np.isfinite(q).any():
+                j = int(np.nanargmax(q))
+                q_max, eps_peak = float(q[j]), float(eps[j])
+            if math.isfinite(q_max) and math.isfinite(eps_peak):
+                ax_q.plot([eps_peak * 100.0], [q_max * MPA], "o", color=color, ms=7,
+                          mfc="none", mew=2)
+                text = (f"$q_{{max}}$ = {q_max * MPA:.3g} MPa"
+                        f" at $\\varepsilon_a$ = {eps_peak * 100:.2f} %")
+                phi = _num(info.get("friction_angle_peak_deg"))
+                if math.isfinite(phi):
+                    text += f"\n$\\varphi_{{peak}}$ = {phi:.1f}$^\\circ$"
+                if info.get("warning"):
+                    text += "\nwarning: " + str(info["warning"])[:60]
+                ax_q.annotate(text, xy=(eps_peak * 100.0, q_max * MPA),
+                              xytext=(0.35, 0.08 + 0.16 * i), textcoords="axes fraction",
+                              color=color, fontsize=9,
+                              arrowprops=dict(arrowstyle="->", color=color))
+            if with_vol:
+                ev = d["volumetric_strain"][idx]
+                axes[1, 0].plot(eps * 100.0, (ev - ev[0]) * 100.0, "-", color=color,
+                                label=_stage_name(k, info))
+        ax_q.set_ylabel("deviator stress $q = \\sigma_1 - \\sigma_3$ [MPa]")
+        ax_q.set_title(f"{title}: triaxial compression")
+        ax_q.set_ylim(bottom=min(0.0, ax_q.get_ylim()[0]))
+        ax_q.grid(True, alpha=0.3)
+        ax_q.legend(loc="lower right", fontsize=9)
+        if with_vol:
+            ax_v = axes[1, 0]
+            ax_v.axhline(0.0, color="0.5", lw=0.8)
+            ax_v.set_ylabel("volumetric strain (compression +) [%]")
+            ax_v.grid(True, alpha=0.3)
+        axes[-1, 0].set_xlabel("axial strain of the stage $\\varepsilon_a$ [%]")
+        _save(fig, out_dir, "triaxial.png", written)
+        plt.close(fig)
+
+    # Stress path q - p.
+    if _has(d, "mean_stress_Pa", "deviator_stress_Pa"):
+        p, q = d["mean_stress_Pa"] * MPA, d["deviator_stress_Pa"] * MPA
+        fig, ax = plt.subplots(figsize=(6, 5))
+        if stages:
+            for k, rows, info in stages:
+                ax.plot(p[rows], q[rows], "o-", ms=2.5, color=_stage_color(k),
+                        label=_stage_name(k, info))
+            ax.legend()
+        else:
+            ax.plot(p, q, "o-", ms=2.5)
+        ax.set_xlabel("mean stress $p = (\\sigma_1 + \\sigma_2 + \\sigma_3)/3$ [MPa]")
+        ax.set_ylabel("deviator stress $q$ [MPa]")
+        ax.set_title(f"{title}: stress path")
+        ax.grid(True, alpha=0.3)
+        _save(fig, out_dir, "q_p_path.png", written)
+        plt.close(fig)
+
+    # Oedometric stages: e - log sigma_v.
+    sigma_v = _vertical_stress(d)
+    oedo = [(k, rows, info) for k, rows, info in stages
+            if info.get("type") == "oedometric" and rows.any()]
+    if oedo and sigma_v is not None and _has(d, "void_ratio"):
+        e = d["void_ratio"]
+        fig, ax = plt.subplots(figsize=(6.5, 4.8))
+        drawn = False
+        for k, rows, info in oedo:
+            keep = rows & (sigma_v > 0) & np.isfinite(e)
+            if not keep.any():
+                continue
+            sv = sigma_v[keep]
+            label = _stage_name(k, info)
+            if len(sv) > 1:
+                label += ", loading" if sv[-1] >= sv[0] else ", unloading"
+            k0 = _num(info.get("K0_end"))
+            if math.isfinite(k0):
+                label += f", $K_0$ = {k0:.3f}"
+            ax.semilogx(sv * MPA, e[keep], "o-", ms=3, color=_stage_color(k), label=label)
+            drawn = True
+        if drawn:
+            ax.set_xlabel("vertical stress $\\sigma_v$ [MPa] (log scale)")
+            ax.set_ylabel("void ratio $e$ [-]")
+            ax.set_title(f"{title}: oedometric compression")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=9)
+            _save(fig, out_dir, "oedometer.png", written)
+        plt.close(fig)
+
+    # Inertial number against time (quasi-static when I < 1e-3).
+    if _has(d, "inertial_number") and np.any(d["inertial_number"] > 0):
+        inum = d["inertial_number"]
+        limit = 1e-3
+        fig, ax = plt.subplots(figsize=(7, 4))
+        groups = stages if stages else [(0, np.ones(len(inum), dtype=bool), {})]
+        for k, rows, info in groups:
+            keep = rows & (inum > 0)
+            if keep.any():
+                ax.semilogy(t[keep], inum[keep], "-", color=_stage_color(k),
+                            label=_stage_name(k, info) if stages else None)
+        ax.axhline(limit, color="k", ls="--", lw=1.2, label="quasi-static limit")
+        top = max(float(np.nanmax(inum)), limit)
+        ax.set_ylim(top=top * 3.0)
+        ax.set_xlabel(t_label)
+        ax.set_ylabel("inertial number $I$ [-]")
+        ax.set_title(f"{title}: inertial number")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=9)
+        _save(fig, out_dir, "inertial_number.png", written)
+        plt.close(fig)
+
+    # Sample preparation: void ratio and preparation friction against time.
+    if _has(d, "friction"):
+        sample = summary.get("sample") if isinstance(summary.get("sample"), dict) else {}
+        with_e = _has(d, "void_ratio")
+        fig, axes = plt.subplots(2 if with_e else 1, 1, figsize=(7, 6.5 if with_e else 4),
+                                 sharex=True, squeeze=False)
+        if with_e:
+            ax = axes[0, 0]
+            ax.plot(t, d["void_ratio"], color="tab:blue", label="void ratio $e$")
+            e_target = _num(sample.get("void_ratio_target"))
+            if math.isfinite(e_target):
+                ax.axhline(e_target, color="tab:red", ls="--", lw=1.2,
+                           label=f"target $e$ = {e_target:.3g}")
+            e_final = _num(sample.get("void_ratio"))
+            if math.isfinite(e_final) and len(t):
+                ax.plot([t[-1]], [e_final], "o", color="tab:blue",
+                        label=f"prepared $e$ = {e_final:.4g}")
+            ax.set_ylabel("void ratio $e$ [-]")
+            ax.set_title(f"{title}: sample preparation")
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize=9)
+        ax = axes[-1, 0]
+        ax.plot(t, d["friction"], color="tab:orange", drawstyle="steps-post",
+                label="grain friction $\\mu$")
+        mu_prep = _num(sample.get("preparation_friction"))
+        if math.isfinite(mu_prep):
+            ax.axhline(mu_prep, color="0.4", ls=":", lw=1.2,
+                       label=f"preparation friction = {mu_prep:.3g}")
+        ax.set_ylabel("friction coefficient $\\mu$ [-]")
+        ax.set_xlabel(t_label)
+        if not with_e:
+            ax.set_title(f"{title}: sample preparation")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=9)
+        _save(fig, out_dir, "preparation.png", written)
+        plt.close(fig)
 
     if _has(d, "coordination_number"):
         fig, ax = plt.subplots(figsize=(7, 4))

@@ -23,6 +23,7 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
+#include "crushdem/io/runner.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace nb = nanobind;
@@ -461,6 +462,36 @@ NB_MODULE(_core, m) {
 
   m.def("cli_main", &run_cli, "args"_a,
         "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code.");
+  m.def(
+      "run",
+      [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress) {
+        const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
+        RunOptions opt;
+        opt.out_dir = out;
+        opt.progress = progress;
+        RunSummary s;
+        {
+          nb::gil_scoped_release release;  // a long run must not block other Python threads
+          s = run_to_directory(cfg, opt);
+        }
+        nb::dict d;
+        d["steps"] = s.steps;
+        d["time"] = s.time;
+        d["wall_seconds"] = s.wall_seconds;
+        d["particles"] = s.particles;
+        return d;
+      },
+      "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true,
+      "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
+      "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`.");
+  m.def(
+      "resolved_run_config",
+      [](nb::dict config, const std::string& base_dir) {
+        return toml::serialize(
+            to_toml(run_config_from_toml(to_table(config, ""), "<python>", base_dir)));
+      },
+      "config"_a, "base_dir"_a = ".",
+      "Validates a whole run configuration dict; returns it resolved, as TOML.");
   m.def(
       "resolved_config",
       [](nb::dict config) { return toml::serialize(to_toml(config_from_dict(config))); },

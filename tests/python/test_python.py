@@ -301,3 +301,25 @@ def test_installed_console_script():
     assert res.returncode == 0 and "usage: crushdem" in res.stdout
     res = subprocess.run([script, "frobnicate"], capture_output=True, text=True)
     assert res.returncode == 2 and "unknown command" in res.stderr
+
+
+def test_lab_functions_prepare_and_shear(tmp_path):
+    sample = crushdem.prepare_sample(tmp_path / "sample", count=500, void_ratio=0.75, seed=3)
+    assert sample.sample_file is not None
+    info = sample.summary["sample"]
+    assert abs(info["void_ratio"] - 0.75) <= 0.005
+    assert info["grains"] > 400
+    for got, want in zip(info["passing"], info["passing_target"]):
+        assert abs(got - want) <= 0.02
+    tri = crushdem.triaxial_test(tmp_path / "tri", sample.sample_file, sigma_3=1e6,
+                                 strain_rate=40.0, axial_strain=0.01, hold_steps=1000)
+    assert [s["type"] for s in tri.stages] == ["isotropic", "triaxial", "hold"]
+    assert tri.stages[1]["max_lateral_stress_error"] < 0.01
+    assert tri.stages[1]["q_max_Pa"] > 0
+    ts = tri.timeseries
+    assert ts["stage"].max() == 2
+    assert np.all(np.isfinite(ts["inertial_number"][ts["stage"] == 1]))
+    with pytest.raises(crushdem.ConfigError, match="sample.void_ratio"):
+        crushdem.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
+    with pytest.raises(crushdem.ConfigError, match=r"stage\[0\]\.stress"):
+        crushdem.isotropic_test(tmp_path / "bad2", sample.sample_file, stress=-1.0)

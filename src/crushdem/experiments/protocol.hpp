@@ -38,8 +38,8 @@ struct SampleConfig {
   std::uint64_t seed = 1;        // grain sizes and positions
   double friction_start = 0.5;   // preparation friction to start from [-]
   double friction_factor = 0.6;  // each lowering multiplies it by this [-]
-  double placement_fraction = 0.25;     // solid fraction of the initial loose cloud [-]
-  double max_speed = 0.1;               // wall speed limit during preparation [m/s]
+  double placement_fraction = 0.3;      // solid fraction of the initial loose cloud [-]
+  double max_speed = 0.3;               // wall speed limit during preparation [m/s]
   double unbalanced = 5e-3;             // equilibrium: unbalanced-force ratio below this [-]
   double stress_tolerance = 0.01;       // equilibrium: every wall within this of `stress` [-]
   std::uint64_t check_interval = 1000;  // steps between checks

@@ -1,0 +1,224 @@
+"""Tests of ``crushdem plot`` (python/crushdem/plot.py) on small synthetic run directories.
+
+Run with `python -m pytest tests/python` after `pip install .`. The plotting module needs only
+NumPy and Matplotlib, not the compiled ``crushdem._core``: when this file sits in the source tree
+the module is loaded from python/crushdem/plot.py (so the tests follow the checkout without a
+rebuild), otherwise from the installed package.
+"""
+
+import csv
+import importlib.util
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+_SOURCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir,
+                       "python", "crushdem", "plot.py")
+if os.path.isfile(_SOURCE):
+    _spec = importlib.util.spec_from_file_location("crushdem_plot_under_test", _SOURCE)
+    plot = importlib.util.module_from_spec(_spec)
+    _spec.loader.exec_module(plot)
+else:
+    from crushdem import plot
+
+WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+OLD_FIGURES = {"stress_time.png", "strain_stress.png", "void_ratio.png", "coordination.png",
+               "kinetic_energy.png"}
+LAB_FIGURES = {"triaxial.png", "oedometer.png", "inertial_number.png", "preparation.png"}
+
+
+def _row(t, sig_lat, sig_ax, eps_a, eps_v, e, **extra):
+    """One time-series row with wall stresses (lateral walls sig_lat, z walls sig_ax) [Pa]."""
+    r = {"time_s": t, "step": int(round(t * 1e8))}
+    for w in WALLS:
+        r[f"wall_{w}_stress_Pa"] = sig_ax if w.startswith("z") else sig_lat
+        r[f"wall_{w}_position_m"] = 0.0 if w.endswith("min") else 1e-3
+    r["mean_stress_Pa"] = (2.0 * sig_lat + sig_ax) / 3.0
+    r["deviator_stress_Pa"] = sig_ax - sig_lat
+    r["axial_strain"] = eps_a
+    r["volumetric_strain"] = eps_v
+    r["void_ratio"] = e
+    r["coordination_number"] = 4.5
+    r["kinetic_energy_J"] = 1e-9 * (1.0 + t * 1e3)
+    r.update(extra)
+    return r
+
+
+def _write_run(path, rows, summary=None):
+    os.makedirs(path, exist_ok=True)
+    header = list(rows[0].keys())
+    with open(os.path.join(path, "timeseries.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for r in rows:
+            w.writerow(["" if isinstance(r[h], float) and math.isnan(r[h]) else r[h]
+                        for h in header])
+    if summary is not None:
+        with open(os.path.join(path, "summary.json"), "w") as f:
+            json.dump(summary, f)
+    return str(path)
+
+
+def _stage_summary(name, kind, **extra):
+    s = {"name": name, "type": kind, "end": "target", "steps": 1000, "q_max_Pa": 0.0,
+         "axial_strain_at_q_max": 0.0, "friction_angle_peak_deg": 0.0, "K0_end": 1.0,
+         "max_inertial_number": 2e-4, "warning": ""}
+    s.update(extra)
+    return s
+
+
+def _triaxial_run(path, with_summary=True):
+    """Isotropic compression to 1 MPa, then triaxial compression to 5 % axial strain."""
+    rows = []
+    t = 0.0
+    for p in np.linspace(0.1e6, 1.0e6, 10):
+        eps = 0.003 * (p - 0.1e6) / 0.9e6
+        rows.append(_row(t, p, p, eps, 3 * eps, 0.75 - 2 * eps, stage=0,
+                         stage_axial_strain=eps, inertial_number=3e-4 - 1e-4 * eps / 0.003))
+        t += 1e-5
+    eps0, ev0 = rows[-1]["axial_strain"], rows[-1]["volumetric_strain"]
+    for ea in np.linspace(0.0, 0.05, 21):
+        q = 0.8e6 * ea / (0.005 + ea) * (1.0 + 0.2 * math.exp(-((ea - 0.02) / 0.008) ** 2))
+        dev = 0.2 * ea - 8.0 * ea ** 2  # contraction, then dilation
+        rows.append(_row(t, 1.0e6, 1.0e6 + q, eps0 + ea, ev0 + dev, 0.744 - 1.74 * dev, stage=1,
+                         stage_axial_strain=ea, inertial_number=4e-4))
+        t += 1e-5
+    summary = None
+    if with_summary:
+        summary = {"steps": 31000, "stages": [
+            _stage_summary("isotropic", "isotropic"),
+            _stage_summary("triaxial", "triaxial", q_max_Pa=0.85e6, axial_strain_at_q_max=0.021,
+                           sigma_3_at_q_max_Pa=1.0e6, friction_angle_peak_deg=17.2,
+                           K0_end=0.55),
+        ]}
+    return _write_run(path, rows, summary)
+
+
+def _oedometer_run(path):
+    """Oedometric loading to 2 MPa, unloading to 1 MPa, then a hold (inertial number 0)."""
+    rows = []
+    t = 0.0
+    k0_load, k0_unload = 0.6, 0.85
+    for sv in np.geomspace(0.1e6, 2.0e6, 15):
+        eps = 0.004 * math.log10(sv / 0.1e6)
+        rows.append(_row(t, k0_load * sv, sv, eps, eps, 0.75 - 1.75 * eps, stage=0,
+                         stage_axial_strain=eps, inertial_number=2e-4))
+        t += 1e-5
+    eps_top = rows[-1]["axial_strain"]
+    for sv in np.geomspace(2.0e6, 1.0e6, 8):
+        eps = eps_top - 0.001 * math.log10(2.0e6 / sv)
+        rows.append(_row(t, k0_unload * sv, sv, eps, eps, 0.75 - 1.75 * eps, stage=1,
+                         stage_axial_strain=eps - eps_top, inertial_number=1e-4))
+        t += 1e-5
+    last = dict(rows[-1])
+    for _ in range(3):
+        r = dict(last, time_s=t, stage=2, stage_axial_strain=0.0, inertial_number=0.0)
+        rows.append(r)
+        t += 1e-5
+    summary = {"stages": [
+        _stage_summary("oedometric", "oedometric", K0_end=k0_load),
+        _stage_summary("oedometric", "oedometric", K0_end=k0_unload),
+        _stage_summary("hold", "hold", K0_end=k0_unload, max_inertial_number=0.0),
+    ]}
+    return _write_run(path, rows, summary)
+
+
+def _plain_run(path):
+    """A run without laboratory stages: wall-driven compression, the old columns only."""
+    rows = [_row(i * 1e-5, 0.5e6 * (i + 1), 0.6e6 * (i + 1), 0.001 * i, 0.002 * i,
+                 0.8 - 0.002 * i) for i in range(12)]
+    return _write_run(path, rows, {"steps": 1200})
+
+
+def _names(paths):
+    return {os.path.basename(p) for p in paths}
+
+
+def _assert_pngs(paths, out_dir):
+    for p in paths:
+        assert os.path.dirname(os.path.abspath(p)) == os.path.abspath(out_dir)
+        assert os.path.getsize(p) > 1000, p
+        with open(p, "rb") as f:
+            assert f.read(8) == b"\x89PNG\r\n\x1a\n", p
+
+
+def test_triaxial_run_writes_lab_figures(tmp_path):
+    run = _triaxial_run(tmp_path / "triaxial")
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    names = _names(written)
+    assert OLD_FIGURES <= names
+    assert {"triaxial.png", "q_p_path.png", "inertial_number.png"} <= names
+    assert "oedometer.png" not in names
+    assert "preparation.png" not in names
+    _assert_pngs(written, out)
+
+
+def test_triaxial_without_summary_still_plots(tmp_path):
+    # Without summary.json the stage types are unknown: no triaxial.png, but no failure either.
+    run = _triaxial_run(tmp_path / "triaxial", with_summary=False)
+    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    assert OLD_FIGURES <= names
+    assert {"q_p_path.png", "inertial_number.png"} <= names
+    assert "triaxial.png" not in names
+
+
+def test_oedometer_run_writes_oedometer_figure(tmp_path):
+    run = _oedometer_run(tmp_path / "oedometer")
+    written = plot.make_plots(run)  # default: into the run directory
+    names = _names(written)
+    assert {"oedometer.png", "void_ratio.png", "q_p_path.png", "inertial_number.png"} <= names
+    assert "triaxial.png" not in names
+    _assert_pngs(written, run)
+
+
+def test_preparation_run_writes_preparation_figure(tmp_path):
+    rows = []
+    for i in range(20):
+        mu = 0.5 if i < 8 else (0.3 if i < 14 else 0.18)
+        rows.append(_row(i * 1e-5, 1e3 * (i + 1), 1e3 * (i + 1), 0.01 * i, 0.03 * i,
+                         3.0 - 0.11 * i, friction=mu if i < 19 else 0.5, phase=0 if i < 19 else 2))
+    summary = {"sample": {"grains": 100, "void_ratio": 0.91, "void_ratio_target": 0.9,
+                          "preparation_friction": 0.18, "warning": ""}}
+    run = _write_run(tmp_path / "sample", rows, summary)
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    names = _names(written)
+    assert "preparation.png" in names
+    assert "triaxial.png" not in names and "oedometer.png" not in names
+    _assert_pngs(written, out)
+
+
+def test_plain_run_keeps_old_figures(tmp_path):
+    run = _plain_run(tmp_path / "plain")
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    names = _names(written)
+    assert OLD_FIGURES <= names
+    assert not names & LAB_FIGURES
+    _assert_pngs(written, out)
+
+
+def test_plain_run_without_summary(tmp_path):
+    run = _plain_run(tmp_path / "plain")
+    os.remove(os.path.join(run, "summary.json"))
+    assert OLD_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
+
+
+def test_main_prints_written_paths(tmp_path, capsys):
+    run = _oedometer_run(tmp_path / "oedometer")
+    out = tmp_path / "figs"
+    assert plot.main([run, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out.split()
+    assert os.path.join(str(out), "oedometer.png") in printed
+    assert all(os.path.isfile(p) for p in printed)
+
+
+def test_main_missing_directory(tmp_path, capsys):
+    assert plot.main([str(tmp_path / "missing")]) == 2
+    assert "error" in capsys.readouterr().err
