@@ -2,11 +2,15 @@
 // breaks first. Two runs of one configuration on 1 and 2 threads write identical files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include "crushdem/core/deterministic.hpp"
+#include "crushdem/io/config.hpp"
 #include "crushdem/io/runner.hpp"
+#include "crushdem/io/toml.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -63,15 +67,16 @@ interval = 1000
 vtk_interval = 10000
 )";
 
-TEST(Determinism, OneAndTwoThreadsWriteIdenticalFiles) {
-#ifndef CRUSHDEM_HAVE_OPENMP
-  GTEST_SKIP() << "built without OpenMP";
-#else
-  const fs::path base = fs::temp_directory_path() / "crushdem_determinism";
+#ifdef CRUSHDEM_HAVE_OPENMP
+/// Runs `config` on 1 and 2 threads into base/t1 and base/t2 and compares every file but
+/// timing.json; returns the number compared.
+std::size_t compare_thread_counts(const std::string& config, const fs::path& base) {
   fs::remove_all(base);
   fs::create_directories(base);
-  const RunConfig cfg = run_config_from_toml(toml::parse(kConfig, "test"), "test", base.string());
+  const RunConfig cfg = run_config_from_toml(toml::parse(config, "test"), "test", base.string());
   const int saved = omp_get_max_threads();
+  const std::size_t saved_threshold = threading_threshold();
+  threading_threshold() = 0;  // thread even these small systems
   for (int t : {1, 2}) {
     omp_set_num_threads(t);
     RunOptions opt;
@@ -80,20 +85,45 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFiles) {
     run_to_directory(cfg, opt);
   }
   omp_set_num_threads(saved);
+  threading_threshold() = saved_threshold;
   std::size_t compared = 0;
   for (const auto& e : fs::recursive_directory_iterator(base / "t1")) {
     if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
     const fs::path other = base / "t2" / fs::relative(e.path(), base / "t1");
-    ASSERT_TRUE(fs::exists(other)) << other;
+    EXPECT_TRUE(fs::exists(other)) << other;
     EXPECT_EQ(slurp(e.path()), slurp(other)) << "differs: " << fs::relative(e.path(), base / "t1");
     ++compared;
   }
-  EXPECT_GE(compared, 7u);  // config, timeseries, summary, 2 x 3 snapshots
+  return compared;
+}
+#endif
+
+TEST(Determinism, OneAndTwoThreadsWriteIdenticalFiles) {
+#ifndef CRUSHDEM_HAVE_OPENMP
+  GTEST_SKIP() << "built without OpenMP";
+#else
+  const fs::path base = fs::temp_directory_path() / "crushdem_determinism";
+  EXPECT_GE(compare_thread_counts(kConfig, base), 7u);  // config, timeseries, summary, 2 x 3 vtk
   // The run did something: the grains were compressed into a contact network.
   const std::string summary = slurp(base / "t1" / "summary.json");
   const auto k = summary.find("\"coordination_number\": ");
   ASSERT_NE(k, std::string::npos);
   EXPECT_GT(std::stod(summary.substr(k + 23)), 3.0);
+  fs::remove_all(base);
+#endif
+}
+
+TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithCrushing) {
+#ifndef CRUSHDEM_HAVE_OPENMP
+  GTEST_SKIP() << "built without OpenMP";
+#else
+  // Weak grains (sigma_lim0 = 0.3 GPa) so that many break; the smallest fragments are removed.
+  const std::string config =
+      std::string(kConfig) + "[crushing]\nsigma_lim0 = 3e8\nd_min = 0.05e-3\nseed = 5\n";
+  const fs::path base = fs::temp_directory_path() / "crushdem_determinism_crushing";
+  EXPECT_GE(compare_thread_counts(config, base), 9u);  // + breakage.csv, grading.csv
+  const std::string log = slurp(base / "t1" / "breakage.csv");
+  EXPECT_GE(std::count(log.begin(), log.end(), '\n'), 6);  // header + at least 5 breakages
   fs::remove_all(base);
 #endif
 }

@@ -9,8 +9,8 @@
 
 #include "../helpers.hpp"
 #include "crushdem/core/error.hpp"
-#include "crushdem/experiments/grading.hpp"
 #include "crushdem/io/packing.hpp"
+#include "crushdem/particles/grading.hpp"
 
 namespace fs = std::filesystem;
 using namespace crushdem;

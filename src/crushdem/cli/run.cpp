@@ -27,10 +27,11 @@ int run_main(const std::vector<std::string>& args) {
         "usage: crushdem run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]");
   if (out.empty()) throw ConfigError("crushdem run: missing --out DIR (where results are written)");
   const RunConfig cfg = load_run_config(pos[0]);  // validated before anything runs
-  if (backend == "cuda" && (cfg.has_sample || !cfg.stages.empty())) {
+  if (backend == "cuda" && (cfg.has_sample || !cfg.stages.empty() || cfg.crushing.enabled)) {
     throw ConfigError(
-        "--backend cuda: sample preparation and laboratory stages run on the CPU for now (the "
-        "GPU stepper does not switch wall modes or friction); use --backend cpu");
+        "--backend cuda: sample preparation, laboratory stages and crushing run on the CPU for "
+        "now (the GPU stepper does not switch wall modes or friction, nor change particles); "
+        "use --backend cpu");
   }
   set_threads(threads);
   RunOptions opt;

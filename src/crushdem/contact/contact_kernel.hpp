@@ -54,6 +54,8 @@ struct PairContact {
   ContactResponse c;            // force and new tangential history on grain i
   Vec3 tn;                      // n x (tangential force): torque on i is a_i tn, on j a_j tn
   double a_i = 0.0, a_j = 0.0;  // lever arms r - delta/2
+  double delta = 0.0;           // overlap [m]
+  Vec3 n;                       // unit normal from i to j
 };
 
 /// dx = x_j - x_i (d2 = |dx|^2 < (r_i + r_j)^2), dv = v_i - v_j; R*, sqrt(R*) and the effective
@@ -68,6 +70,8 @@ CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   // Coincident centres have no normal; any fixed one keeps the numbers finite.
   const Vec3 n = dist > 0.0 ? (1.0 / dist) * dx : Vec3{1.0, 0.0, 0.0};
   const double delta = r_i + r_j - dist;
+  out.delta = delta;
+  out.n = n;
   out.a_i = r_i - 0.5 * delta;
   out.a_j = r_j - 0.5 * delta;
   const Vec3 v_rel = dv + cross(out.a_i * w_i + out.a_j * w_j, n);

@@ -11,12 +11,24 @@ namespace crushdem {
 
 inline constexpr std::size_t kReductionBlock = 1024;
 
+/// Below this many items a loop runs on one thread: forking and joining a team costs more than
+/// the work, and far more when the cores are shared (threads spin at the barriers). Results do
+/// not depend on it (every loop is deterministic for any thread count).
+/// (Tests set it to 0 to exercise the threaded paths on small systems.)
+inline std::size_t& threading_threshold() {
+  static std::size_t items = 1024;
+  return items;
+}
+inline bool worth_threading(std::size_t items) {
+  return items >= threading_threshold();
+}
+
 /// Sum f(i) for i in [0, n) with a thread-count independent summation order.
 template <class F>
 double deterministic_sum(std::size_t n, F&& f) {
   const std::size_t nblocks = (n + kReductionBlock - 1) / kReductionBlock;
   std::vector<double> partial(nblocks, 0.0);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_threading(n))
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nblocks); ++b) {
     const std::size_t lo = static_cast<std::size_t>(b) * kReductionBlock;
     const std::size_t hi = lo + kReductionBlock < n ? lo + kReductionBlock : n;
@@ -33,7 +45,7 @@ double deterministic_sum(std::size_t n, F&& f) {
 template <class F>
 double parallel_max(std::size_t n, double init, F&& f) {
   double m = init;
-#pragma omp parallel for schedule(static) reduction(max : m)
+#pragma omp parallel for schedule(static) reduction(max : m) if (worth_threading(n))
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
     const double v = f(static_cast<std::size_t>(i));
     if (v > m) m = v;

@@ -1,9 +1,13 @@
 #include "crushdem/experiments/measurements.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "crushdem/core/deterministic.hpp"
+#include "crushdem/fracture/crushing.hpp"
+#include "crushdem/particles/grading.hpp"
 
 namespace crushdem {
 
@@ -89,6 +93,64 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
                  n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
   m.emplace_back("kinetic_energy_J", sim.kinetic_energy());
   m.emplace_back("dt_s", sim.current_dt());
+  return m;
+}
+
+namespace {
+
+std::vector<double> current_diameters(const ParticleStore& p) {
+  std::vector<double> d(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) d[i] = 2.0 * p.radius[i];
+  return d;
+}
+
+double largest(const std::vector<double>& d) {
+  double m = 0.0;
+  for (double x : d) m = std::max(m, x);
+  return m;
+}
+
+}  // namespace
+
+Measurement crushing_measurements(const Simulation& sim, const Crusher& crusher) {
+  const ParticleStore& p = sim.particles();
+  const double Vs = deterministic_sum(p.size(), [&](std::size_t i) {
+    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
+  });
+  const double Vr = crusher.removed_volume();
+  const double V = sim.walls().volume();
+  const std::vector<double> d = current_diameters(p);
+  const double d_max = largest(crusher.initial_diameters());
+  const double d_min = crusher.config().d_min > 0 ? crusher.config().d_min : 1e-3 * d_max;
+  Measurement m;
+  m.emplace_back("breakages_instant", static_cast<double>(crusher.breakages(BreakCause::Instant)));
+  m.emplace_back("breakages_crack", static_cast<double>(crusher.breakages(BreakCause::Crack)));
+  m.emplace_back("removed_volume_m3", Vr);
+  m.emplace_back("removed_mass_kg", crusher.removed_mass());
+  m.emplace_back("void_ratio_with_fines", Vs + Vr > 0 ? (V - Vs - Vr) / (Vs + Vr) : 0.0);
+  m.emplace_back("relative_breakage_Br",
+                 relative_breakage(crusher.initial_diameters(), d, Vr, d_min, d_max));
+  return m;
+}
+
+std::vector<double> grading_sieves(const Crusher& crusher) {
+  const double d_max = largest(crusher.initial_diameters());
+  const double d_min = crusher.config().d_min > 0 ? crusher.config().d_min : 1e-3 * d_max;
+  return log_sieves(d_min, d_max, 16);
+}
+
+Measurement grading_measurements(const Simulation& sim, const Crusher& crusher,
+                                 const std::vector<double>& sieves) {
+  const std::vector<double> F =
+      passing_with_fines(current_diameters(sim.particles()), crusher.removed_volume(), sieves);
+  Measurement m;
+  m.emplace_back("time_s", sim.time());
+  m.emplace_back("step", static_cast<double>(sim.step_count()));
+  for (std::size_t k = 0; k < sieves.size(); ++k) {
+    char name[64];
+    std::snprintf(name, sizeof name, "passing_%.4e_m", sieves[k]);
+    m.emplace_back(name, F[k]);
+  }
   return m;
 }
 

@@ -23,4 +23,16 @@ using Measurement = std::vector<std::pair<std::string, double>>;
 
 Measurement measure(const Simulation& sim, const StrainReference& ref);
 
+class Crusher;
+/// Crushing measurements (model-notes 4.3): breakages by cause, removed volume and mass, the void
+/// ratio with the removed volume counted as solid (fines), relative breakage B_r (Einav).
+Measurement crushing_measurements(const Simulation& sim, const Crusher& crusher);
+
+/// Sieve sizes for the grading output: 16, log-spaced from d_min (or d_max / 1000) to the largest
+/// initial grain.
+std::vector<double> grading_sieves(const Crusher& crusher);
+/// Mass fraction passing each of those sieves now (removed volume counted as fines).
+Measurement grading_measurements(const Simulation& sim, const Crusher& crusher,
+                                 const std::vector<double>& sieves);
+
 }  // namespace crushdem

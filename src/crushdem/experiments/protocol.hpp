@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "crushdem/experiments/grading.hpp"
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/integrate/simulation.hpp"
+#include "crushdem/particles/grading.hpp"
 
 namespace crushdem {
 

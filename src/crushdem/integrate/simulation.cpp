@@ -7,6 +7,7 @@
 #include <tuple>
 
 #include "crushdem/contact/contact_kernel.hpp"
+#include "crushdem/contact/contact_stress.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 
@@ -172,7 +173,7 @@ void Simulation::rebuild_neighbors() {
   entry_R_star_.resize(M);
   entry_m_eff_.resize(M);
   entry_sqrt_R_star_.resize(M);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_threading(M))
   for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
     const auto e = static_cast<std::size_t>(ee);
     const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
@@ -205,7 +206,7 @@ void Simulation::rebuild_neighbors() {
   // Restore tangential history by ids.
   if (history_saved_) {
     if (!saved_pairs_.empty()) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_threading(M))
       for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
         const auto e = static_cast<std::size_t>(ee);
         const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
@@ -260,6 +261,9 @@ struct PairLoop {
   const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ, *RS, *ME, *SRS;
   double *ftx, *fty, *ftz, *FX, *FY, *FZ, *TX, *TY, *TZ;
   std::uint8_t* touch;
+  // Contact load (crushing), null when not tracked: max sigma_c, max F_n and its normal.
+  double *LS = nullptr, *LF = nullptr, *LNX = nullptr, *LNY = nullptr, *LNZ = nullptr;
+  double inv_pi_k = 0.0;  // 1 / (pi r'/R*)
 };
 
 template <class Law>
@@ -302,6 +306,24 @@ void pair_column(const PairLoop<Law> L, Idx col) {
       L.TX[j] += a_j * tn.x;
       L.TY[j] += a_j * tn.y;
       L.TZ[j] += a_j * tn.z;
+      if (L.LS) {
+        // j is safe to write here for the same reason as FX[j] (column colouring).
+        const double sig = pc.delta > 0.0 ? c.F_n * L.inv_pi_k / (L.RS[e] * pc.delta) : 0.0;
+        if (sig > L.LS[i]) L.LS[i] = sig;
+        if (sig > L.LS[j]) L.LS[j] = sig;
+        if (c.F_n > L.LF[i]) {
+          L.LF[i] = c.F_n;
+          L.LNX[i] = pc.n.x;
+          L.LNY[i] = pc.n.y;
+          L.LNZ[i] = pc.n.z;
+        }
+        if (c.F_n > L.LF[j]) {
+          L.LF[j] = c.F_n;
+          L.LNX[j] = -pc.n.x;
+          L.LNY[j] = -pc.n.y;
+          L.LNZ[j] = -pc.n.z;
+        }
+      }
     }
     L.FX[i] += F.x;
     L.FY[i] += F.y;
@@ -317,38 +339,49 @@ void pair_column(const PairLoop<Law> L, Idx col) {
 template <class Law>
 void Simulation::pair_forces(const Law& law, double h) {
   const std::size_t N = p_.size();
-  const PairLoop<Law> loop{law,
-                           cp_,
-                           h,
-                           nl_.offsets.data(),
-                           nl_.neighbors.data(),
-                           nl_.column_offsets.data(),
-                           nl_.column_members.data(),
-                           p_.x.data(),
-                           p_.y.data(),
-                           p_.z.data(),
-                           p_.radius.data(),
-                           p_.vx.data(),
-                           p_.vy.data(),
-                           p_.vz.data(),
-                           p_.wx.data(),
-                           p_.wy.data(),
-                           p_.wz.data(),
-                           entry_R_star_.data(),
-                           entry_m_eff_.data(),
-                           entry_sqrt_R_star_.data(),
-                           ft_x_.data(),
-                           ft_y_.data(),
-                           ft_z_.data(),
-                           p_.fx.data(),
-                           p_.fy.data(),
-                           p_.fz.data(),
-                           p_.tx.data(),
-                           p_.ty.data(),
-                           p_.tz.data(),
-                           touching_.data()};
+  PairLoop<Law> loop{law,
+                     cp_,
+                     h,
+                     nl_.offsets.data(),
+                     nl_.neighbors.data(),
+                     nl_.column_offsets.data(),
+                     nl_.column_members.data(),
+                     p_.x.data(),
+                     p_.y.data(),
+                     p_.z.data(),
+                     p_.radius.data(),
+                     p_.vx.data(),
+                     p_.vy.data(),
+                     p_.vz.data(),
+                     p_.wx.data(),
+                     p_.wy.data(),
+                     p_.wz.data(),
+                     entry_R_star_.data(),
+                     entry_m_eff_.data(),
+                     entry_sqrt_R_star_.data(),
+                     ft_x_.data(),
+                     ft_y_.data(),
+                     ft_z_.data(),
+                     p_.fx.data(),
+                     p_.fy.data(),
+                     p_.fz.data(),
+                     p_.tx.data(),
+                     p_.ty.data(),
+                     p_.tz.data(),
+                     touching_.data()};
+  if (load_factor_ > 0.0) {
+    for (auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) {
+      a->assign(N, 0.0);
+    }
+    loop.LS = load_.sigma.data();
+    loop.LF = load_.F_n_max.data();
+    loop.LNX = load_.nx.data();
+    loop.LNY = load_.ny.data();
+    loop.LNZ = load_.nz.data();
+    loop.inv_pi_k = 1.0 / (kPi * load_factor_);
+  }
   const std::vector<NeighborList::Index>& colors = nl_.color_offsets;
-#pragma omp parallel
+#pragma omp parallel if (worth_threading(N))
   {
 #pragma omp for schedule(static)
     for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
@@ -377,7 +410,7 @@ void Simulation::wall_forces(const Law& law, double h) {
     pos[static_cast<std::size_t>(k)] = walls_.position(k);
     vel[static_cast<std::size_t>(k)] = walls_.state(k).velocity;
   }
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_threading(M))
   for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
     const auto e = static_cast<std::size_t>(ee);
     const std::size_t i = wc_.particle[e];
@@ -433,7 +466,7 @@ void Simulation::gather_and_damp(bool kick) {
   fu_z_.resize(N);
   const double alpha = cfg_.damping.local_alpha;
   const double hh = 0.5 * dt_;
-#pragma omp parallel for schedule(static, 256)
+#pragma omp parallel for schedule(static, 256) if (worth_threading(N))
   for (Idx jj = 0; jj < static_cast<Idx>(N); ++jj) {
     const auto j = static_cast<std::size_t>(jj);
     Vec3 F{p_.fx[j], p_.fy[j], p_.fz[j]};
@@ -490,8 +523,32 @@ void Simulation::evaluate_forces(double increment_dt, bool kick) {
     pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp}, increment_dt);
     wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw}, increment_dt);
   }
+  if (load_factor_ > 0.0) {
+    // Wall contacts (few; in entry order): R* = R for a wall, the normal points into the wall.
+    for (std::size_t e = 0; e < wc_.size(); ++e) {
+      if (wc_.delta[e] <= 0.0) continue;
+      const std::size_t i = wc_.particle[e];
+      const double sig = contact_stress(wc_.F_n[e], load_factor_ * p_.radius[i], wc_.delta[e]);
+      if (sig > load_.sigma[i]) load_.sigma[i] = sig;
+      if (wc_.F_n[e] > load_.F_n_max[i]) {
+        const Vec3 n = walls_.outward_normal(wc_.wall[e]);
+        load_.F_n_max[i] = wc_.F_n[e];
+        load_.nx[i] = n.x;
+        load_.ny[i] = n.y;
+        load_.nz[i] = n.z;
+      }
+    }
+  }
   gather_and_damp(kick);
   forces_valid_ = true;
+}
+
+void Simulation::track_contact_load(double r_prime_factor) {
+  if (!(r_prime_factor >= 0.0) || !std::isfinite(r_prime_factor)) {
+    throw ConfigError(bad_value("r_prime_factor", show_number(r_prime_factor), "a factor >= 0"));
+  }
+  load_factor_ = r_prime_factor;
+  forces_valid_ = false;  // the next evaluation fills the load arrays
 }
 
 // --- time integration --------------------------------------------------------------------------
@@ -513,7 +570,7 @@ double Simulation::kick_drift() {
   const double* y0 = nl_.y_ref().data();
   const double* z0 = nl_.z_ref().data();
   double m2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : m2)
+#pragma omp parallel for schedule(static) reduction(max : m2) if (worth_threading(N))
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double a = hh * p_.inv_mass[i], b = hh * p_.inv_inertia[i];
@@ -710,7 +767,7 @@ std::array<double, 9> Simulation::love_weber_stress() const {
   if (!forces_valid_) return s;
   const double V = walls_.volume();
   std::vector<std::array<double, 9>> per_entry(nl_.neighbors.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_threading(per_entry.size()))
   for (Idx ee = 0; ee < static_cast<Idx>(per_entry.size()); ++ee) {
     const auto e = static_cast<std::size_t>(ee);
     per_entry[e] = {};

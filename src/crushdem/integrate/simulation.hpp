@@ -105,6 +105,16 @@ class Simulation {
   const std::vector<double>& resultant_force(int axis) const {
     return axis == 0 ? fu_x_ : (axis == 1 ? fu_y_ : fu_z_);
   }
+  /// Per-grain contact load for crushing (model-notes 2.1), filled by each force evaluation once
+  /// track_contact_load(k) is on: sigma = max over the grain's contacts (walls included) of
+  /// F_n / (pi r' delta) with r' = k R* (R* = R for a wall); the largest F_n and the unit normal
+  /// of that contact, pointing from the grain towards the contact.
+  struct ContactLoad {
+    std::vector<double> sigma, F_n_max, nx, ny, nz;
+  };
+  void track_contact_load(double r_prime_factor);  // 0 turns tracking off
+  const ContactLoad& contact_load() const { return load_; }
+
   /// Bytes held by the engine's arrays (particles, neighbour list, contacts).
   std::size_t memory_bytes() const;
 
@@ -171,6 +181,8 @@ class Simulation {
   bool nl_valid_ = false;
   double time_ = 0.0;
   std::uint64_t steps_ = 0;
+  double load_factor_ = 0.0;
+  ContactLoad load_;
 };
 
 }  // namespace crushdem

@@ -370,6 +370,29 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     }
     s.finish();
   }
+  if (root.count("crushing")) {
+    Section s = r.sub("crushing");
+    CrushingConfig& k = c.crushing;
+    k.enabled = true;
+    s.boolean("enabled", k.enabled);
+    s.number("sigma_lim0", k.sigma_lim0);
+    s.number("weibull_m", k.weibull_m);
+    s.number("var", k.var);
+    std::string dist = to_string(k.distribution);
+    s.string("distribution", dist);
+    k.distribution = parse_strength_distribution(dist, "crushing.distribution");
+    s.number("d0", k.d0);
+    s.string("r_prime", k.r_prime);
+    s.number("dc_ratio", k.dc_ratio);
+    s.number("d_min", k.d_min);
+    s.count("interval", k.interval);
+    s.count("seed", k.seed);
+    s.string("pattern", k.pattern);
+    if (!k.pattern.empty() && std::filesystem::path(k.pattern).is_relative()) {
+      k.pattern = (std::filesystem::path(base_dir) / k.pattern).string();
+    }
+    s.finish();
+  }
   {
     auto stages = r.table_array("stage");
     for (Section& s : stages) {
@@ -514,6 +537,10 @@ void RunConfig::validate() const {
     stages[i].validate("stage[" + std::to_string(i) + "]");
   }
   output.validate();
+  if (crushing.enabled) {
+    crushing.validate();
+    if (!crushing.pattern.empty()) SplitPattern::from_file(crushing.pattern);  // fails early
+  }
   if (has_sample || !stages.empty()) {
     if (steps != 0 || duration != 0.0) {
       throw ConfigError("run: a [sample] or [[stage]] run ends with its last stage; remove [run]");
@@ -652,6 +679,23 @@ toml::Table to_toml(const RunConfig& c) {
       arr.push_back(Value::make_table(st));
     }
     t["stage"] = Value::make_array(arr);
+  }
+  if (c.crushing.enabled) {
+    const CrushingConfig& k = c.crushing;
+    Table ct;
+    ct["enabled"] = Value::make_bool(true);
+    ct["sigma_lim0"] = num(k.sigma_lim0);
+    ct["weibull_m"] = num(k.weibull_m);
+    ct["var"] = num(k.var);
+    ct["distribution"] = Value::make_string(to_string(k.distribution));
+    ct["d0"] = num(k.d0);
+    ct["r_prime"] = Value::make_string(k.r_prime);
+    ct["dc_ratio"] = num(k.dc_ratio);
+    ct["d_min"] = num(k.d_min);
+    ct["interval"] = cnt(k.interval);
+    ct["seed"] = cnt(k.seed);
+    if (!k.pattern.empty()) ct["pattern"] = Value::make_string(k.pattern);
+    t["crushing"] = Value::make_table(ct);
   }
   if (c.has_sample || !c.stages.empty()) {
     Table o;

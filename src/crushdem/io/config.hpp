@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/fracture/crushing.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/toml.hpp"
 
@@ -44,6 +45,7 @@ struct RunConfig {
   bool has_sample = false;    // [sample]: prepare a sample from a grading curve first
   SampleConfig sample;
   std::vector<StageConfig> stages;  // [[stage]]: a laboratory test, stage after stage
+  CrushingConfig crushing;          // [crushing]: grains break (during the test, not preparation)
   OutputConfig output;
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)

@@ -5,15 +5,17 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
-#include "crushdem/experiments/grading.hpp"
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/particles/generate.hpp"
+#include "crushdem/particles/grading.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -127,6 +129,24 @@ class Driver {
     write_vtk_box((dir_ / "vtk" / ("box_" + k + ".vtk")).string(), b);
   }
 
+  /// Grains break from now on: the criterion is checked every crushing.interval steps (counted
+  /// from step 0) and every breakage is appended to breakage.csv.
+  void attach_crusher(Crusher* crusher) {
+    crusher_ = crusher;
+    const std::string path = (dir_ / "breakage.csv").string();
+    log_ = std::fopen(path.c_str(), "w");
+    if (!log_) throw ConfigError("cannot write '" + path + "'");
+    std::fprintf(log_,
+                 "time_s,step,id,diameter_m,cause,sigma_Pa,sigma_lim_Pa,fragments,"
+                 "removed_fragments,fragment_ids\n");
+    std::fflush(log_);
+  }
+  ~Driver() {
+    if (log_) std::fclose(log_);
+  }
+  Driver(const Driver&) = delete;
+  Driver& operator=(const Driver&) = delete;
+
   /// Runs `c` to its end; `row` gives the time-series row (written at the start, every output
   /// interval and at the end).
   void drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
@@ -140,6 +160,10 @@ class Driver {
       const std::uint64_t s0 = sim_.step_count();
       std::uint64_t n = std::min(interval - s0 % interval, to_check);
       if (vtk > 0) n = std::min(n, vtk - s0 % vtk);
+      if (crusher_) {
+        const std::uint64_t k = crusher_->config().interval;
+        n = std::min(n, k - s0 % k);
+      }
       if (opt_.advance) {
         opt_.advance(sim_, n);
       } else {
@@ -148,6 +172,7 @@ class Driver {
       if (opt_.sync) opt_.sync(sim_);
       to_check -= n;
       const std::uint64_t s = sim_.step_count();
+      if (crusher_ && s % crusher_->config().interval == 0) log(crusher_->apply(sim_));
       if (to_check == 0) {
         finished = c.update(sim_);
         if (!finished) to_check = c.steps_to_check(sim_);
@@ -184,9 +209,26 @@ class Driver {
     std::fprintf(stderr, "\n");
   }
 
+  void log(const std::vector<BreakageEvent>& events) {
+    for (const BreakageEvent& e : events) {
+      std::fprintf(log_, "%s,%llu,%llu,%s,%s,%s,%s,%zu,%d,", format_double(e.time).c_str(),
+                   static_cast<unsigned long long>(e.step), static_cast<unsigned long long>(e.id),
+                   format_double(e.diameter).c_str(), to_string(e.cause),
+                   format_double(e.sigma).c_str(), format_double(e.sigma_lim).c_str(),
+                   e.fragments.size(), e.removed_fragments);
+      for (std::size_t k = 0; k < e.fragments.size(); ++k) {
+        std::fprintf(log_, "%s%llu", k ? " " : "", static_cast<unsigned long long>(e.fragments[k]));
+      }
+      std::fprintf(log_, "\n");
+    }
+    if (!events.empty()) std::fflush(log_);  // finished work is on disk
+  }
+
   Simulation& sim_;
   const RunConfig& cfg_;
   const RunOptions& opt_;
+  Crusher* crusher_ = nullptr;
+  std::FILE* log_ = nullptr;
   std::filesystem::path dir_;
   std::size_t snapshots_ = 0;
   clock::time_point t0_, last_;
@@ -304,6 +346,26 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     driver.snapshot();
   }
 
+  // Crushing acts during the test (not during preparation).
+  std::unique_ptr<Crusher> crusher;
+  std::unique_ptr<CsvWriter> grading;
+  std::vector<double> sieves;
+  if (cfg.crushing.enabled) {
+    crusher = std::make_unique<Crusher>(
+        cfg.crushing, cfg.crushing.pattern.empty() ? SplitPattern::default14()
+                                                   : SplitPattern::from_file(cfg.crushing.pattern));
+    crusher->begin(sim);
+    driver.attach_crusher(crusher.get());
+    sieves = grading_sieves(*crusher);
+    grading = std::make_unique<CsvWriter>((dir / "grading.csv").string());
+  }
+  // Every time-series row: the crushing columns and a grading row when grains can break.
+  auto crushing_row = [&](Measurement& m) {
+    if (!crusher) return;
+    for (auto& kv : crushing_measurements(sim, *crusher)) m.push_back(kv);
+    grading->write(grading_measurements(sim, *crusher, sieves));
+  };
+
   // The test: a plain run, or stage after stage.
   const StrainReference ref = StrainReference::from(sim.walls());
   const double d50 = diameter_at_fraction(diameters(sim.particles()), 0.5);
@@ -319,6 +381,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
             Measurement m = measure(sim, ref);
             m.emplace_back("stage", static_cast<double>(k));
             for (auto& kv : stage.columns(sim)) m.push_back(kv);
+            crushing_row(m);
             return m;
           },
           cfg.stages[k].label());
@@ -334,8 +397,13 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     CsvWriter series((dir / "timeseries.csv").string());
     FixedLengthController run(cfg.steps, cfg.duration);
     driver.drive(
-        run, series, [&]() { return measure(sim, ref); }, "run",
-        [&]() { return run.fraction(sim); });
+        run, series,
+        [&]() {
+          Measurement m = measure(sim, ref);
+          crushing_row(m);
+          return m;
+        },
+        "run", [&]() { return run.fraction(sim); });
   }
   driver.snapshot();
   const double secs = driver.seconds();
@@ -346,6 +414,16 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   summary.integer("snapshots", static_cast<long long>(driver.snapshots()));
   if (!stage_results.empty()) summary.array("stages", stage_results);
   summary.integer("warnings", static_cast<long long>(warnings.size()));
+  if (crusher) {
+    JsonObject co;
+    co.number("d50_initial_m", crusher->d50_initial());
+    co.number("d0_m", crusher->d0());
+    co.number("d_c_m", crusher->d_c());
+    co.number("pattern_retained_volume_fraction", crusher->pattern().retained_volume_fraction());
+    co.integer("pattern_fragments", static_cast<long long>(crusher->pattern().size()));
+    for (auto& [k, v] : crushing_measurements(sim, *crusher)) co.number(k, v);
+    summary.object("crushing", co);
+  }
   JsonObject final_state;
   for (const auto& [k, v] : measure(sim, ref)) final_state.number(k, v);
   summary.object("final", final_state);

@@ -172,7 +172,7 @@ void NeighborList::build(const ParticleStore& p, double skin) {
   };
 
   std::vector<Index> count(N, 0);
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (worth_threading(N))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     Index n = 0;
@@ -187,7 +187,7 @@ void NeighborList::build(const ParticleStore& p, double skin) {
   for (std::size_t i = 0; i < N; ++i) offsets[i + 1] = offsets[i] + count[i];
   neighbors.resize(offsets[N]);
   owner.resize(offsets[N]);
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 256) if (worth_threading(N))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     Index w = offsets[i];

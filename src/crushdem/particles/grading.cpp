@@ -1,4 +1,4 @@
-#include "crushdem/experiments/grading.hpp"
+#include "crushdem/particles/grading.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -178,6 +178,49 @@ double diameter_at_fraction(const std::vector<double>& diameters, double fractio
     if (acc >= fraction * total) return x;
   }
   return d.back();
+}
+
+std::vector<double> passing_with_fines(std::vector<double> diameters, double fines_volume,
+                                       const std::vector<double>& sieves) {
+  std::sort(diameters.begin(), diameters.end());
+  std::vector<double> cum(diameters.size() + 1, 0.0);
+  for (std::size_t i = 0; i < diameters.size(); ++i) {
+    cum[i + 1] = cum[i] + kPi / 6.0 * diameters[i] * diameters[i] * diameters[i];
+  }
+  const double total = cum.back() + fines_volume;
+  std::vector<double> out;
+  out.reserve(sieves.size());
+  for (double s : sieves) {
+    const auto k = static_cast<std::size_t>(
+        std::upper_bound(diameters.begin(), diameters.end(), s) - diameters.begin());
+    out.push_back(total > 0 ? (cum[k] + fines_volume) / total : 0.0);
+  }
+  return out;
+}
+
+std::vector<double> log_sieves(double d_min, double d_max, int n) {
+  std::vector<double> s;
+  for (int k = 0; k < n; ++k) {
+    s.push_back(d_min * std::pow(d_max / d_min, n > 1 ? static_cast<double>(k) / (n - 1) : 1.0));
+  }
+  return s;
+}
+
+double relative_breakage(const std::vector<double>& initial, const std::vector<double>& current,
+                         double fines_volume, double d_min, double d_max, double D) {
+  const int n = 400;
+  const std::vector<double> sieves = log_sieves(d_min, d_max, n);
+  const std::vector<double> F0 = passing_with_fines(initial, 0.0, sieves);
+  const std::vector<double> F = passing_with_fines(current, fines_volume, sieves);
+  double bt = 0.0, bp = 0.0;
+  for (int k = 1; k < n; ++k) {
+    // Trapezoids in log d.
+    const double h = std::log(sieves[k] / sieves[k - 1]);
+    const auto Fu = [&](int j) { return std::pow(sieves[j] / d_max, 3.0 - D); };
+    bt += 0.5 * h * ((F[k] - F0[k]) + (F[k - 1] - F0[k - 1]));
+    bp += 0.5 * h * ((Fu(k) - F0[k]) + (Fu(k - 1) - F0[k - 1]));
+  }
+  return bp > 0 ? bt / bp : 0.0;
 }
 
 double random_close_packing_fraction(const GradingCurve& g) {

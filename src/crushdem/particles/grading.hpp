@@ -44,6 +44,21 @@ std::vector<double> draw_diameters(const GradingCurve& g, double solid_volume, s
 std::vector<double> mass_passing(const std::vector<double>& diameters,
                                  const std::vector<double>& sieves);
 
+/// Mass fraction passing each sieve (increasing), counting `fines_volume` (removed fragments, in
+/// m^3 of solid) as finer than every sieve. O((N + S) log N).
+std::vector<double> passing_with_fines(std::vector<double> diameters, double fines_volume,
+                                       const std::vector<double>& sieves);
+
+/// Relative breakage B_r (Einav 2007): the area between the current and the initial grading
+/// curve over the area between the ultimate and the initial one, on a log-d axis from d_min to
+/// d_max. Ultimate grading F_u(d) = (d / d_max)^(3 - D), fractal dimension D = 2.6 (CHOICE).
+/// Removed fragments count as finer than d_min.
+double relative_breakage(const std::vector<double>& initial, const std::vector<double>& current,
+                         double fines_volume, double d_min, double d_max, double D = 2.6);
+
+/// `n` sieve sizes spaced evenly in log d from d_min to d_max.
+std::vector<double> log_sieves(double d_min, double d_max, int n);
+
 /// Mass-weighted diameter at a fraction passing of a set of grains (d50 for fraction 0.5).
 double diameter_at_fraction(const std::vector<double>& diameters, double fraction);
 

@@ -1,0 +1,16 @@
+// Contact stress used by the crushing criterion (model-notes 2.1; Ciantia et al. 2015):
+//   sigma_c = F_n / (pi r' delta),
+// r' = R* (CHOICE: pi R* delta = pi a^2 is the Hertz contact area) or 2 R* (PFC's effective
+// radius); R* = R against a wall; delta the total overlap. Lives with the contact laws because the
+// force loops evaluate it (fracture decides what it means).
+#pragma once
+
+#include "crushdem/core/types.hpp"
+
+namespace crushdem {
+
+CD_HD inline double contact_stress(double F_n, double r_prime, double delta) {
+  return delta > 0.0 ? F_n / (kPi * r_prime * delta) : 0.0;
+}
+
+}  // namespace crushdem

@@ -1,0 +1,197 @@
+#include "crushdem/fracture/crushing.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/particles/grading.hpp"
+
+namespace crushdem {
+
+namespace {
+
+constexpr std::uint64_t kStrengthStream = 0x57E1;
+constexpr std::uint64_t kOrientationStream = 0x0E1A;
+
+void require(bool ok, const std::string& key, double v, const std::string& expected) {
+  if (!ok) throw ConfigError(bad_value("crushing." + key, show_number(v), expected));
+}
+
+}  // namespace
+
+const char* to_string(StrengthDistribution d) {
+  return d == StrengthDistribution::Uniform ? "uniform" : "normal";
+}
+
+StrengthDistribution parse_strength_distribution(const std::string& s, const std::string& key) {
+  if (s == "normal") return StrengthDistribution::Normal;
+  if (s == "uniform") return StrengthDistribution::Uniform;
+  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"normal\" or \"uniform\""));
+}
+
+const char* to_string(BreakCause c) {
+  return c == BreakCause::Crack ? "crack" : "instant";
+}
+
+void CrushingConfig::validate() const {
+  require(sigma_lim0 > 0.0 && std::isfinite(sigma_lim0), "sigma_lim0", sigma_lim0,
+          "a positive limit stress in Pa");
+  require(weibull_m > 0.0 && std::isfinite(weibull_m), "weibull_m", weibull_m,
+          "a positive Weibull modulus");
+  require(var >= 0.0 && (distribution == StrengthDistribution::Normal ? var < 10.0 : var < 1.0),
+          "var", var,
+          distribution == StrengthDistribution::Normal
+              ? "a variability >= 0"
+              : "a variability in [0, 1) (f is uniform on [1 - var, 1 + var])");
+  require(d0 >= 0.0 && std::isfinite(d0), "d0", d0,
+          "a reference diameter in m (0 = d50 of the initial grains)");
+  if (r_prime != "R_star" && r_prime != "2R_star") {
+    throw ConfigError(
+        bad_value("crushing.r_prime", "\"" + r_prime + "\"", "\"R_star\" or \"2R_star\""));
+  }
+  require(dc_ratio >= 0.0 && std::isfinite(dc_ratio), "dc_ratio", dc_ratio,
+          "a ratio d_c / d50 >= 0");
+  require(d_min >= 0.0 && std::isfinite(d_min), "d_min", d_min, "a diameter in m (>= 0)");
+  if (interval == 0) throw ConfigError(bad_value("crushing.interval", "0", "> 0 steps"));
+}
+
+Crusher::Crusher(const CrushingConfig& cfg, SplitPattern pattern)
+    : cfg_(cfg),
+      pattern_(std::move(pattern)),
+      strength_rng_(cfg.seed, kStrengthStream),
+      orientation_rng_(cfg.seed, kOrientationStream) {
+  pattern_.validate("crushing.pattern");
+}
+
+double Crusher::draw_strength(double d) {
+  const double f = strength_factor(strength_rng_, cfg_.distribution, cfg_.var);
+  return size_scaled_strength(cfg_.sigma_lim0, d, d0_, cfg_.weibull_m, f);
+}
+
+void Crusher::begin(Simulation& sim) {
+  ParticleStore& p = sim.particles();
+  strength_field_ = p.add_field("sigma_lim", std::numeric_limits<double>::quiet_NaN());
+  initial_d_.resize(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) initial_d_[i] = 2.0 * p.radius[i];
+  d50_ = diameter_at_fraction(initial_d_, 0.5);
+  d0_ = cfg_.d0 > 0.0 ? cfg_.d0 : d50_;
+  d_c_ = cfg_.dc_ratio * d50_;
+  std::vector<std::size_t> order(p.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
+  std::vector<double>& s = p.field(strength_field_);
+  for (std::size_t i : order) {
+    if (std::isnan(s[i])) s[i] = draw_strength(2.0 * p.radius[i]);
+  }
+  sim.track_contact_load(cfg_.r_prime_factor());
+}
+
+std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
+  sim.compute_forces();  // no-op when the forces (and loads) are current
+  const ParticleStore& p = sim.particles();
+  const Simulation::ContactLoad& load = sim.contact_load();
+  const std::vector<double>& s = p.field(strength_field_);
+  std::vector<std::size_t> which;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (2.0 * p.radius[i] >= d_c_ && load.sigma[i] >= s[i]) which.push_back(i);
+  }
+  if (which.empty()) return {};
+  return split(sim, std::move(which), BreakCause::Instant);
+}
+
+std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size_t> which,
+                                          BreakCause cause) {
+  ParticleStore& p = sim.particles();
+  // Parents in id order, so that the random draws do not depend on the storage order.
+  std::sort(which.begin(), which.end(),
+            [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
+  which.erase(std::unique(which.begin(), which.end()), which.end());
+  const Simulation::ContactLoad& load = sim.contact_load();
+  const bool have_load = load.sigma.size() == p.size();
+  TopologyChange change;
+  std::vector<BreakageEvent> events;
+  std::vector<std::size_t> kept_per_event;
+  double mass_before = 0.0, removed_volume = 0.0;
+  for (std::size_t i : which) {
+    const double R = p.radius[i];
+    const double rho = p.mass[i] / (4.0 / 3.0 * kPi * R * R * R);
+    mass_before += p.mass[i];
+    BreakageEvent ev;
+    ev.time = sim.time();
+    ev.step = sim.step_count();
+    ev.id = p.id[i];
+    ev.diameter = 2.0 * R;
+    ev.cause = cause;
+    ev.sigma = have_load ? load.sigma[i] : 0.0;
+    ev.sigma_lim = p.field(strength_field_)[i];
+    // Local frame: e_z along the normal of the contact with the largest F_n (a random direction
+    // for a grain without contact), turned about it by a random angle.
+    Vec3 ez{0.0, 0.0, 1.0};
+    if (have_load && load.F_n_max[i] > 0.0) {
+      ez = Vec3{load.nx[i], load.ny[i], load.nz[i]};
+    } else {
+      const double cz = orientation_rng_.uniform(-1.0, 1.0);
+      const double ph = orientation_rng_.uniform(0.0, 2.0 * kPi);
+      const double sz = std::sqrt(std::max(0.0, 1.0 - cz * cz));
+      ez = Vec3{sz * std::cos(ph), sz * std::sin(ph), cz};
+    }
+    ez = (1.0 / norm(ez)) * ez;
+    const Vec3 a = std::abs(ez.x) < 0.9 ? Vec3{1.0, 0.0, 0.0} : Vec3{0.0, 1.0, 0.0};
+    Vec3 ex = a - dot(a, ez) * ez;
+    ex = (1.0 / norm(ex)) * ex;
+    const Vec3 ey = cross(ez, ex);
+    const double theta = orientation_rng_.uniform(0.0, 2.0 * kPi);
+    const Vec3 e1 = std::cos(theta) * ex + std::sin(theta) * ey;
+    const Vec3 e2 = std::cos(theta) * ey - std::sin(theta) * ex;
+    const Vec3 c{p.x[i], p.y[i], p.z[i]};
+    const Vec3 v{p.vx[i], p.vy[i], p.vz[i]};
+    const Vec3 w{p.wx[i], p.wy[i], p.wz[i]};
+    std::size_t kept = 0;
+    double retained = 0.0;
+    for (std::size_t k = 0; k < pattern_.size(); ++k) {
+      const double r = pattern_.radius[k] * R;
+      if (2.0 * r < cfg_.d_min) {
+        ++ev.removed_fragments;
+        continue;
+      }
+      const Vec3 u = pattern_.position[k];
+      const Vec3 arm = R * (u.x * e1 + u.y * e2 + u.z * ez);
+      NewParticle np;
+      np.parent = p.id[i];
+      np.position = c + arm;
+      np.velocity = v + cross(w, arm);
+      np.angular_velocity = w;
+      np.radius = r;
+      np.density = rho;
+      np.extra.assign(strength_field_ + 1, std::numeric_limits<double>::quiet_NaN());
+      np.extra[strength_field_] = draw_strength(2.0 * r);
+      change.add.push_back(np);
+      retained += r * r * r;
+      ++kept;
+    }
+    removed_volume += 4.0 / 3.0 * kPi * (R * R * R - retained);
+    kept_per_event.push_back(kept);
+    events.push_back(ev);
+  }
+  change.remove = which;
+  // Mass of the new fragments as the store computes it, so retained + removed is exact.
+  const std::size_t n_before = p.size() - which.size();
+  const std::vector<ParticleId> ids = sim.apply_topology(change);
+  double mass_after = 0.0;
+  for (std::size_t k = n_before; k < p.size(); ++k) mass_after += p.mass[k];
+  removed_mass_ += mass_before - mass_after;
+  removed_volume_ += removed_volume;
+  std::size_t at = 0;
+  for (std::size_t e = 0; e < events.size(); ++e) {
+    events[e].fragments.assign(ids.begin() + static_cast<std::ptrdiff_t>(at),
+                               ids.begin() + static_cast<std::ptrdiff_t>(at + kept_per_event[e]));
+    at += kept_per_event[e];
+  }
+  count_[static_cast<int>(cause)] += events.size();
+  return events;
+}
+
+}  // namespace crushdem

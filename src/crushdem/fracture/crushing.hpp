@@ -1,0 +1,98 @@
+// Grain crushing (model-notes 2; Ciantia et al. 2015, 2019): a strength per grain with a size
+// effect and variability, the contact-stress criterion, and splitting into the fragments of a
+// pattern, all inside the engine's topology phase.
+//
+//   sigma_lim = sigma_lim0 (d / d0)^(-3/m) f(var)        drawn when the grain is created
+//   sigma     = max_c F_n / (pi r' delta)                 over its contacts, walls included
+//   a grain with d >= d_c breaks when sigma >= sigma_lim  (instant failure)
+//
+// A broken grain is replaced by the pattern's fragments, oriented along the normal of its contact
+// with the largest F_n and turned about it by a random angle; fragments take v + omega x r and
+// omega, a new strength, and no contact history; fragments with d < d_min are removed. The
+// removed volume and mass are accounted exactly.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "crushdem/core/random.hpp"
+#include "crushdem/fracture/pattern.hpp"
+#include "crushdem/fracture/strength.hpp"
+#include "crushdem/integrate/simulation.hpp"
+
+namespace crushdem {
+
+struct CrushingConfig {
+  bool enabled = false;
+  double sigma_lim0 = 3.75e9;  // limit contact stress at d0 [Pa] (STUDY, Table 1)
+  double weibull_m = 12.0;     // Weibull modulus m [-] (STUDY)
+  double var = 0.38;           // strength variability [-] (STUDY)
+  StrengthDistribution distribution = StrengthDistribution::Normal;  // "normal" | "uniform"
+  double d0 = 0.0;                 // reference diameter [m]; 0 = d50 of the initial grains (CHOICE)
+  std::string r_prime = "R_star";  // "R_star" (CHOICE) | "2R_star"
+  double dc_ratio = 0.55;          // d_c = dc_ratio * d50 of the initial grains (STUDY)
+  double d_min = 0.01e-3;          // fragments smaller than this are removed [m] (STUDY)
+  std::uint64_t interval = 1;      // steps between criterion checks
+  std::uint64_t seed = 1;          // strength and orientation streams
+  std::string pattern;             // file of "radius_fraction x y z" rows; empty = default 14
+  void validate() const;           // keys "crushing.<key>"
+  double r_prime_factor() const { return r_prime == "2R_star" ? 2.0 : 1.0; }
+};
+
+const char* to_string(StrengthDistribution d);
+StrengthDistribution parse_strength_distribution(const std::string& s, const std::string& key);
+
+enum class BreakCause { Instant, Crack };
+const char* to_string(BreakCause c);
+
+struct BreakageEvent {
+  double time = 0.0;
+  std::uint64_t step = 0;
+  ParticleId id = 0;
+  double diameter = 0.0;
+  BreakCause cause = BreakCause::Instant;
+  double sigma = 0.0, sigma_lim = 0.0;  // [Pa] at failure
+  std::vector<ParticleId> fragments;    // retained fragments
+  int removed_fragments = 0;            // fragments below d_min
+};
+
+class Crusher {
+ public:
+  Crusher(const CrushingConfig& cfg, SplitPattern pattern);
+
+  /// Registers the strength field, fixes d0 and d_c from the grains present (the initial
+  /// grading), draws a strength for every grain without one (in id order), and turns on
+  /// contact-load tracking in the simulation.
+  void begin(Simulation& sim);
+  /// Breaks every grain that qualifies now (instant failure), all in one topology phase.
+  std::vector<BreakageEvent> apply(Simulation& sim);
+  /// Splits the grains at these indices in one topology phase (any cause).
+  std::vector<BreakageEvent> split(Simulation& sim, std::vector<std::size_t> which,
+                                   BreakCause cause);
+  /// Strength of a new grain of diameter d (draws from the strength stream).
+  double draw_strength(double d);
+
+  double d0() const { return d0_; }
+  double d_c() const { return d_c_; }
+  double d50_initial() const { return d50_; }
+  const std::vector<double>& initial_diameters() const { return initial_d_; }
+  double removed_volume() const { return removed_volume_; }
+  double removed_mass() const { return removed_mass_; }
+  std::uint64_t breakages(BreakCause c) const { return count_[static_cast<int>(c)]; }
+  std::size_t strength_field() const { return strength_field_; }
+  const CrushingConfig& config() const { return cfg_; }
+  const SplitPattern& pattern() const { return pattern_; }
+
+ private:
+  CrushingConfig cfg_;
+  SplitPattern pattern_;
+  RandomStream strength_rng_, orientation_rng_;
+  std::size_t strength_field_ = 0;
+  double d0_ = 0.0, d_c_ = 0.0, d50_ = 0.0;
+  std::vector<double> initial_d_;
+  double removed_volume_ = 0.0, removed_mass_ = 0.0;
+  std::uint64_t count_[2] = {0, 0};
+};
+
+}  // namespace crushdem
