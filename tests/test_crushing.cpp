@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <filesystem>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -248,4 +250,29 @@ TEST(Crushing, GrainsBelowTheComminutionLimitNeverBreak) {
   EXPECT_TRUE(squeeze_until_break(sim, crusher, 0.05, 20000).empty());
   EXPECT_GT(sim.contact_load().sigma[0], 100 * 1e7);
   EXPECT_EQ(sim.particles().size(), 1u);
+}
+
+TEST(Pattern, ReadFromFileAndRejectOverlaps) {
+  namespace fs = std::filesystem;
+  const fs::path f = fs::temp_directory_path() / "crushdem_pattern_two.txt";
+  {
+    std::FILE* out = std::fopen(f.string().c_str(), "w");
+    std::fprintf(out, "# two halves along the axis\n0.5 0 0 0.5\n0.5 0 0 -0.5\n");
+    std::fclose(out);
+  }
+  const SplitPattern p = SplitPattern::from_file(f.string());
+  EXPECT_EQ(p.size(), 2u);
+  EXPECT_NEAR(p.retained_volume_fraction(), 0.25, 1e-15);
+  {
+    std::FILE* out = std::fopen(f.string().c_str(), "w");
+    std::fprintf(out, "0.5 0 0 0.4\n0.5 0 0 -0.5\n");  // 0.9 apart: they overlap
+    std::fclose(out);
+  }
+  try {
+    SplitPattern::from_file(f.string());
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("fragments 1 and 2 overlap"), std::string::npos) << e.what();
+  }
+  fs::remove(f);
 }

@@ -34,6 +34,21 @@ Sample preparation (a ``friction`` column):
 
 * ``preparation.png``      void ratio (with the target) and the preparation friction coefficient
                            against time
+
+Grain crushing (DIR/grading.csv, DIR/breakage.csv and the crushing columns of the time series):
+
+* ``grading.png``          grading curves, mass passing [%] against particle size d [mm] (log
+                           axis): the initial curve, the end of every stage (when grading.csv has
+                           one row per time-series row) and the final curve, each labelled with
+                           the relative breakage B_r; removed fragments count as finer than every
+                           sieve. The size d_c below which grains crack is dashed when
+                           summary.json ``"crushing"`` gives it
+* ``breakage.png``         cumulative breakages by cause (instant, crack) with the number of
+                           particles on a second axis, and the relative breakage B_r with the
+                           void ratio e and the void ratio counting the removed fines as solid,
+                           against axial strain [%] (time [s] when there is no axial strain)
+* ``breakage_sizes.png``   histogram of the diameters [mm] of the broken grains by cause (when
+                           breakage.csv has rows)
 """
 
 from __future__ import annotations
@@ -148,6 +163,63 @@ def _vertical_stress(d: Dict[str, np.ndarray]) -> Optional[np.ndarray]:
         return None
     with np.errstate(all="ignore"):
         return np.nanmean(np.vstack(cols), axis=0)
+
+
+def read_grading(run_dir: str) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """DIR/grading.csv as (sieve sizes [m] increasing, mass fraction passing [rows, sieves]).
+
+    The sieve size is read from the column name ``passing_<d>_m``. None when the file is missing,
+    unreadable or has no passing column or no row.
+    """
+    path = os.path.join(run_dir, "grading.csv")
+    if not os.path.isfile(path):
+        return None
+    try:
+        g = read_timeseries(path)
+    except (OSError, ValueError):
+        return None
+    cols = []
+    for name in g:
+        if name.startswith("passing_") and name.endswith("_m"):
+            try:
+                size = float(name[len("passing_"):-len("_m")])
+            except ValueError:
+                continue
+            if size > 0 and math.isfinite(size):
+                cols.append((size, name))
+    if not cols:
+        return None
+    cols.sort()
+    passing = np.column_stack([g[name] for _, name in cols])
+    if passing.shape[0] == 0:
+        return None
+    return np.asarray([size for size, _ in cols]), passing
+
+
+def read_breakage(run_dir: str) -> List[Tuple[float, str]]:
+    """(diameter [m], cause) of every breakage in DIR/breakage.csv; [] when there is none."""
+    path = os.path.join(run_dir, "breakage.csv")
+    out: List[Tuple[float, str]] = []
+    try:
+        with open(path, newline="") as f:
+            for row in csv.DictReader(f):
+                try:
+                    dia = float(row.get("diameter_m") or "nan")
+                except ValueError:
+                    continue
+                if math.isfinite(dia) and dia > 0:
+                    out.append((dia, (row.get("cause") or "").strip() or "unknown"))
+    except (OSError, ValueError, csv.Error):
+        return []
+    return out
+
+
+def _legend_twin(ax, ax2, **kw) -> None:
+    """One legend for the curves of an axis and its twin."""
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    if h1 or h2:
+        ax.legend(h1 + h2, l1 + l2, **kw)
 
 
 def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
@@ -433,7 +505,145 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
         _save(fig, out_dir, "kinetic_energy.png", written)
         plt.close(fig)
 
+    _crushing_plots(d, summary, stages, run_dir, out_dir, title, t, t_label, written)
     return written
+
+
+def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
+                    stages: List[Tuple[int, np.ndarray, Dict[str, Any]]], run_dir: str,
+                    out_dir: str, title: str, t: np.ndarray, t_label: str,
+                    written: List[str]) -> None:
+    """grading.png, breakage.png and breakage_sizes.png, each when its data exist."""
+    import matplotlib.pyplot as plt
+
+    crushing = summary.get("crushing") if isinstance(summary.get("crushing"), dict) else {}
+    d_c = _num(crushing.get("d_c_m"))
+    n_rows = len(t)
+    br = d["relative_breakage_Br"] if _has(d, "relative_breakage_Br") else None
+
+    # Grading curves: initial, end of every stage, final.
+    grading = read_grading(run_dir)
+    if grading is not None:
+        sieves, passing = grading
+        n = passing.shape[0]
+        same_rows = n == n_rows
+        # {row: label parts}; a row that ends a stage and is also the last row is drawn once.
+        picks: Dict[int, List[str]] = {0: ["initial"]}
+        if same_rows:
+            for k, rows, info in stages:
+                idx = np.flatnonzero(rows)
+                if idx.size:
+                    picks.setdefault(int(idx[-1]), []).append("end of " + _stage_name(k, info))
+        picks.setdefault(n - 1, []).insert(0, "final")
+        if n == 1:
+            picks = {0: ["initial"]}
+        fig, ax = plt.subplots(figsize=(7, 5))
+        order = sorted(picks)
+        cmap = plt.get_cmap("viridis")
+        for j, row in enumerate(order):
+            f = passing[row]
+            keep = np.isfinite(f)
+            if not keep.any():
+                continue
+            label = ", ".join(picks[row])
+            if br is not None and same_rows and math.isfinite(br[row]):
+                label += f", $B_r$ = {br[row]:.3f}"
+            if row == 0 and len(order) > 1:
+                fmt, color = "--", "k"
+            else:
+                fmt, color = "o-", cmap(0.9 * j / max(len(order) - 1, 1))
+            ax.semilogx(sieves[keep] * 1e3, f[keep] * 100.0, fmt, ms=3, color=color,
+                        label=label)
+        if math.isfinite(d_c) and d_c > 0:
+            ax.axvline(d_c * 1e3, color="0.4", ls=":", lw=1.2,
+                       label=f"$d_c$ = {d_c * 1e3:.3g} mm")
+        ax.set_ylim(0.0, 100.0)
+        ax.set_xlabel("particle size d [mm]")
+        ax.set_ylabel("mass passing [%]")
+        ax.set_title(f"{title}: grading")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+        _save(fig, out_dir, "grading.png", written)
+        plt.close(fig)
+
+    # Breakages, particle count, B_r and void ratios against axial strain (or time).
+    counts = [(c, lab) for c, lab in (("breakages_instant", "instant failure"),
+                                      ("breakages_crack", "crack"))
+              if _has(d, c)]
+    if counts or br is not None:
+        x, x_label = t, t_label
+        if _has(d, "axial_strain") and np.nanmax(np.abs(d["axial_strain"])) > 0:
+            x, x_label = d["axial_strain"] * 100.0, "axial strain $\\varepsilon_a$ [%]"
+        fig, (ax_top, ax_bot) = plt.subplots(2, 1, figsize=(7, 7.5), sharex=True)
+        for (c, lab), color in zip(counts, ("tab:red", "tab:blue")):
+            ax_top.plot(x, d[c], "-", color=color, label=f"breakages: {lab}")
+        if len(counts) == 2:
+            ax_top.plot(x, d[counts[0][0]] + d[counts[1][0]], "k-", lw=0.8, alpha=0.6,
+                        label="breakages: total")
+        ax_top.set_ylabel("cumulative breakages [-]")
+        ax_top.set_title(f"{title}: grain crushing")
+        ax_top.grid(True, alpha=0.3)
+        if _has(d, "n_particles"):
+            ax_n = ax_top.twinx()
+            ax_n.plot(x, d["n_particles"], "--", color="tab:green", label="particles")
+            ax_n.set_ylabel("number of particles [-]", color="tab:green")
+            _legend_twin(ax_top, ax_n, fontsize=9, loc="upper left")
+        elif counts:
+            ax_top.legend(fontsize=9, loc="upper left")
+        if br is not None:
+            ax_bot.plot(x, br, "-", color="tab:purple", label="relative breakage $B_r$")
+        ax_bot.set_ylabel("relative breakage $B_r$ [-]")
+        ax_bot.grid(True, alpha=0.3)
+        voids = [(c, lab, color) for c, lab, color in (
+            ("void_ratio", "void ratio $e$", "tab:blue"),
+            ("void_ratio_with_fines", "void ratio with fines as solid", "tab:orange"))
+            if _has(d, c)]
+        if voids:
+            ax_e = ax_bot.twinx()
+            for c, lab, color in voids:
+                ax_e.plot(x, d[c], "--", color=color, label=lab)
+            ax_e.set_ylabel("void ratio $e$ [-]")
+            _legend_twin(ax_bot, ax_e, fontsize=9, loc="best")
+        elif br is not None:
+            ax_bot.legend(fontsize=9)
+        ax_bot.set_xlabel(x_label)
+        _save(fig, out_dir, "breakage.png", written)
+        plt.close(fig)
+
+    # Sizes of the broken grains by cause.
+    broken = read_breakage(run_dir)
+    if broken:
+        dia = np.asarray([b[0] for b in broken]) * 1e3
+        causes = list(dict.fromkeys(["instant", "crack"] + [b[1] for b in broken]))
+        groups = [(c, dia[np.asarray([b[1] == c for b in broken])]) for c in causes]
+        groups = [(c, v) for c, v in groups if v.size]
+        lo, hi = float(dia.min()), float(dia.max())
+        log_x = hi > 3.0 * lo
+        if hi <= lo:
+            lo, hi = lo * 0.95, hi * 1.05
+        n_bins = int(min(30, max(5, math.sqrt(dia.size) * 2)))
+        bins = np.geomspace(lo, hi, n_bins + 1) if log_x else np.linspace(lo, hi, n_bins + 1)
+        colors = {"instant": "tab:red", "crack": "tab:blue"}
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        ax.hist([v for _, v in groups], bins=bins, stacked=True,
+                color=[colors.get(c, f"C{2 + i}") for i, (c, _) in enumerate(groups)],
+                label=[f"{c} ({v.size})" for c, v in groups], edgecolor="white", lw=0.5)
+        if log_x:
+            ax.set_xscale("log")
+        if math.isfinite(d_c) and d_c > 0:
+            ax.axvline(d_c * 1e3, color="0.3", ls=":", lw=1.2,
+                       label=f"$d_c$ = {d_c * 1e3:.3g} mm")
+        d50 = _num(crushing.get("d50_initial_m"))
+        if math.isfinite(d50) and d50 > 0:
+            ax.axvline(d50 * 1e3, color="0.3", ls="--", lw=1.2,
+                       label=f"initial $d_{{50}}$ = {d50 * 1e3:.3g} mm")
+        ax.set_xlabel("diameter of the broken grain d [mm]")
+        ax.set_ylabel("breakages [-]")
+        ax.set_title(f"{title}: sizes of the broken grains ({dia.size})")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=9)
+        _save(fig, out_dir, "breakage_sizes.png", written)
+        plt.close(fig)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -30,6 +30,7 @@ WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 OLD_FIGURES = {"stress_time.png", "strain_stress.png", "void_ratio.png", "coordination.png",
                "kinetic_energy.png"}
 LAB_FIGURES = {"triaxial.png", "oedometer.png", "inertial_number.png", "preparation.png"}
+CRUSHING_FIGURES = {"grading.png", "breakage.png", "breakage_sizes.png"}
 
 
 def _row(t, sig_lat, sig_ax, eps_a, eps_v, e, **extra):
@@ -208,6 +209,111 @@ def test_plain_run_without_summary(tmp_path):
     run = _plain_run(tmp_path / "plain")
     os.remove(os.path.join(run, "summary.json"))
     assert OLD_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
+
+
+def _crushing_run(path, breakages=True):
+    """Isotropic compression then triaxial compression with grain crushing: the time series with
+    the crushing columns, grading.csv (one row per time-series row), breakage.csv, summary.json."""
+    rng = np.random.default_rng(7)
+    sieves = np.geomspace(1e-5, 1e-3, 16)
+    d50, n0 = 0.6e-3, 400
+    rows, grading, broken = [], [], []
+    t, n_inst, n_crack, n_part, removed = 0.0, 0, 0, n0, 0.0
+    plan = [(0, ea) for ea in np.linspace(0.0, 0.004, 8)] + \
+           [(1, 0.004 + ea) for ea in np.linspace(0.0, 0.08, 25)]
+    for i, (stage, ea) in enumerate(plan):
+        new_inst = int(rng.poisson(3.0 * ea / 0.08 * 10)) if i else 0
+        new_crack = int(rng.poisson(2.0 * ea / 0.08 * 10)) if i else 0
+        for cause, count in (("instant", new_inst), ("crack", new_crack)):
+            for _ in range(count):
+                dia = d50 * math.exp(rng.normal(0.0, 0.25)) * (0.5 if cause == "crack" else 1.0)
+                broken.append([t, int(t * 1e8), len(broken), dia, cause, 4e9, 3.8e9, 14, 3,
+                               " ".join(str(n_part + k) for k in range(14))])
+        n_inst += new_inst
+        n_crack += new_crack
+        n_part += 11 * (new_inst + new_crack)
+        removed += 1e-12 * (new_inst + new_crack)
+        br = min(1.0, 0.35 * ea / 0.084)
+        e = 0.75 - 0.5 * ea
+        sig_lat = 0.2e6 + 0.8e6 * min(ea / 0.004, 1.0)
+        rows.append(_row(t, sig_lat, sig_lat + (1.2e6 * (ea - 0.004) / 0.02 if stage else 0.0),
+                         ea, 1.5 * ea, e, stage=stage, stage_axial_strain=ea - (0.004 * stage),
+                         n_particles=n_part, breakages_instant=n_inst, breakages_crack=n_crack,
+                         removed_volume_m3=removed, removed_mass_kg=2650.0 * removed,
+                         void_ratio_with_fines=e - 0.02 * br, relative_breakage_Br=br))
+        # Grading: the initial log-normal curve shifted towards the fines as B_r grows.
+        f0 = 0.5 * (1.0 + np.vectorize(math.erf)(np.log(sieves / d50) / (0.25 * math.sqrt(2))))
+        fines = br * (np.log(sieves / 1e-5) / np.log(1e-3 / 1e-5)) ** 2
+        grading.append([t, int(t * 1e8)] + list(np.clip(f0 + (1.0 - f0) * fines, 0.0, 1.0)))
+        t += 1e-5
+    run = _write_run(path, rows, {
+        "stages": [_stage_summary("isotropic", "isotropic"),
+                   _stage_summary("triaxial", "triaxial", q_max_Pa=4.8e6,
+                                  axial_strain_at_q_max=0.08, sigma_3_at_q_max_Pa=1.0e6)],
+        "crushing": {"d50_initial_m": d50, "d0_m": 1e-3, "d_c_m": 0.55 * d50,
+                     "breakages_instant": n_inst, "breakages_crack": n_crack,
+                     "removed_volume_m3": removed, "relative_breakage_Br": rows[-1][
+                         "relative_breakage_Br"]}})
+    with open(os.path.join(run, "grading.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["time_s", "step"] + [f"passing_{s:.4e}_m" for s in sieves])
+        w.writerows(grading)
+    with open(os.path.join(run, "breakage.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
+                    "fragments", "removed_fragments", "fragment_ids"])
+        if breakages:
+            w.writerows(broken)
+    return run
+
+
+def test_crushing_run_writes_crushing_figures(tmp_path):
+    run = _crushing_run(tmp_path / "crushing")
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    names = _names(written)
+    assert CRUSHING_FIGURES <= names
+    assert {"triaxial.png", "void_ratio.png"} <= names
+    _assert_pngs(written, out)
+
+
+def test_crushing_run_without_breakages_has_no_size_histogram(tmp_path):
+    # breakage.csv with its header only: grading and breakage curves, but no histogram.
+    run = _crushing_run(tmp_path / "crushing", breakages=False)
+    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    assert {"grading.png", "breakage.png"} <= names
+    assert "breakage_sizes.png" not in names
+
+
+def test_crushing_grading_with_mismatched_rows(tmp_path):
+    # grading.csv shorter than the time series: only the first and last curves, no failure.
+    run = _crushing_run(tmp_path / "crushing")
+    path = os.path.join(run, "grading.csv")
+    with open(path) as f:
+        lines = f.readlines()
+    with open(path, "w") as f:
+        f.writelines(lines[:-3])
+    written = plot.make_plots(run, str(tmp_path / "figs"))
+    assert "grading.png" in _names(written)
+    _assert_pngs(written, tmp_path / "figs")
+
+
+def test_crushing_reads_grading_and_breakage(tmp_path):
+    run = _crushing_run(tmp_path / "crushing")
+    sieves, passing = plot.read_grading(run)
+    assert sieves.shape == (16,) and np.all(np.diff(sieves) > 0)
+    assert sieves[0] == pytest.approx(1e-5) and sieves[-1] == pytest.approx(1e-3)
+    assert passing.shape[1] == 16 and np.all((passing >= 0) & (passing <= 1))
+    broken = plot.read_breakage(run)
+    assert broken and {c for _, c in broken} <= {"instant", "crack"}
+    assert all(dia > 0 for dia, _ in broken)
+
+
+def test_run_without_crushing_has_no_crushing_figures(tmp_path):
+    for run in (_plain_run(tmp_path / "plain"), _triaxial_run(tmp_path / "triaxial"),
+                _oedometer_run(tmp_path / "oedometer")):
+        names = _names(plot.make_plots(run, str(tmp_path / "figs" / os.path.basename(run))))
+        assert names and not names & CRUSHING_FIGURES
 
 
 def test_main_prints_written_paths(tmp_path, capsys):
