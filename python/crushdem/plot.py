@@ -222,6 +222,16 @@ def _legend_twin(ax, ax2, **kw) -> None:
         ax.legend(h1 + h2, l1 + l2, **kw)
 
 
+def _plain_log_ticks(ax) -> None:
+    """Tick labels of a log x axis as plain numbers (0.1, 0.2, 1) instead of powers of ten."""
+    from matplotlib.ticker import FuncFormatter
+
+    fmt = FuncFormatter(lambda v, _pos: f"{v:g}")
+    ax.xaxis.set_major_formatter(fmt)
+    ax.xaxis.set_minor_formatter(FuncFormatter(
+        lambda v, _pos: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+
+
 def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     """Draws the figures for ``run_dir``/timeseries.csv; returns the paths written."""
     import matplotlib
@@ -558,6 +568,7 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
             ax.axvline(d_c * 1e3, color="0.4", ls=":", lw=1.2,
                        label=f"$d_c$ = {d_c * 1e3:.3g} mm")
         ax.set_ylim(0.0, 100.0)
+        _plain_log_ticks(ax)
         ax.set_xlabel("particle size d [mm]")
         ax.set_ylabel("mass passing [%]")
         ax.set_title(f"{title}: grading")
@@ -577,9 +588,6 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
         fig, (ax_top, ax_bot) = plt.subplots(2, 1, figsize=(7, 7.5), sharex=True)
         for (c, lab), color in zip(counts, ("tab:red", "tab:blue")):
             ax_top.plot(x, d[c], "-", color=color, label=f"breakages: {lab}")
-        if len(counts) == 2:
-            ax_top.plot(x, d[counts[0][0]] + d[counts[1][0]], "k-", lw=0.8, alpha=0.6,
-                        label="breakages: total")
         ax_top.set_ylabel("cumulative breakages [-]")
         ax_top.set_title(f"{title}: grain crushing")
         ax_top.grid(True, alpha=0.3)
@@ -603,7 +611,7 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
             for c, lab, color in voids:
                 ax_e.plot(x, d[c], "--", color=color, label=lab)
             ax_e.set_ylabel("void ratio $e$ [-]")
-            _legend_twin(ax_bot, ax_e, fontsize=9, loc="best")
+            _legend_twin(ax_bot, ax_e, fontsize=9, loc="center left")
         elif br is not None:
             ax_bot.legend(fontsize=9)
         ax_bot.set_xlabel(x_label)
@@ -630,6 +638,7 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
                 label=[f"{c} ({v.size})" for c, v in groups], edgecolor="white", lw=0.5)
         if log_x:
             ax.set_xscale("log")
+            _plain_log_ticks(ax)
         if math.isfinite(d_c) and d_c > 0:
             ax.axvline(d_c * 1e3, color="0.3", ls=":", lw=1.2,
                        label=f"$d_c$ = {d_c * 1e3:.3g} mm")

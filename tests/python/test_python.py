@@ -312,13 +312,18 @@ def test_lab_functions_prepare_and_shear(tmp_path):
     for got, want in zip(info["passing"], info["passing_target"]):
         assert abs(got - want) <= 0.02
     tri = crushdem.triaxial_test(tmp_path / "tri", sample.sample_file, sigma_3=1e6,
-                                 strain_rate=40.0, axial_strain=0.01, hold_steps=1000)
+                                 strain_rate=40.0, axial_strain=0.01, hold_steps=1000,
+                                 crushing={"seed": 2})
     assert [s["type"] for s in tri.stages] == ["isotropic", "triaxial", "hold"]
     assert tri.stages[1]["max_lateral_stress_error"] < 0.01
     assert tri.stages[1]["q_max_Pa"] > 0
     ts = tri.timeseries
     assert ts["stage"].max() == 2
     assert np.all(np.isfinite(ts["inertial_number"][ts["stage"] == 1]))
+    # Crushing is on (Table 1 strengths: few or no grains break at 1 MPa); its outputs exist.
+    assert "relative_breakage_Br" in ts and "void_ratio_with_fines" in ts
+    assert os.path.exists(os.path.join(tri.directory, "grading.csv"))
+    assert tri.summary["crushing"]["pattern_fragments"] == 14
     with pytest.raises(crushdem.ConfigError, match="sample.void_ratio"):
         crushdem.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
     with pytest.raises(crushdem.ConfigError, match=r"stage\[0\]\.stress"):

@@ -78,6 +78,8 @@ void Crusher::begin(Simulation& sim) {
   d50_ = diameter_at_fraction(initial_d_, 0.5);
   d0_ = cfg_.d0 > 0.0 ? cfg_.d0 : d50_;
   d_c_ = cfg_.dc_ratio * d50_;
+  d_ref_ = initial_d_.empty() ? 0.0 : *std::min_element(initial_d_.begin(), initial_d_.end());
+  rho_ = sim.config().material.density;
   std::vector<std::size_t> order(p.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::sort(order.begin(), order.end(),
@@ -87,6 +89,11 @@ void Crusher::begin(Simulation& sim) {
     if (std::isnan(s[i])) s[i] = draw_strength(2.0 * p.radius[i]);
   }
   sim.track_contact_load(cfg_.r_prime_factor());
+}
+
+double Crusher::fragment_density(double d) const {
+  if (!cfg_.density_scaling || d >= d_ref_) return rho_;
+  return rho_ * (d_ref_ / d) * (d_ref_ / d);
 }
 
 std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
@@ -165,7 +172,7 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size
       np.velocity = v + cross(w, arm);
       np.angular_velocity = w;
       np.radius = r;
-      np.density = rho;
+      np.density = cfg_.density_scaling ? fragment_density(2.0 * r) : rho;
       np.extra.assign(strength_field_ + 1, std::numeric_limits<double>::quiet_NaN());
       np.extra[strength_field_] = draw_strength(2.0 * r);
       change.add.push_back(np);
@@ -182,7 +189,9 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size
   const std::vector<ParticleId> ids = sim.apply_topology(change);
   double mass_after = 0.0;
   for (std::size_t k = n_before; k < p.size(); ++k) mass_after += p.mass[k];
-  removed_mass_ += mass_before - mass_after;
+  // With density scaling the stored masses are not the grains' true masses: count the removed
+  // volume at the material density instead.
+  removed_mass_ += cfg_.density_scaling ? rho_ * removed_volume : mass_before - mass_after;
   removed_volume_ += removed_volume;
   std::size_t at = 0;
   for (std::size_t e = 0; e < events.size(); ++e) {

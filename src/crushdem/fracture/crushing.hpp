@@ -36,6 +36,10 @@ struct CrushingConfig {
   std::uint64_t interval = 1;      // steps between criterion checks
   std::uint64_t seed = 1;          // strength and orientation streams
   std::string pattern;             // file of "radius_fraction x y z" rows; empty = default 14
+  // Density scaling of small fragments (model-notes 1.4, off by default): a fragment smaller
+  // than the smallest initial grain d_ref gets density rho (d_ref / d)^2, which keeps the time
+  // step at the initial sample's. Changes only inertia; keep the inertial number below 1e-3.
+  bool density_scaling = false;
   void validate() const;           // keys "crushing.<key>"
   double r_prime_factor() const { return r_prime == "2R_star" ? 2.0 : 1.0; }
 };
@@ -76,6 +80,8 @@ class Crusher {
   double d0() const { return d0_; }
   double d_c() const { return d_c_; }
   double d50_initial() const { return d50_; }
+  /// Density of a new fragment of diameter d (scaled or the material's).
+  double fragment_density(double d) const;
   const std::vector<double>& initial_diameters() const { return initial_d_; }
   double removed_volume() const { return removed_volume_; }
   double removed_mass() const { return removed_mass_; }
@@ -89,7 +95,7 @@ class Crusher {
   SplitPattern pattern_;
   RandomStream strength_rng_, orientation_rng_;
   std::size_t strength_field_ = 0;
-  double d0_ = 0.0, d_c_ = 0.0, d50_ = 0.0;
+  double d0_ = 0.0, d_c_ = 0.0, d50_ = 0.0, d_ref_ = 0.0, rho_ = 0.0;
   std::vector<double> initial_d_;
   double removed_volume_ = 0.0, removed_mass_ = 0.0;
   std::uint64_t count_[2] = {0, 0};

@@ -388,6 +388,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.count("interval", k.interval);
     s.count("seed", k.seed);
     s.string("pattern", k.pattern);
+    s.boolean("density_scaling", k.density_scaling);
     if (!k.pattern.empty() && std::filesystem::path(k.pattern).is_relative()) {
       k.pattern = (std::filesystem::path(base_dir) / k.pattern).string();
     }
@@ -695,6 +696,7 @@ toml::Table to_toml(const RunConfig& c) {
     ct["interval"] = cnt(k.interval);
     ct["seed"] = cnt(k.seed);
     if (!k.pattern.empty()) ct["pattern"] = Value::make_string(k.pattern);
+    ct["density_scaling"] = Value::make_bool(k.density_scaling);
     t["crushing"] = Value::make_table(ct);
   }
   if (c.has_sample || !c.stages.empty()) {
