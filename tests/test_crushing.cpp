@@ -4,10 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <filesystem>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <numeric>
 #include <utility>
 
@@ -272,7 +271,8 @@ TEST(Pattern, ReadFromFileAndRejectOverlaps) {
     SplitPattern::from_file(f.string());
     FAIL();
   } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("fragments 1 and 2 overlap"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("fragments 1 and 2 overlap"), std::string::npos)
+        << e.what();
   }
   fs::remove(f);
 }

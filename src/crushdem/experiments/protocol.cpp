@@ -7,6 +7,7 @@
 
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/fracture/crushing.hpp"
 #include "crushdem/particles/generate.hpp"
 
 namespace crushdem {
@@ -243,6 +244,7 @@ const char* to_string(StageKind k) {
     case StageKind::Oedometric: return "oedometric";
     case StageKind::Triaxial: return "triaxial";
     case StageKind::Hold: return "hold";
+    case StageKind::Age: return "age";
   }
   return "?";
 }
@@ -252,8 +254,9 @@ StageKind parse_stage_kind(const std::string& s, const std::string& key) {
   if (s == "oedometric") return StageKind::Oedometric;
   if (s == "triaxial") return StageKind::Triaxial;
   if (s == "hold") return StageKind::Hold;
-  throw ConfigError(
-      bad_value(key, "\"" + s + "\"", "\"isotropic\", \"oedometric\", \"triaxial\" or \"hold\""));
+  if (s == "age") return StageKind::Age;
+  throw ConfigError(bad_value(key, "\"" + s + "\"",
+                              "\"isotropic\", \"oedometric\", \"triaxial\", \"hold\" or \"age\""));
 }
 
 void StageConfig::validate(const std::string& prefix) const {
@@ -277,6 +280,7 @@ void StageConfig::validate(const std::string& prefix) const {
               "a deviator stress in Pa to stop at (0 = not used)");
       break;
     case StageKind::Hold:
+    case StageKind::Age:
       if (axial != "fixed" && axial != "servo") {
         throw ConfigError(bad_value(key("axial"), "\"" + axial + "\"", "\"fixed\" or \"servo\""));
       }
@@ -288,7 +292,11 @@ void StageConfig::validate(const std::string& prefix) const {
       if (lateral == "servo") {
         positive("lateral_stress", lateral_stress, "a positive stress in Pa");
       }
-      if ((steps == 0) == !(duration > 0.0)) {
+      if (kind == StageKind::Age) {
+        positive("duration", duration, "a positive ageing time in s (the relaxation clock)");
+        if (min_cycles == 0) throw ConfigError(bad_value(key("min_cycles"), "0", "> 0 steps"));
+        if (n_break == 0) throw ConfigError(bad_value(key("n_break"), "0", "> 0 grains"));
+      } else if ((steps == 0) == !(duration > 0.0)) {
         throw ConfigError(prefix + ": a hold stage needs exactly one of '" + key("steps") +
                           "' (> 0) or '" + key("duration") + "' (> 0 s)");
       }
@@ -305,7 +313,12 @@ void StageConfig::validate(const std::string& prefix) const {
   if (max_steps == 0) throw ConfigError(bad_value(key("max_steps"), "0", "> 0 steps"));
 }
 
-StageController::StageController(const StageConfig& cfg, double d50) : cfg_(cfg), d50_(d50) {
+StageController::StageController(const StageConfig& cfg, double d50, Crusher* crusher)
+    : cfg_(cfg), d50_(d50), crusher_(crusher) {
+  if (cfg_.kind == StageKind::Age && !crusher_) {
+    throw ConfigError("stage '" + cfg_.label() +
+                      "': an \"age\" stage needs [crushing] with crack_growth = true");
+  }
   res_.name = cfg_.label();
   res_.kind = to_string(cfg_.kind);
 }
@@ -352,6 +365,7 @@ void StageController::begin(Simulation& sim) {
       w.config(5).velocity = -0.5 * cfg_.strain_rate * Lz;
       break;
     case StageKind::Hold:
+    case StageKind::Age:
       if (cfg_.axial == "servo") set_servo(w, 5, cfg_.axial_stress);
       if (cfg_.lateral == "servo") {
         for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.lateral_stress);
@@ -359,6 +373,8 @@ void StageController::begin(Simulation& sim) {
       break;
   }
   w.update_velocities(sim.current_dt());
+  phase_start_ = start_step_;
+  ageing_time_ = 0.0;
   observe(sim);
 }
 
@@ -439,6 +455,19 @@ bool StageController::update(Simulation& sim) {
         return finish("target axial strain");
       }
       break;
+    case StageKind::Age:
+      if (sim.step_count() - phase_start_ >= cfg_.min_cycles) {
+        // End of a dynamic phase: record it, then jump the ageing clock (walls still).
+        ++res_.dynamic_phases;
+        if (on_dynamic_phase_end) on_dynamic_phase_end(sim, ageing_time_, res_.dynamic_phases - 1);
+        res_.ageing_time = ageing_time_;
+        if (ageing_time_ >= cfg_.duration) return finish("target ageing time");
+        const Crusher::Jump j =
+            crusher_->ageing_jump(sim, cfg_.n_break, cfg_.duration - ageing_time_);
+        ageing_time_ = j.dt >= cfg_.duration - ageing_time_ ? cfg_.duration : ageing_time_ + j.dt;
+        phase_start_ = sim.step_count();
+      }
+      break;
     case StageKind::Hold:
       if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return finish("duration");
       if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
@@ -465,6 +494,10 @@ std::uint64_t StageController::steps_to_check(Simulation& sim) {
       const double left = std::ceil((start_time_ + cfg_.duration - sim.time()) / sim.dt());
       n = std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
     }
+  }
+  if (cfg_.kind == StageKind::Age) {
+    const std::uint64_t in_phase = sim.step_count() - phase_start_;
+    if (in_phase < cfg_.min_cycles) n = std::min(n, cfg_.min_cycles - in_phase);
   }
   return std::max<std::uint64_t>(n, 1);
 }

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -52,7 +53,7 @@ struct SampleConfig {
 // Test stages
 // ---------------------------------------------------------------------------------------------
 
-enum class StageKind { Isotropic, Oedometric, Triaxial, Hold };
+enum class StageKind { Isotropic, Oedometric, Triaxial, Hold, Age };
 const char* to_string(StageKind k);
 StageKind parse_stage_kind(const std::string& s, const std::string& key);
 
@@ -71,12 +72,18 @@ struct StageConfig {
   double axial_strain = 0.0;  // [-]
   double stop_q = 0.0;        // [Pa], 0 = not used
   // hold: the walls keep still or are servo-controlled, for `steps` or `duration`.
+  // age (off-DEM ageing, model-notes 3.1; needs [crushing] crack_growth): dynamic phases of
+  //   min_cycles steps (walls as `axial` / `lateral` say) alternate with ageing jumps that grow
+  //   every crack at its frozen velocity until n_break grains would fail, until the ageing clock
+  //   reaches `duration` (ageing time, not DEM time).
   std::string axial = "fixed";    // "fixed" | "servo"
   std::string lateral = "fixed";  // "fixed" | "servo"
   double axial_stress = 0.0;      // [Pa] for axial = "servo"
   double lateral_stress = 0.0;    // [Pa] for lateral = "servo"
   std::uint64_t steps = 0;
-  double duration = 0.0;  // [s]
+  double duration = 0.0;              // [s]
+  std::uint64_t min_cycles = 150000;  // age: steps per dynamic phase (STUDY)
+  std::uint64_t n_break = 30;         // age: grains brought to failure per jump (STUDY)
   // Equilibrium (isotropic, servo oedometric) and limits.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this
@@ -155,12 +162,18 @@ struct StageResult {
   double max_inertial_number = 0.0;
   double max_lateral_stress_error = 0.0;  // triaxial: max |sigma_lateral / sigma_3 - 1|
   double max_lateral_strain = 0.0;        // oedometric: max |lateral strain|
+  std::uint64_t dynamic_phases = 0;       // age
+  double ageing_time = 0.0;               // age: the ageing clock at the end [s]
 };
+
+class Crusher;
 
 class StageController final : public Controller {
  public:
-  /// d50: of the sample, for the inertial number.
-  StageController(const StageConfig& cfg, double d50);
+  /// d50: of the sample, for the inertial number. crusher: needed by an "age" stage.
+  StageController(const StageConfig& cfg, double d50, Crusher* crusher = nullptr);
+  /// Called at the end of every dynamic phase of an "age" stage (ageing clock, phase index).
+  std::function<void(const Simulation&, double, std::uint64_t)> on_dynamic_phase_end;
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
@@ -174,6 +187,9 @@ class StageController final : public Controller {
   double stage_axial_strain(const Simulation& sim) const;
   StageConfig cfg_;
   double d50_;
+  Crusher* crusher_ = nullptr;
+  double ageing_time_ = 0.0;
+  std::uint64_t phase_start_ = 0;
   StrainReference ref_;
   std::uint64_t start_step_ = 0;
   double start_time_ = 0.0;

@@ -14,6 +14,7 @@ namespace {
 
 constexpr std::uint64_t kStrengthStream = 0x57E1;
 constexpr std::uint64_t kOrientationStream = 0x0E1A;
+constexpr std::uint64_t kCrackStream = 0xC4AC;
 
 void require(bool ok, const std::string& key, double v, const std::string& expected) {
   if (!ok) throw ConfigError(bad_value("crushing." + key, show_number(v), expected));
@@ -55,13 +56,16 @@ void CrushingConfig::validate() const {
           "a ratio d_c / d50 >= 0");
   require(d_min >= 0.0 && std::isfinite(d_min), "d_min", d_min, "a diameter in m (>= 0)");
   if (interval == 0) throw ConfigError(bad_value("crushing.interval", "0", "> 0 steps"));
+  require(v0 > 0.0 && std::isfinite(v0), "v0", v0, "a positive crack velocity in m/s");
+  require(n > 0.0 && std::isfinite(n), "n", n, "a positive stress-corrosion index");
 }
 
 Crusher::Crusher(const CrushingConfig& cfg, SplitPattern pattern)
     : cfg_(cfg),
       pattern_(std::move(pattern)),
       strength_rng_(cfg.seed, kStrengthStream),
-      orientation_rng_(cfg.seed, kOrientationStream) {
+      orientation_rng_(cfg.seed, kOrientationStream),
+      crack_rng_(cfg.seed, kCrackStream) {
   pattern_.validate("crushing.pattern");
 }
 
@@ -70,9 +74,15 @@ double Crusher::draw_strength(double d) {
   return size_scaled_strength(cfg_.sigma_lim0, d, d0_, cfg_.weibull_m, f);
 }
 
+double Crusher::draw_crack(double d) {
+  if (!cfg_.crack_growth || d < d_c_) return std::numeric_limits<double>::quiet_NaN();
+  return crack_rng_.uniform(0.001 * d, 0.5 * d);
+}
+
 void Crusher::begin(Simulation& sim) {
   ParticleStore& p = sim.particles();
   strength_field_ = p.add_field("sigma_lim", std::numeric_limits<double>::quiet_NaN());
+  crack_field_ = p.add_field("crack_a", std::numeric_limits<double>::quiet_NaN());
   initial_d_.resize(p.size());
   for (std::size_t i = 0; i < p.size(); ++i) initial_d_[i] = 2.0 * p.radius[i];
   d50_ = diameter_at_fraction(initial_d_, 0.5);
@@ -88,7 +98,53 @@ void Crusher::begin(Simulation& sim) {
   for (std::size_t i : order) {
     if (std::isnan(s[i])) s[i] = draw_strength(2.0 * p.radius[i]);
   }
+  std::vector<double>& a = p.field(crack_field_);
+  for (std::size_t i : order) {
+    if (std::isnan(a[i])) a[i] = draw_crack(2.0 * p.radius[i]);
+  }
   sim.track_contact_load(cfg_.r_prime_factor());
+  last_check_time_ = sim.time();
+}
+
+double Crusher::crack_velocity(const Simulation& sim, std::size_t i) const {
+  const ParticleStore& p = sim.particles();
+  const double a = p.field(crack_field_)[i];
+  if (!cfg_.crack_growth || std::isnan(a) || 2.0 * p.radius[i] < d_c_) return 0.0;
+  const Simulation::ContactLoad& load = sim.contact_load();
+  if (load.sigma.size() != p.size() || !(load.sigma[i] > 0.0)) return 0.0;
+  return cfg_.v0 * std::pow(load.sigma[i] / p.field(strength_field_)[i], cfg_.n);
+}
+
+Crusher::Jump Crusher::ageing_jump(Simulation& sim, std::size_t n_break, double max_dt) {
+  sim.compute_forces();
+  ParticleStore& p = sim.particles();
+  std::vector<double>& a = p.field(crack_field_);
+  std::vector<double> v(p.size(), 0.0), t_fail(p.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    v[i] = crack_velocity(sim, i);
+    if (v[i] > 0.0) t_fail[i] = std::max(0.0, (p.radius[i] - a[i]) / v[i]);  // 0.5 d - a
+  }
+  std::vector<double> sorted = t_fail;
+  Jump j;
+  if (n_break > 0 && n_break <= sorted.size()) {
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n_break - 1),
+                     sorted.end());
+    j.dt = sorted[n_break - 1];
+  } else {
+    j.dt = std::numeric_limits<double>::infinity();
+  }
+  j.dt = std::min(j.dt, max_dt);
+  if (!std::isfinite(j.dt)) j.dt = max_dt;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!(v[i] > 0.0)) continue;
+    if (t_fail[i] <= j.dt) {
+      a[i] = p.radius[i];  // exactly at failure: broken at the next check
+      ++j.failing;
+    } else {
+      a[i] += v[i] * j.dt;
+    }
+  }
+  return j;
 }
 
 double Crusher::fragment_density(double d) const {
@@ -98,15 +154,40 @@ double Crusher::fragment_density(double d) const {
 
 std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
   sim.compute_forces();  // no-op when the forces (and loads) are current
-  const ParticleStore& p = sim.particles();
+  ParticleStore& p = sim.particles();
   const Simulation::ContactLoad& load = sim.contact_load();
   const std::vector<double>& s = p.field(strength_field_);
-  std::vector<std::size_t> which;
+  std::vector<std::size_t> instant, crack;
+  // Cracks grow by v times the time since the last check (the load of this step).
+  const double elapsed = sim.time() - last_check_time_;
+  last_check_time_ = sim.time();
+  std::vector<double>& a = p.field(crack_field_);
   for (std::size_t i = 0; i < p.size(); ++i) {
-    if (2.0 * p.radius[i] >= d_c_ && load.sigma[i] >= s[i]) which.push_back(i);
+    if (2.0 * p.radius[i] < d_c_) continue;
+    if (load.sigma[i] >= s[i]) {
+      instant.push_back(i);
+    } else if (cfg_.crack_growth && !std::isnan(a[i])) {
+      a[i] += crack_velocity(sim, i) * elapsed;
+      if (a[i] >= p.radius[i]) crack.push_back(i);  // a >= 0.5 d
+    }
   }
-  if (which.empty()) return {};
-  return split(sim, std::move(which), BreakCause::Instant);
+  std::vector<BreakageEvent> events;
+  if (!instant.empty()) events = split(sim, std::move(instant), BreakCause::Instant);
+  if (!crack.empty()) {
+    // The first split compacted the arrays: find the cracked grains again by id.
+    std::vector<ParticleId> ids;
+    for (std::size_t i : crack) ids.push_back(p.id[i]);
+    if (!events.empty()) {
+      crack.clear();
+      std::sort(ids.begin(), ids.end());
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        if (std::binary_search(ids.begin(), ids.end(), p.id[i])) crack.push_back(i);
+      }
+    }
+    auto more = split(sim, std::move(crack), BreakCause::Crack);
+    events.insert(events.end(), more.begin(), more.end());
+  }
+  return events;
 }
 
 std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size_t> which,
@@ -173,8 +254,10 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size
       np.angular_velocity = w;
       np.radius = r;
       np.density = cfg_.density_scaling ? fragment_density(2.0 * r) : rho;
-      np.extra.assign(strength_field_ + 1, std::numeric_limits<double>::quiet_NaN());
+      np.extra.assign(std::max(strength_field_, crack_field_) + 1,
+                      std::numeric_limits<double>::quiet_NaN());
       np.extra[strength_field_] = draw_strength(2.0 * r);
+      np.extra[crack_field_] = draw_crack(2.0 * r);
       change.add.push_back(np);
       retained += r * r * r;
       ++kept;

@@ -10,6 +10,12 @@
 // with the largest F_n and turned about it by a random angle; fragments take v + omega x r and
 // omega, a new strength, and no contact history; fragments with d < d_min are removed. The
 // removed volume and mass are accounted exactly.
+//
+// Time-dependent failure (model-notes 3, Lei et al.; crack_growth = true): every crushable grain
+// carries a crack of half-length a, seeded uniform in [0.001 d, 0.5 d] when the grain is created
+// (its own random stream), growing at v = v0 (sigma / sigma_lim)^n; the grain fails (cause
+// "crack") when a >= 0.5 d. During dynamic DEM a grows by v times the time since the last check;
+// across an off-DEM ageing jump (ageing module) by v times the jump.
 #pragma once
 
 #include <cstdint>
@@ -40,7 +46,10 @@ struct CrushingConfig {
   // than the smallest initial grain d_ref gets density rho (d_ref / d)^2, which keeps the time
   // step at the initial sample's. Changes only inertia; keep the inertial number below 1e-3.
   bool density_scaling = false;
-  void validate() const;           // keys "crushing.<key>"
+  bool crack_growth = false;  // time-dependent failure by crack growth
+  double v0 = 0.1;            // reference crack velocity [m/s] (STUDY)
+  double n = 60.0;            // stress-corrosion index [-] (STUDY)
+  void validate() const;      // keys "crushing.<key>"
   double r_prime_factor() const { return r_prime == "2R_star" ? 2.0 : 1.0; }
 };
 
@@ -77,6 +86,20 @@ class Crusher {
   /// Strength of a new grain of diameter d (draws from the strength stream).
   double draw_strength(double d);
 
+  /// Crack velocity v0 (sigma / sigma_lim)^n of grain i at the current contact load (0 for a
+  /// grain that cannot break or without a crack).
+  double crack_velocity(const Simulation& sim, std::size_t i) const;
+  /// Off-DEM ageing jump (model-notes 3.1): with every crack velocity frozen, the time until the
+  /// n_break-th grain would fail, capped at max_dt; every crack grows by v dt and the grains that
+  /// reach failure get a = 0.5 d exactly (they break at the next check). Returns the jump and how
+  /// many grains reached failure (n_break, fewer only when capped or when fewer can fail).
+  struct Jump {
+    double dt = 0.0;
+    std::size_t failing = 0;
+  };
+  Jump ageing_jump(Simulation& sim, std::size_t n_break, double max_dt);
+  std::size_t crack_field() const { return crack_field_; }
+
   double d0() const { return d0_; }
   double d_c() const { return d_c_; }
   double d50_initial() const { return d50_; }
@@ -93,8 +116,10 @@ class Crusher {
  private:
   CrushingConfig cfg_;
   SplitPattern pattern_;
-  RandomStream strength_rng_, orientation_rng_;
-  std::size_t strength_field_ = 0;
+  RandomStream strength_rng_, orientation_rng_, crack_rng_;
+  std::size_t strength_field_ = 0, crack_field_ = 0;
+  double last_check_time_ = 0.0;
+  double draw_crack(double d);
   double d0_ = 0.0, d_c_ = 0.0, d50_ = 0.0, d_ref_ = 0.0, rho_ = 0.0;
   std::vector<double> initial_d_;
   double removed_volume_ = 0.0, removed_mass_ = 0.0;

@@ -279,8 +279,9 @@ void read_sample(Section& s, SampleConfig& c) {
 
 void read_stage(Section& s, StageConfig& c) {
   if (!s.has("type")) {
-    throw ConfigError("missing key '" + s.key("type") +
-                      "': expected \"isotropic\", \"oedometric\", \"triaxial\" or \"hold\"");
+    throw ConfigError(
+        "missing key '" + s.key("type") +
+        "': expected \"isotropic\", \"oedometric\", \"triaxial\", \"hold\" or \"age\"");
   }
   std::string type;
   s.string("type", type);
@@ -295,6 +296,12 @@ void read_stage(Section& s, StageConfig& c) {
       case StageKind::Triaxial:
         return std::string(k) == "sigma_3" || std::string(k) == "strain_rate" ||
                std::string(k) == "axial_strain" || std::string(k) == "stop_q";
+      case StageKind::Age:
+        for (const char* h : {"axial", "lateral", "axial_stress", "lateral_stress", "duration",
+                              "min_cycles", "n_break"}) {
+          if (std::string(k) == h) return true;
+        }
+        return false;
       case StageKind::Hold:
         for (const char* h :
              {"axial", "lateral", "axial_stress", "lateral_stress", "steps", "duration"}) {
@@ -304,8 +311,9 @@ void read_stage(Section& s, StageConfig& c) {
     }
     return false;
   };
-  for (const char* k : {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial",
-                        "lateral", "axial_stress", "lateral_stress", "steps", "duration"}) {
+  for (const char* k :
+       {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial", "lateral",
+        "axial_stress", "lateral_stress", "steps", "duration", "min_cycles", "n_break"}) {
     if (s.has(k) && !uses(k)) {
       throw ConfigError(
           bad_value(s.key(k), "given", std::string("no '") + k + "' in a \"" + type + "\" stage"));
@@ -322,6 +330,8 @@ void read_stage(Section& s, StageConfig& c) {
   s.number("lateral_stress", c.lateral_stress);
   s.count("steps", c.steps);
   s.number("duration", c.duration);
+  s.count("min_cycles", c.min_cycles);
+  s.count("n_break", c.n_break);
   s.number("tolerance", c.tolerance);
   s.number("unbalanced", c.unbalanced);
   s.number("max_strain_rate", c.max_strain_rate);
@@ -389,6 +399,9 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.count("seed", k.seed);
     s.string("pattern", k.pattern);
     s.boolean("density_scaling", k.density_scaling);
+    s.boolean("crack_growth", k.crack_growth);
+    s.number("v0", k.v0);
+    s.number("n", k.n);
     if (!k.pattern.empty() && std::filesystem::path(k.pattern).is_relative()) {
       k.pattern = (std::filesystem::path(base_dir) / k.pattern).string();
     }
@@ -536,6 +549,11 @@ void RunConfig::validate() const {
   }
   for (std::size_t i = 0; i < stages.size(); ++i) {
     stages[i].validate("stage[" + std::to_string(i) + "]");
+    if (stages[i].kind == StageKind::Age && !(crushing.enabled && crushing.crack_growth)) {
+      throw ConfigError("stage[" + std::to_string(i) +
+                        "]: an \"age\" stage needs crack growth: add [crushing] with "
+                        "crack_growth = true");
+    }
   }
   output.validate();
   if (crushing.enabled) {
@@ -671,6 +689,15 @@ toml::Table to_toml(const RunConfig& c) {
           if (s.steps > 0) st["steps"] = cnt(s.steps);
           if (s.duration > 0.0) st["duration"] = num(s.duration);
           break;
+        case StageKind::Age:
+          st["axial"] = Value::make_string(s.axial);
+          st["lateral"] = Value::make_string(s.lateral);
+          if (s.axial == "servo") st["axial_stress"] = num(s.axial_stress);
+          if (s.lateral == "servo") st["lateral_stress"] = num(s.lateral_stress);
+          st["duration"] = num(s.duration);
+          st["min_cycles"] = cnt(s.min_cycles);
+          st["n_break"] = cnt(s.n_break);
+          break;
       }
       st["tolerance"] = num(s.tolerance);
       st["unbalanced"] = num(s.unbalanced);
@@ -697,6 +724,9 @@ toml::Table to_toml(const RunConfig& c) {
     ct["seed"] = cnt(k.seed);
     if (!k.pattern.empty()) ct["pattern"] = Value::make_string(k.pattern);
     ct["density_scaling"] = Value::make_bool(k.density_scaling);
+    ct["crack_growth"] = Value::make_bool(k.crack_growth);
+    ct["v0"] = num(k.v0);
+    ct["n"] = num(k.n);
     t["crushing"] = Value::make_table(ct);
   }
   if (c.has_sample || !c.stages.empty()) {

@@ -254,6 +254,8 @@ JsonObject stage_json(const StageResult& r) {
   o.number("max_inertial_number", r.max_inertial_number);
   o.number("max_lateral_stress_error", r.max_lateral_stress_error);
   o.number("max_lateral_strain", r.max_lateral_strain);
+  o.integer("dynamic_phases", static_cast<long long>(r.dynamic_phases));
+  o.number("ageing_time_s", r.ageing_time);
   o.string("warning", r.warning);
   return o;
 }
@@ -372,8 +374,22 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   std::vector<JsonObject> stage_results;
   if (!cfg.stages.empty()) {
     CsvWriter series((dir / "timeseries.csv").string());
+    std::unique_ptr<CsvWriter> events;  // one row per dynamic phase of "age" stages
     for (std::size_t k = 0; k < cfg.stages.size(); ++k) {
-      StageController stage(cfg.stages[k], d50);
+      StageController stage(cfg.stages[k], d50, crusher.get());
+      if (cfg.stages[k].kind == StageKind::Age) {
+        if (!events) events = std::make_unique<CsvWriter>((dir / "events.csv").string());
+        stage.on_dynamic_phase_end = [&, k](const Simulation& s, double t_age,
+                                            std::uint64_t phase) {
+          Measurement m;
+          m.emplace_back("ageing_time_s", t_age);
+          m.emplace_back("stage", static_cast<double>(k));
+          m.emplace_back("dynamic_phase", static_cast<double>(phase));
+          for (auto& kv : measure(s, ref)) m.push_back(kv);
+          for (auto& kv : crushing_measurements(s, *crusher)) m.push_back(kv);
+          events->write(m);
+        };
+      }
       driver.drive(
           stage, series,
           [&]() {
