@@ -33,7 +33,8 @@ import numpy as np
 from . import _core
 from ._core import ConfigError, RuntimeFailure, cli_main
 from . import lab
-from .lab import isotropic_test, oedometric_test, prepare_sample, triaxial_test
+from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_test,
+                  prepare_sample, triaxial_relaxation, triaxial_test)
 
 __all__ = [
     "Simulation",
@@ -48,6 +49,9 @@ __all__ = [
     "isotropic_test",
     "oedometric_test",
     "triaxial_test",
+    "oedometric_relaxation",
+    "creep_test",
+    "triaxial_relaxation",
 ]
 
 __version__ = "0.1.0"

@@ -49,6 +49,24 @@ Grain crushing (DIR/grading.csv, DIR/breakage.csv and the crushing columns of th
                            against axial strain [%] (time [s] when there is no axial strain)
 * ``breakage_sizes.png``   histogram of the diameters [mm] of the broken grains by cause (when
                            breakage.csv has rows)
+
+Ageing (off-DEM stress relaxation or creep, ``"age"`` stages; drawn only when DIR/events.csv
+exists). events.csv has one row per dynamic DEM phase: ``ageing_time_s`` (the ageing clock since
+the boundary was frozen, 0 for the first phase), ``stage``, ``dynamic_phase`` and the time-series
+columns of the end of that phase. The x axis is the ageing time [s] on a log scale, so only the
+phases with ageing time > 0 are drawn (each phase a marker); the first phase (t = 0) gives the
+reference values shown in the legends. Each age stage is its own curve, with its own t = 0. Dotted
+vertical lines mark 1 h and 1 day when they lie within the ageing time reached:
+
+* ``relaxation.png``          vertical stress sigma_v(t)/sigma_v(0) (sigma_v = mean of the
+                              zmin/zmax wall stresses; sigma_v(0) in MPa in the legend), and on a
+                              second panel the deviator stress q [MPa] with the axial strain [%]
+                              on a twin axis (which grows in creep, when the axial wall is
+                              servo-controlled)
+* ``relaxation_forces.png``   standard deviations of the contact normal and tangential forces
+                              [N] (solid), with their means (dashed)
+* ``relaxation_breakage.png`` cumulative breakages by cause (instant, crack) with the number of
+                              particles on a second axis
 """
 
 from __future__ import annotations
@@ -516,6 +534,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
         plt.close(fig)
 
     _crushing_plots(d, summary, stages, run_dir, out_dir, title, t, t_label, written)
+    _ageing_plots(run_dir, summary, out_dir, title, written)
     return written
 
 
@@ -652,6 +671,203 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=9)
         _save(fig, out_dir, "breakage_sizes.png", written)
+        plt.close(fig)
+
+
+HOUR_S = 3600.0
+DAY_S = 86400.0
+
+
+def read_events(run_dir: str) -> Optional[Dict[str, np.ndarray]]:
+    """DIR/events.csv (one row per dynamic phase of the "age" stages) as {column: array}.
+
+    None when the file is missing, or unreadable (as it can be for a moment while a run is still
+    writing it: a message goes to stderr and the ageing figures are left out).
+    """
+    path = os.path.join(run_dir, "events.csv")
+    if not os.path.isfile(path):
+        return None
+    try:
+        return read_timeseries(path)
+    except (OSError, ValueError) as e:
+        print(f"crushdem plot: {path} skipped: {e}", file=sys.stderr)
+        return None
+
+
+def _ageing_groups(ev: Dict[str, np.ndarray], summary: Dict[str, Any]
+                   ) -> List[Tuple[str, np.ndarray, int]]:
+    """[(label, row indices in ageing-time order, reference row)] for each age stage of events.
+
+    The reference row is the stage's first dynamic phase (ageing time 0, or the earliest one).
+    """
+    t_age = ev["ageing_time_s"]
+    n = len(t_age)
+    listed = summary.get("stages")
+    listed = listed if isinstance(listed, list) else []
+    if _has(ev, "stage"):
+        keys = sorted({int(v) for v in ev["stage"][np.isfinite(ev["stage"])]})
+        groups = [(k, np.flatnonzero(ev["stage"] == k)) for k in keys]
+    else:
+        groups = [(-1, np.arange(n))]
+    out = []
+    for k, idx in groups:
+        idx = idx[np.isfinite(t_age[idx])]
+        if not idx.size:
+            continue
+        order = idx[np.argsort(t_age[idx], kind="stable")]
+        if _has(ev, "dynamic_phase"):
+            phase = ev["dynamic_phase"][order]
+            ref = int(order[int(np.nanargmin(phase))]) if np.isfinite(phase).any() \
+                else int(order[0])
+        else:
+            ref = int(order[0])
+        if k < 0:
+            label = "age"
+        else:
+            info = listed[k] if 0 <= k < len(listed) and isinstance(listed[k], dict) else {}
+            label = _stage_name(k, info)
+        out.append((label, order, ref))
+    return out
+
+
+def _time_marks(axes, label_ax=None) -> None:
+    """Dotted vertical lines at 1 h and 1 day on log-time axes, where inside the data range."""
+    for ax in axes:
+        lo, hi = ax.get_xlim()
+        for x, text in ((HOUR_S, "1 h"), (DAY_S, "1 day")):
+            if lo <= x <= hi * 1.0001:
+                ax.axvline(x, color="0.35", ls=":", lw=1.2)
+                if ax is label_ax:
+                    ax.text(x, 0.97, f"{text} ", transform=ax.get_xaxis_transform(),
+                            rotation=90, ha="right", va="top", fontsize=8, color="0.25",
+                            bbox=dict(facecolor="white", alpha=0.7, lw=0, pad=1))
+        ax.set_xlim(lo, hi)
+
+
+def _ageing_plots(run_dir: str, summary: Dict[str, Any], out_dir: str, title: str,
+                  written: List[str]) -> None:
+    """relaxation.png, relaxation_forces.png, relaxation_breakage.png from DIR/events.csv."""
+    import matplotlib.pyplot as plt
+
+    ev = read_events(run_dir)
+    if ev is None or not _has(ev, "ageing_time_s"):
+        return
+    t_age = ev["ageing_time_s"]
+    groups = _ageing_groups(ev, summary)
+    # The log axis holds the phases with ageing time > 0 only; nothing to draw without one.
+    groups = [(label, idx, ref) for label, idx, ref in groups if np.any(t_age[idx] > 0)]
+    if not groups:
+        return
+    multi = len(groups) > 1
+    markers = ("o", "s", "^", "D", "v")
+    x_label = "ageing time $t$ [s] (log scale)"
+
+    def pos(idx: np.ndarray) -> np.ndarray:
+        return idx[t_age[idx] > 0]
+
+    # Vertical stress relaxation, q and axial strain.
+    sigma_v = _vertical_stress(ev)
+    with_q = _has(ev, "deviator_stress_Pa")
+    with_ea = _has(ev, "axial_strain")
+    if sigma_v is not None:
+        lower = with_q or with_ea
+        fig, axes = plt.subplots(2 if lower else 1, 1, figsize=(7, 7.5 if lower else 4.5),
+                                 sharex=True, squeeze=False)
+        ax = axes[0, 0]
+        for i, (label, idx, ref) in enumerate(groups):
+            s0 = sigma_v[ref]
+            p = pos(idx)
+            text = f"$\\sigma_v(0)$ = {s0 * MPA:.2f} MPa"
+            if math.isfinite(s0) and s0 != 0.0:
+                ax.semilogx(t_age[p], sigma_v[p] / s0, marker=markers[i % len(markers)],
+                            ls="-", ms=4, color=_stage_color(i),
+                            label=f"{label}, {text}" if multi else text)
+        ax.axhline(1.0, color="0.5", lw=0.8)
+        ax.set_ylabel("$\\sigma_v(t) / \\sigma_v(0)$ [-]")
+        ax.set_title(f"{title}: ageing (relaxation / creep), vertical stress")
+        ax.grid(True, which="both", alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=9, loc="lower left")
+        if lower:
+            ax_q = axes[1, 0]
+            ax_e = ax_q.twinx() if with_ea else None
+            for i, (label, idx, _ref) in enumerate(groups):
+                p = pos(idx)
+                m = markers[i % len(markers)]
+                suffix = f" ({label})" if multi else ""
+                if with_q:
+                    ax_q.semilogx(t_age[p], ev["deviator_stress_Pa"][p] * MPA, marker=m, ls="-",
+                                  ms=4, color="tab:blue", label=f"deviator $q${suffix}")
+                if ax_e is not None:
+                    ax_e.semilogx(t_age[p], ev["axial_strain"][p] * 100.0, marker=m, ls="--",
+                                  ms=4, mfc="none", color="tab:red",
+                                  label=f"axial strain $\\varepsilon_a${suffix}")
+            ax_q.set_ylabel("deviator stress $q$ [MPa]", color="tab:blue")
+            ax_q.grid(True, which="both", alpha=0.3)
+            if ax_e is not None:
+                ax_e.set_ylabel("axial strain $\\varepsilon_a$ [%]", color="tab:red")
+                ax_e.ticklabel_format(axis="y", useOffset=False)
+                _legend_twin(ax_q, ax_e, fontsize=9, loc="best")
+            else:
+                ax_q.legend(fontsize=9)
+        axes[-1, 0].set_xlabel(x_label)
+        _time_marks([a[0] for a in axes], label_ax=axes[0, 0])
+        _save(fig, out_dir, "relaxation.png", written)
+        plt.close(fig)
+
+    # Contact force statistics.
+    force_cols = [(c, lab, color, ls) for c, lab, color, ls in (
+        ("std_Fn_N", "std. dev. normal force $F_n$", "tab:blue", "-"),
+        ("std_Ft_N", "std. dev. tangential force $F_t$", "tab:orange", "-"),
+        ("mean_Fn_N", "mean normal force $F_n$", "tab:blue", "--"),
+        ("mean_Ft_N", "mean tangential force $F_t$", "tab:orange", "--")) if _has(ev, c)]
+    if force_cols:
+        fig, ax = plt.subplots(figsize=(7, 4.8))
+        for i, (label, idx, _ref) in enumerate(groups):
+            p = pos(idx)
+            m = markers[i % len(markers)]
+            for c, lab, color, ls in force_cols:
+                ax.semilogx(t_age[p], ev[c][p], marker=m, ls=ls, ms=4, color=color,
+                            mfc=color if ls == "-" else "none",
+                            label=f"{lab} ({label})" if multi else lab)
+        ax.set_xlabel(x_label)
+        ax.set_ylabel("contact force [N]")
+        ax.set_title(f"{title}: ageing, contact forces")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+        _time_marks([ax], label_ax=ax)
+        _save(fig, out_dir, "relaxation_forces.png", written)
+        plt.close(fig)
+
+    # Breakages and particle count.
+    counts = [(c, lab, color) for c, lab, color in (
+        ("breakages_instant", "breakages: instant failure", "tab:red"),
+        ("breakages_crack", "breakages: crack", "tab:blue")) if _has(ev, c)]
+    with_n = _has(ev, "n_particles")
+    if counts or with_n:
+        fig, ax = plt.subplots(figsize=(7, 4.8))
+        ax_n = ax.twinx() if with_n else None
+        for i, (label, idx, _ref) in enumerate(groups):
+            p = pos(idx)
+            m = markers[i % len(markers)]
+            suffix = f" ({label})" if multi else ""
+            for c, lab, color in counts:
+                ax.semilogx(t_age[p], ev[c][p], marker=m, ls="-", ms=4, color=color,
+                            label=lab + suffix)
+            if ax_n is not None:
+                ax_n.semilogx(t_age[p], ev["n_particles"][p], marker=m, ls="--", ms=4,
+                              mfc="none", color="tab:green", label="particles" + suffix)
+        ax.set_xlabel(x_label)
+        ax.set_ylabel("cumulative breakages [-]")
+        ax.set_title(f"{title}: ageing, grain crushing")
+        ax.grid(True, which="both", alpha=0.3)
+        if ax_n is not None:
+            ax_n.set_ylabel("number of particles [-]", color="tab:green")
+            _legend_twin(ax, ax_n, fontsize=9, loc="upper left")
+        else:
+            ax.legend(fontsize=9, loc="upper left")
+        _time_marks([ax], label_ax=ax)
+        _save(fig, out_dir, "relaxation_breakage.png", written)
         plt.close(fig)
 
 

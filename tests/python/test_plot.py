@@ -328,3 +328,111 @@ def test_main_prints_written_paths(tmp_path, capsys):
 def test_main_missing_directory(tmp_path, capsys):
     assert plot.main([str(tmp_path / "missing")]) == 2
     assert "error" in capsys.readouterr().err
+
+
+AGEING_FIGURES = {"relaxation.png", "relaxation_forces.png", "relaxation_breakage.png"}
+
+
+def _ageing_run(path, creep=False, events=True):
+    """Oedometric loading to 7.5 MPa, then an "age" stage of one day: timeseries.csv with the
+    ``stage`` and ``ageing_time_s`` columns, events.csv with one row per dynamic phase (ageing
+    time 0, then growing jumps), summary.json. In creep the vertical stress is held and the axial
+    strain grows; in relaxation the strain is fixed and the vertical stress decays."""
+    rows, phases = [], []
+    t = 0.0
+    for sv in np.geomspace(0.1e6, 7.5e6, 10):
+        eps = 0.01 * math.log10(sv / 0.1e6)
+        rows.append(_row(t, 0.55 * sv, sv, eps, eps, 0.72 - 1.72 * eps, stage=0,
+                         ageing_time_s=0.0, n_particles=1500, breakages_instant=0,
+                         breakages_crack=0))
+        t += 1e-5
+    eps0 = rows[-1]["axial_strain"]
+    ages = [0.0] + list(np.geomspace(2.0, 86400.0, 14))
+    n_inst, n_crack, n_part = 3, 0, 1500
+    for j, age in enumerate(ages):
+        decay = 1.0 - 0.03 * math.log10(1.0 + age)
+        sv = 7.5e6 if creep else 7.5e6 * decay
+        eps = eps0 + (0.002 * math.log10(1.0 + age) if creep else 0.0)
+        if j:
+            n_crack += 10
+            n_inst += j % 2
+            n_part += 11 * (10 + j % 2)
+        extra = dict(stage=1, ageing_time_s=age, n_particles=n_part, breakages_instant=n_inst,
+                     breakages_crack=n_crack, mean_Fn_N=2.0 * decay, std_Fn_N=2.5 * decay ** 2,
+                     mean_Ft_N=0.4 * decay ** 3, std_Ft_N=0.5 * decay ** 4,
+                     removed_volume_m3=0.0, removed_mass_kg=0.0, void_ratio_with_fines=0.6,
+                     relative_breakage_Br=0.01 * j)
+        r = _row(t, 0.55 * sv, sv, eps, eps, 0.72 - 1.72 * eps, **extra)
+        rows.append({k: v for k, v in r.items() if k in rows[0]})
+        phases.append(dict({"ageing_time_s": age, "stage": 1, "dynamic_phase": j},
+                           **{k: v for k, v in r.items() if k != "stage"
+                              and k != "ageing_time_s"}))
+        t += 2e-4
+    summary = {"stages": [
+        _stage_summary("loading", "oedometric", K0_end=0.55),
+        _stage_summary("relaxation", "age", dynamic_phases=len(ages), ageing_time_s=ages[-1]),
+    ]}
+    run = _write_run(path, rows, summary)
+    if events:
+        with open(os.path.join(run, "events.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(list(phases[0].keys()))
+            for ph in phases:
+                w.writerow(list(ph.values()))
+    return run
+
+
+def test_ageing_run_writes_relaxation_figures(tmp_path):
+    run = _ageing_run(tmp_path / "relaxation")
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    names = _names(written)
+    assert AGEING_FIGURES <= names
+    assert "oedometer.png" in names
+    _assert_pngs(written, out)
+
+
+def test_creep_run_writes_relaxation_figures(tmp_path):
+    run = _ageing_run(tmp_path / "creep", creep=True)
+    out = tmp_path / "figs"
+    written = plot.make_plots(run, str(out))
+    assert AGEING_FIGURES <= _names(written)
+    _assert_pngs(written, out)
+
+
+def test_ageing_figures_need_events_csv(tmp_path):
+    # The same run without events.csv: no ageing figure, the others still drawn.
+    run = _ageing_run(tmp_path / "relaxation", events=False)
+    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    assert names and not names & AGEING_FIGURES
+    assert "oedometer.png" in names
+    for run in (_plain_run(tmp_path / "plain"), _triaxial_run(tmp_path / "triaxial"),
+                _crushing_run(tmp_path / "crushing")):
+        names = _names(plot.make_plots(run, str(tmp_path / "figs" / os.path.basename(run))))
+        assert names and not names & AGEING_FIGURES
+
+
+def test_ageing_events_with_only_the_first_phase_or_header(tmp_path):
+    # A run still in its first dynamic phase: events.csv empty, header only or one row at t = 0
+    # has nothing for the log time axis, so no ageing figure and no failure.
+    run = _ageing_run(tmp_path / "relaxation")
+    path = os.path.join(run, "events.csv")
+    with open(path) as f:
+        lines = f.readlines()
+    for keep in (lines[:2], lines[:1], []):
+        with open(path, "w") as f:
+            f.writelines(keep)
+        names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+        assert "oedometer.png" in names and not names & AGEING_FIGURES
+
+
+def test_ageing_reads_events(tmp_path):
+    run = _ageing_run(tmp_path / "relaxation")
+    ev = plot.read_events(run)
+    assert ev["ageing_time_s"][0] == 0.0 and np.all(np.diff(ev["ageing_time_s"]) > 0)
+    assert list(ev["dynamic_phase"]) == list(range(15))
+    groups = plot._ageing_groups(ev, plot.read_summary(run))
+    assert len(groups) == 1
+    label, idx, ref = groups[0]
+    assert "relaxation" in label and ref == 0 and len(idx) == 15
+    assert plot.read_events(_plain_run(tmp_path / "plain")) is None

@@ -328,3 +328,20 @@ def test_lab_functions_prepare_and_shear(tmp_path):
         crushdem.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
     with pytest.raises(crushdem.ConfigError, match=r"stage\[0\]\.stress"):
         crushdem.isotropic_test(tmp_path / "bad2", sample.sample_file, stress=-1.0)
+
+
+def test_creep_and_relaxation_functions(tmp_path):
+    sample = crushdem.prepare_sample(tmp_path / "sample", count=500, void_ratio=0.75, seed=3)
+    # Weak grains (sigma_lim0 = 0.4 GPa) so that cracks grow within the test; short phases.
+    weak = {"sigma_lim0": 4e8, "density_scaling": True, "d_min": 0.05e-3}
+    creep = crushdem.creep_test(tmp_path / "creep", sample.sample_file, stress=1e6,
+                                strain_rate=20.0, duration=3600.0, min_cycles=500, n_break=3,
+                                crushing=weak)
+    ages = [s for s in creep.stages if s["type"] == "age"]
+    assert len(ages) == 1 and ages[0]["dynamic_phases"] >= 2
+    with open(os.path.join(creep.directory, "events.csv")) as f:
+        rows = f.read().strip().splitlines()
+    assert len(rows) == 1 + ages[0]["dynamic_phases"]
+    t_age = [float(r.split(",")[0]) for r in rows[1:]]
+    assert t_age[0] == 0.0 and all(b > a for a, b in zip(t_age, t_age[1:]))
+    assert t_age[-1] == pytest.approx(3600.0)
