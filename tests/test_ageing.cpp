@@ -144,3 +144,36 @@ TEST(Ageing, EachJumpBringsExactlyNBreakGrainsToFailure) {
   }
   EXPECT_GT(clock, 0.0);
 }
+
+TEST(Ageing, InstantAndCrackFailuresInOneCheckBothKeepTheirLoad) {
+  const double d = 0.21e-3, R = 0.5 * d, delta = 3e-6;
+  SimulationConfig c = crushdem::testing::box_config(-1e-3, 1e-3, NormalLaw::Hertz);
+  c.walls[4].position = delta;
+  c.walls[5].position = d - delta;
+  Simulation sim(c);
+  sim.add_particle({-0.5e-3, 0.0, R}, R);
+  sim.add_particle({0.5e-3, 0.0, R}, R);
+  Crusher crusher(crack_config(0.1), SplitPattern::default14());
+  crusher.begin(sim);
+  sim.compute_forces();
+  ParticleStore& p = sim.particles();
+  const std::size_t weak = p.id[0] == 0 ? 0 : 1, cracked = 1 - weak;
+  p.field(crusher.strength_field())[weak] = 1e6;      // far below its contact stress
+  p.field(crusher.crack_field())[cracked] = 0.5 * d;  // the crack has reached failure
+  const auto ev = crusher.apply(sim);
+  ASSERT_EQ(ev.size(), 2u);
+  for (const auto& e : ev) {
+    EXPECT_GT(e.sigma, 1e8) << to_string(e.cause);  // the load of its own contacts
+    EXPECT_EQ(e.fragments.size(), 14u);
+  }
+  EXPECT_EQ(crusher.breakages(BreakCause::Instant), 1u);
+  EXPECT_EQ(crusher.breakages(BreakCause::Crack), 1u);
+  // Split along the wall normal (z): the two R/2 fragments of each parent sit above each other.
+  int vertical_pairs = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (std::abs(p.radius[i] - 0.5 * R) < 1e-15 && std::abs(p.z[i] - R) > 0.49 * R) {
+      ++vertical_pairs;
+    }
+  }
+  EXPECT_EQ(vertical_pairs, 4);
+}

@@ -863,9 +863,9 @@ def _ageing_plots(run_dir: str, summary: Dict[str, Any], out_dir: str, title: st
         ax.grid(True, which="both", alpha=0.3)
         if ax_n is not None:
             ax_n.set_ylabel("number of particles [-]", color="tab:green")
-            _legend_twin(ax, ax_n, fontsize=9, loc="upper left")
+            _legend_twin(ax, ax_n, fontsize=9, loc="best")
         else:
-            ax.legend(fontsize=9, loc="upper left")
+            ax.legend(fontsize=9, loc="best")
         _time_marks([ax], label_ax=ax)
         _save(fig, out_dir, "relaxation_breakage.png", written)
         plt.close(fig)

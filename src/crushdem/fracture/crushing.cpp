@@ -120,7 +120,11 @@ Crusher::Jump Crusher::ageing_jump(Simulation& sim, std::size_t n_break, double 
   ParticleStore& p = sim.particles();
   std::vector<double>& a = p.field(crack_field_);
   std::vector<double> v(p.size(), 0.0), t_fail(p.size(), std::numeric_limits<double>::infinity());
+  const Simulation::ContactLoad& load = sim.contact_load();
+  const std::vector<double>& strength = p.field(strength_field_);
   for (std::size_t i = 0; i < p.size(); ++i) {
+    // A grain already above its strength fails instantly at the next check, not by its crack.
+    if (load.sigma.size() == p.size() && load.sigma[i] >= strength[i]) continue;
     v[i] = crack_velocity(sim, i);
     if (v[i] > 0.0) t_fail[i] = std::max(0.0, (p.radius[i] - a[i]) / v[i]);  // 0.5 d - a
   }
@@ -171,39 +175,41 @@ std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
       if (a[i] >= p.radius[i]) crack.push_back(i);  // a >= 0.5 d
     }
   }
-  std::vector<BreakageEvent> events;
-  if (!instant.empty()) events = split(sim, std::move(instant), BreakCause::Instant);
-  if (!crack.empty()) {
-    // The first split compacted the arrays: find the cracked grains again by id.
-    std::vector<ParticleId> ids;
-    for (std::size_t i : crack) ids.push_back(p.id[i]);
-    if (!events.empty()) {
-      crack.clear();
-      std::sort(ids.begin(), ids.end());
-      for (std::size_t i = 0; i < p.size(); ++i) {
-        if (std::binary_search(ids.begin(), ids.end(), p.id[i])) crack.push_back(i);
-      }
-    }
-    auto more = split(sim, std::move(crack), BreakCause::Crack);
-    events.insert(events.end(), more.begin(), more.end());
-  }
-  return events;
+  // Both causes in one topology phase (the contact load stays valid for every parent).
+  std::vector<std::pair<std::size_t, BreakCause>> grains;
+  for (std::size_t i : instant) grains.emplace_back(i, BreakCause::Instant);
+  for (std::size_t i : crack) grains.emplace_back(i, BreakCause::Crack);
+  if (grains.empty()) return {};
+  return split(sim, std::move(grains));
 }
 
 std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size_t> which,
                                           BreakCause cause) {
+  std::vector<std::pair<std::size_t, BreakCause>> grains;
+  for (std::size_t i : which) grains.emplace_back(i, cause);
+  return split(sim, std::move(grains));
+}
+
+std::vector<BreakageEvent> Crusher::split(Simulation& sim,
+                                          std::vector<std::pair<std::size_t, BreakCause>> grains) {
   ParticleStore& p = sim.particles();
   // Parents in id order, so that the random draws do not depend on the storage order.
-  std::sort(which.begin(), which.end(),
-            [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
-  which.erase(std::unique(which.begin(), which.end()), which.end());
+  std::sort(grains.begin(), grains.end(),
+            [&](const auto& a, const auto& b) { return p.id[a.first] < p.id[b.first]; });
+  grains.erase(std::unique(grains.begin(), grains.end(),
+                           [](const auto& a, const auto& b) { return a.first == b.first; }),
+               grains.end());
+  std::vector<std::size_t> which;
+  for (const auto& g : grains) which.push_back(g.first);
   const Simulation::ContactLoad& load = sim.contact_load();
   const bool have_load = load.sigma.size() == p.size();
   TopologyChange change;
   std::vector<BreakageEvent> events;
   std::vector<std::size_t> kept_per_event;
   double mass_before = 0.0, removed_volume = 0.0;
-  for (std::size_t i : which) {
+  for (std::size_t g = 0; g < which.size(); ++g) {
+    const std::size_t i = which[g];
+    const BreakCause cause = grains[g].second;
     const double R = p.radius[i];
     const double rho = p.mass[i] / (4.0 / 3.0 * kPi * R * R * R);
     mass_before += p.mass[i];
@@ -282,7 +288,7 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size
                                ids.begin() + static_cast<std::ptrdiff_t>(at + kept_per_event[e]));
     at += kept_per_event[e];
   }
-  count_[static_cast<int>(cause)] += events.size();
+  for (const BreakageEvent& e : events) ++count_[static_cast<int>(e.cause)];
   return events;
 }
 

@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "crushdem/core/random.hpp"
@@ -83,6 +84,9 @@ class Crusher {
   /// Splits the grains at these indices in one topology phase (any cause).
   std::vector<BreakageEvent> split(Simulation& sim, std::vector<std::size_t> which,
                                    BreakCause cause);
+  /// The same with a cause per grain (index, cause).
+  std::vector<BreakageEvent> split(Simulation& sim,
+                                   std::vector<std::pair<std::size_t, BreakCause>> grains);
   /// Strength of a new grain of diameter d (draws from the strength stream).
   double draw_strength(double d);
 

@@ -528,11 +528,12 @@ void Simulation::evaluate_forces(double increment_dt, bool kick) {
     for (std::size_t e = 0; e < wc_.size(); ++e) {
       if (wc_.delta[e] <= 0.0) continue;
       const std::size_t i = wc_.particle[e];
-      const double sig = contact_stress(wc_.F_n[e], load_factor_ * p_.radius[i], wc_.delta[e]);
+      const double F_el = normal_force(wc_.delta[e], p_.radius[i], true).F_n;  // no dashpot
+      const double sig = contact_stress(F_el, load_factor_ * p_.radius[i], wc_.delta[e]);
       if (sig > load_.sigma[i]) load_.sigma[i] = sig;
-      if (wc_.F_n[e] > load_.F_n_max[i]) {
+      if (F_el > load_.F_n_max[i]) {
         const Vec3 n = walls_.outward_normal(wc_.wall[e]);
-        load_.F_n_max[i] = wc_.F_n[e];
+        load_.F_n_max[i] = F_el;
         load_.nx[i] = n.x;
         load_.ny[i] = n.y;
         load_.nz[i] = n.z;

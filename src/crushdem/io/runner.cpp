@@ -172,13 +172,19 @@ class Driver {
       if (opt_.sync) opt_.sync(sim_);
       to_check -= n;
       const std::uint64_t s = sim_.step_count();
-      if (crusher_ && s % crusher_->config().interval == 0) log(crusher_->apply(sim_));
+      if (crusher_ && s % crusher_->config().interval == 0) {
+        const std::vector<BreakageEvent> events = crusher_->apply(sim_);
+        log(events);
+        // Outputs and checks at this step read forces: evaluate them for the new grains (what
+        // the next step would do first anyway, with no tangential increment).
+        if (!events.empty()) sim_.compute_forces();
+      }
       if (to_check == 0) {
         finished = c.update(sim_);
         if (!finished) to_check = c.steps_to_check(sim_);
       }
       if (s % interval == 0 || finished) csv.write(row());
-      if (vtk > 0 && s % vtk == 0) snapshot();
+      if (vtk > 0 && s % vtk == 0 && !finished) snapshot();  // the final one follows the run
       progress(label, fraction);
     }
   }
