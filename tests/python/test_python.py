@@ -303,8 +303,15 @@ def test_installed_console_script():
     assert res.returncode == 2 and "unknown command" in res.stderr
 
 
-def test_lab_functions_prepare_and_shear(tmp_path):
-    sample = crushdem.prepare_sample(tmp_path / "sample", count=500, void_ratio=0.75, seed=3)
+@pytest.fixture(scope="module")
+def small_sample(tmp_path_factory):
+    """One 500-grain sample (about 20 s to prepare) shared by the laboratory tests."""
+    out = tmp_path_factory.mktemp("lab") / "sample"
+    return crushdem.prepare_sample(out, count=500, void_ratio=0.75, seed=3)
+
+
+def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
+    sample = small_sample
     assert sample.sample_file is not None
     info = sample.summary["sample"]
     assert abs(info["void_ratio"] - 0.75) <= 0.005
@@ -330,10 +337,10 @@ def test_lab_functions_prepare_and_shear(tmp_path):
         crushdem.isotropic_test(tmp_path / "bad2", sample.sample_file, stress=-1.0)
 
 
-def test_creep_and_relaxation_functions(tmp_path):
-    sample = crushdem.prepare_sample(tmp_path / "sample", count=500, void_ratio=0.75, seed=3)
-    # Weak grains (sigma_lim0 = 0.4 GPa) so that cracks grow within the test; short phases.
-    weak = {"sigma_lim0": 4e8, "density_scaling": True, "d_min": 0.05e-3}
+def test_creep_and_relaxation_functions(tmp_path, small_sample):
+    sample = small_sample
+    # Weaker grains (sigma_lim0 = 1 GPa) so that cracks grow within the test; short phases.
+    weak = {"sigma_lim0": 1e9, "density_scaling": True, "d_min": 0.05e-3}
     creep = crushdem.creep_test(tmp_path / "creep", sample.sample_file, stress=1e6,
                                 strain_rate=20.0, duration=3600.0, min_cycles=500, n_break=3,
                                 crushing=weak)
