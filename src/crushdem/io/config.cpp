@@ -439,8 +439,9 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
           "m)");
     }
     if (!std::filesystem::exists(c.particles.file)) {
-      throw ConfigError(
-          bad_value("particles.file", "\"" + c.particles.file + "\"", "an existing particle file (a prepared sample: `crushdem run SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
+      throw ConfigError(bad_value("particles.file", "\"" + c.particles.file + "\"",
+                                  "an existing particle file (a prepared sample: `crushdem run "
+                                  "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
     }
     const Packing pk = read_packing(c.particles.file);
     if (!pk.header.count("box_xmin")) {
@@ -527,7 +528,9 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
     }
     generate.validate(box);
   } else if (!std::filesystem::exists(file)) {
-    throw ConfigError(bad_value("particles.file", "\"" + file + "\"", "an existing particle file (a prepared sample: `crushdem run SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
+    throw ConfigError(bad_value("particles.file", "\"" + file + "\"",
+                                "an existing particle file (a prepared sample: `crushdem run "
+                                "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
   }
 }
 
