@@ -177,15 +177,17 @@ std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
   }
   // Both causes in one topology phase (the contact load stays valid for every parent).
   std::vector<std::pair<std::size_t, BreakCause>> grains;
+  grains.reserve(instant.size() + crack.size());
   for (std::size_t i : instant) grains.emplace_back(i, BreakCause::Instant);
   for (std::size_t i : crack) grains.emplace_back(i, BreakCause::Crack);
   if (grains.empty()) return {};
   return split(sim, std::move(grains));
 }
 
-std::vector<BreakageEvent> Crusher::split(Simulation& sim, std::vector<std::size_t> which,
+std::vector<BreakageEvent> Crusher::split(Simulation& sim, const std::vector<std::size_t>& which,
                                           BreakCause cause) {
   std::vector<std::pair<std::size_t, BreakCause>> grains;
+  grains.reserve(which.size());
   for (std::size_t i : which) grains.emplace_back(i, cause);
   return split(sim, std::move(grains));
 }
@@ -200,6 +202,7 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim,
                            [](const auto& a, const auto& b) { return a.first == b.first; }),
                grains.end());
   std::vector<std::size_t> which;
+  which.reserve(grains.size());
   for (const auto& g : grains) which.push_back(g.first);
   const Simulation::ContactLoad& load = sim.contact_load();
   const bool have_load = load.sigma.size() == p.size();

@@ -82,7 +82,7 @@ class Crusher {
   /// Breaks every grain that qualifies now (instant failure), all in one topology phase.
   std::vector<BreakageEvent> apply(Simulation& sim);
   /// Splits the grains at these indices in one topology phase (any cause).
-  std::vector<BreakageEvent> split(Simulation& sim, std::vector<std::size_t> which,
+  std::vector<BreakageEvent> split(Simulation& sim, const std::vector<std::size_t>& which,
                                    BreakCause cause);
   /// The same with a cause per grain (index, cause).
   std::vector<BreakageEvent> split(Simulation& sim,

@@ -200,6 +200,7 @@ std::vector<double> passing_with_fines(std::vector<double> diameters, double fin
 
 std::vector<double> log_sieves(double d_min, double d_max, int n) {
   std::vector<double> s;
+  s.reserve(static_cast<std::size_t>(std::max(n, 0)));
   for (int k = 0; k < n; ++k) {
     s.push_back(d_min * std::pow(d_max / d_min, n > 1 ? static_cast<double>(k) / (n - 1) : 1.0));
   }
