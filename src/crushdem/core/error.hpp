@@ -34,6 +34,12 @@ inline std::string bad_value(const std::string& key, const std::string& value,
   return "key '" + key + "' = " + value + ": expected " + expected;
 }
 
+/// Throws ConfigError "key 'K' = V: expected E" unless `ok` (for numeric config checks).
+inline void require_value(bool ok, const std::string& key, double value,
+                          const std::string& expected) {
+  if (!ok) throw ConfigError(bad_value(key, show_number(value), expected));
+}
+
 /// A state the engine cannot continue from (lost particle, NaN force, ...).
 class RuntimeFailure : public std::runtime_error {
  public:

@@ -18,6 +18,32 @@ StrainReference StrainReference::from(const Walls& w) {
   return r;
 }
 
+double mean_resultant_force(const Simulation& sim) {
+  const ParticleStore& p = sim.particles();
+  const auto &ux = sim.resultant_force(0), &uy = sim.resultant_force(1),
+             &uz = sim.resultant_force(2);
+  if (p.size() == 0 || ux.size() != p.size()) {
+    return std::numeric_limits<double>::quiet_NaN();  // not available: say so, not 0
+  }
+  return deterministic_sum(p.size(),
+                           [&](std::size_t i) {
+                             return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]);
+                           }) /
+         static_cast<double>(p.size());
+}
+
+double unbalanced_force_ratio(const Simulation& sim) {
+  double sum_fn = 0.0;
+  std::size_t n = 0;
+  for (const ContactRecord& c : sim.contacts()) {
+    if (c.is_wall) continue;
+    sum_fn += c.F_n;
+    ++n;
+  }
+  if (n == 0 || !(sum_fn > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return mean_resultant_force(sim) / (sum_fn / static_cast<double>(n));
+}
+
 Measurement measure(const Simulation& sim, const StrainReference& ref) {
   Measurement m;
   const Walls& w = sim.walls();
@@ -28,13 +54,12 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   for (int k = 0; k < kNumWalls; ++k) {
     m.emplace_back(std::string("wall_") + wall_name(k) + "_position_m", w.position(k));
   }
-  double s_axis[3];
+
   for (int k = 0; k < kNumWalls; ++k) {
     m.emplace_back(std::string("wall_") + wall_name(k) + "_stress_Pa", w.stress(k));
   }
-  for (int a = 0; a < 3; ++a) s_axis[a] = 0.5 * (w.stress(2 * a) + w.stress(2 * a + 1));
-  const double p_wall = (s_axis[0] + s_axis[1] + s_axis[2]) / 3.0;
-  const double q_wall = s_axis[2] - 0.5 * (s_axis[0] + s_axis[1]);
+  const double p_wall = (w.axis_stress(0) + w.axis_stress(1) + w.axis_stress(2)) / 3.0;
+  const double q_wall = w.axial_stress() - w.lateral_stress();
   m.emplace_back("mean_stress_Pa", p_wall);
   m.emplace_back("deviator_stress_Pa", q_wall);
   const auto lw = sim.love_weber_stress();
@@ -50,9 +75,7 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   m.emplace_back("lateral_strain_x", ref.length[0] > 0 ? 1.0 - w.length(0) / ref.length[0] : 0.0);
   m.emplace_back("lateral_strain_y", ref.length[1] > 0 ? 1.0 - w.length(1) / ref.length[1] : 0.0);
   m.emplace_back("volumetric_strain", eps_vol);
-  const double Vs = deterministic_sum(p.size(), [&](std::size_t i) {
-    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
-  });
+  const double Vs = p.solid_volume();
   m.emplace_back("void_ratio", Vs > 0 ? (w.volume() - Vs) / Vs : 0.0);
   const auto contacts = sim.contacts();
   std::size_t n_pp = 0;
@@ -79,16 +102,7 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   m.emplace_back("std_Ft_N", sd(sum_ft, sum_ft2));
   // Unbalanced-force ratio: mean resultant force on a grain (before local damping) over the
   // mean contact force.
-  const auto &ux = sim.resultant_force(0), &uy = sim.resultant_force(1),
-             &uz = sim.resultant_force(2);
-  const double mean_unbalanced =
-      p.size() && ux.size() == p.size()
-          ? deterministic_sum(p.size(),
-                              [&](std::size_t i) {
-                                return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]);
-                              }) /
-                static_cast<double>(p.size())
-          : std::numeric_limits<double>::quiet_NaN();  // not available: say so, not 0
+  const double mean_unbalanced = mean_resultant_force(sim);
   m.emplace_back("unbalanced_force_ratio",
                  n_pp && sum_fn > 0 ? mean_unbalanced / mean(sum_fn) : 0.0);
   m.emplace_back("kinetic_energy_J", sim.kinetic_energy());
@@ -98,51 +112,45 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
 
 namespace {
 
-std::vector<double> current_diameters(const ParticleStore& p) {
-  std::vector<double> d(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) d[i] = 2.0 * p.radius[i];
-  return d;
-}
-
-double largest(const std::vector<double>& d) {
-  double m = 0.0;
-  for (double x : d) m = std::max(m, x);
-  return m;
+/// The size range of the grading outputs and B_r: d_min (or d_max / 1000) to the largest
+/// initial grain.
+struct SizeRange {
+  double d_min, d_max;
+};
+SizeRange size_range(const Crusher& crusher) {
+  double d_max = 0.0;
+  for (double x : crusher.initial_diameters()) d_max = std::max(d_max, x);
+  return {crusher.config().d_min > 0 ? crusher.config().d_min : 1e-3 * d_max, d_max};
 }
 
 }  // namespace
 
 Measurement crushing_measurements(const Simulation& sim, const Crusher& crusher) {
   const ParticleStore& p = sim.particles();
-  const double Vs = deterministic_sum(p.size(), [&](std::size_t i) {
-    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
-  });
+  const double Vs = p.solid_volume();
   const double Vr = crusher.removed_volume();
   const double V = sim.walls().volume();
-  const std::vector<double> d = current_diameters(p);
-  const double d_max = largest(crusher.initial_diameters());
-  const double d_min = crusher.config().d_min > 0 ? crusher.config().d_min : 1e-3 * d_max;
+  const SizeRange r = size_range(crusher);
   Measurement m;
   m.emplace_back("breakages_instant", static_cast<double>(crusher.breakages(BreakCause::Instant)));
   m.emplace_back("breakages_crack", static_cast<double>(crusher.breakages(BreakCause::Crack)));
   m.emplace_back("removed_volume_m3", Vr);
   m.emplace_back("removed_mass_kg", crusher.removed_mass());
   m.emplace_back("void_ratio_with_fines", Vs + Vr > 0 ? (V - Vs - Vr) / (Vs + Vr) : 0.0);
-  m.emplace_back("relative_breakage_Br",
-                 relative_breakage(crusher.initial_diameters(), d, Vr, d_min, d_max));
+  m.emplace_back("relative_breakage_Br", relative_breakage(crusher.initial_diameters(),
+                                                           p.diameters(), Vr, r.d_min, r.d_max));
   return m;
 }
 
 std::vector<double> grading_sieves(const Crusher& crusher) {
-  const double d_max = largest(crusher.initial_diameters());
-  const double d_min = crusher.config().d_min > 0 ? crusher.config().d_min : 1e-3 * d_max;
-  return log_sieves(d_min, d_max, 16);
+  const SizeRange r = size_range(crusher);
+  return log_sieves(r.d_min, r.d_max, 16);
 }
 
 Measurement grading_measurements(const Simulation& sim, const Crusher& crusher,
                                  const std::vector<double>& sieves) {
   const std::vector<double> F =
-      passing_with_fines(current_diameters(sim.particles()), crusher.removed_volume(), sieves);
+      passing_with_fines(sim.particles().diameters(), crusher.removed_volume(), sieves);
   Measurement m;
   m.emplace_back("time_s", sim.time());
   m.emplace_back("step", static_cast<double>(sim.step_count()));

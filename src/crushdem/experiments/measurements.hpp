@@ -23,6 +23,11 @@ using Measurement = std::vector<std::pair<std::string, double>>;
 
 Measurement measure(const Simulation& sim, const StrainReference& ref);
 
+/// Mean |resultant force| on a grain before local damping [N]; NaN when not available.
+double mean_resultant_force(const Simulation& sim);
+/// Mean |resultant force| over the mean grain-grain |F_n| (NaN when either is unknown).
+double unbalanced_force_ratio(const Simulation& sim);
+
 class Crusher;
 /// Crushing measurements (model-notes 4.3): breakages by cause, removed volume and mass, the void
 /// ratio with the removed volume counted as solid (fines), relative breakage B_r (Einav).

@@ -14,23 +14,6 @@ namespace crushdem {
 
 namespace {
 
-void require(bool ok, const std::string& key, double v, const std::string& expected) {
-  if (!ok) throw ConfigError(bad_value(key, show_number(v), expected));
-}
-
-double solid_volume(const ParticleStore& p) {
-  return deterministic_sum(p.size(), [&](std::size_t i) {
-    return 4.0 / 3.0 * kPi * p.radius[i] * p.radius[i] * p.radius[i];
-  });
-}
-
-double axial_stress(const Walls& w) {
-  return 0.5 * (w.stress(4) + w.stress(5));
-}
-double lateral_stress(const Walls& w) {
-  return 0.25 * (w.stress(0) + w.stress(1) + w.stress(2) + w.stress(3));
-}
-
 /// Every servo wall within `tol` of its target.
 bool servo_walls_at_target(const Walls& w, double tol) {
   for (int k = 0; k < kNumWalls; ++k) {
@@ -60,11 +43,11 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
         "sample: give either 'sample.side' (the cube side in m) or 'sample.count' (about how "
         "many grains), not both");
   }
-  require(side >= 0.0 && std::isfinite(side), "sample.side", side, "a cube side in m (> 0)");
-  require(void_ratio > 0.0 && std::isfinite(void_ratio), "sample.void_ratio", void_ratio,
-          "a positive void ratio");
-  if (void_ratio < densest_void_ratio(grading, cube_side())) {
-    const double e_min = densest_void_ratio(grading, cube_side());
+  require_value(side >= 0.0 && std::isfinite(side), "sample.side", side, "a cube side in m (> 0)");
+  require_value(void_ratio > 0.0 && std::isfinite(void_ratio), "sample.void_ratio", void_ratio,
+                "a positive void ratio");
+  const double e_min = densest_void_ratio(grading, cube_side());
+  if (void_ratio < e_min) {
     throw ConfigError(bad_value(
         "sample.void_ratio", show_number(void_ratio),
         "a void ratio this grading can reach in this cube: random close packing gives about e = " +
@@ -72,23 +55,23 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
             " here (Desmond & Weeks 2014, with a looser layer along the walls), and no random "
             "packing is denser: more grains than fit (a wider cube packs denser)"));
   }
-  require(tolerance > 0.0 && tolerance < 0.1, "sample.tolerance", tolerance,
-          "a void-ratio tolerance in (0, 0.1)");
-  require(stress > 0.0 && std::isfinite(stress), "sample.stress", stress,
-          "a positive isotropic stress in Pa");
-  require(friction_start >= sim.material.friction && friction_start <= 2.0, "sample.friction_start",
-          friction_start,
-          "a friction coefficient in [material.friction, 2] to start the preparation from");
-  require(friction_factor > 0.0 && friction_factor < 1.0, "sample.friction_factor", friction_factor,
-          "a factor in (0, 1)");
-  require(placement_fraction > 0.0 && placement_fraction <= 0.3, "sample.placement_fraction",
-          placement_fraction, "a solid fraction in (0, 0.3] (random placement jams above)");
-  require(max_speed > 0.0 && std::isfinite(max_speed), "sample.max_speed", max_speed,
-          "a positive speed in m/s");
-  require(unbalanced > 0.0 && unbalanced < 1.0, "sample.unbalanced", unbalanced,
-          "an unbalanced-force ratio in (0, 1)");
-  require(stress_tolerance > 0.0 && stress_tolerance < 0.5, "sample.stress_tolerance",
-          stress_tolerance, "a relative tolerance in (0, 0.5)");
+  require_value(tolerance > 0.0 && tolerance < 0.1, "sample.tolerance", tolerance,
+                "a void-ratio tolerance in (0, 0.1)");
+  require_value(stress > 0.0 && std::isfinite(stress), "sample.stress", stress,
+                "a positive isotropic stress in Pa");
+  require_value(friction_start >= sim.material.friction && friction_start <= 2.0,
+                "sample.friction_start", friction_start,
+                "a friction coefficient in [material.friction, 2] to start the preparation from");
+  require_value(friction_factor > 0.0 && friction_factor < 1.0, "sample.friction_factor",
+                friction_factor, "a factor in (0, 1)");
+  require_value(placement_fraction > 0.0 && placement_fraction <= 0.3, "sample.placement_fraction",
+                placement_fraction, "a solid fraction in (0, 0.3] (random placement jams above)");
+  require_value(max_speed > 0.0 && std::isfinite(max_speed), "sample.max_speed", max_speed,
+                "a positive speed in m/s");
+  require_value(unbalanced > 0.0 && unbalanced < 1.0, "sample.unbalanced", unbalanced,
+                "an unbalanced-force ratio in (0, 1)");
+  require_value(stress_tolerance > 0.0 && stress_tolerance < 0.5, "sample.stress_tolerance",
+                stress_tolerance, "a relative tolerance in (0, 0.5)");
   if (check_interval == 0) throw ConfigError(bad_value("sample.check_interval", "0", "> 0 steps"));
   if (max_steps == 0) throw ConfigError(bad_value("sample.max_steps", "0", "> 0 steps"));
   const double L = cube_side();
@@ -142,27 +125,6 @@ double inertial_number(const Walls& w, double d50, double density) {
   return rate * d50 * std::sqrt(density / p);
 }
 
-double unbalanced_force_ratio(const Simulation& sim) {
-  const ParticleStore& p = sim.particles();
-  const auto &ux = sim.resultant_force(0), &uy = sim.resultant_force(1),
-             &uz = sim.resultant_force(2);
-  if (p.size() == 0 || ux.size() != p.size()) return std::numeric_limits<double>::quiet_NaN();
-  double sum_fn = 0.0;
-  std::size_t n = 0;
-  for (const ContactRecord& c : sim.contacts()) {
-    if (c.is_wall) continue;
-    sum_fn += c.F_n;
-    ++n;
-  }
-  if (n == 0 || !(sum_fn > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-  const double mean_res =
-      deterministic_sum(
-          p.size(),
-          [&](std::size_t i) { return std::sqrt(ux[i] * ux[i] + uy[i] * uy[i] + uz[i] * uz[i]); }) /
-      static_cast<double>(p.size());
-  return mean_res / (sum_fn / static_cast<double>(n));
-}
-
 // ---------------------------------------------------------------------------------------------
 
 PreparationController::PreparationController(const SampleConfig& cfg, double material_friction)
@@ -184,7 +146,7 @@ void PreparationController::begin(Simulation& sim) {
 }
 
 bool PreparationController::update(Simulation& sim) {
-  const double Vs = solid_volume(sim.particles());
+  const double Vs = sim.particles().solid_volume();
   e_ = (sim.walls().volume() - Vs) / Vs;
   const std::uint64_t done = sim.step_count() - start_step_;
   if (done >= cfg_.max_steps) {
@@ -262,22 +224,23 @@ StageKind parse_stage_kind(const std::string& s, const std::string& key) {
 void StageConfig::validate(const std::string& prefix) const {
   auto key = [&](const char* k) { return prefix + "." + k; };
   auto positive = [&](const char* k, double v, const char* what) {
-    require(v > 0.0 && std::isfinite(v), key(k), v, what);
+    require_value(v > 0.0 && std::isfinite(v), key(k), v, what);
   };
   switch (kind) {
     case StageKind::Isotropic: positive("stress", stress, "a positive stress in Pa"); break;
     case StageKind::Oedometric:
       positive("stress", stress, "a positive target vertical stress in Pa");
-      require(std::isfinite(strain_rate) && std::abs(strain_rate) < 1e4, key("strain_rate"),
-              strain_rate, "an axial strain rate in 1/s (> 0 loading, < 0 unloading, 0 servo)");
+      require_value(std::isfinite(strain_rate) && std::abs(strain_rate) < 1e4, key("strain_rate"),
+                    strain_rate,
+                    "an axial strain rate in 1/s (> 0 loading, < 0 unloading, 0 servo)");
       break;
     case StageKind::Triaxial:
       positive("sigma_3", sigma_3, "a positive confining stress in Pa");
       positive("strain_rate", strain_rate, "a positive axial strain rate in 1/s");
-      require(axial_strain > 0.0 && axial_strain < 0.9, key("axial_strain"), axial_strain,
-              "a final axial strain in (0, 0.9)");
-      require(stop_q >= 0.0 && std::isfinite(stop_q), key("stop_q"), stop_q,
-              "a deviator stress in Pa to stop at (0 = not used)");
+      require_value(axial_strain > 0.0 && axial_strain < 0.9, key("axial_strain"), axial_strain,
+                    "a final axial strain in (0, 0.9)");
+      require_value(stop_q >= 0.0 && std::isfinite(stop_q), key("stop_q"), stop_q,
+                    "a deviator stress in Pa to stop at (0 = not used)");
       break;
     case StageKind::Hold:
     case StageKind::Age:
@@ -300,15 +263,16 @@ void StageConfig::validate(const std::string& prefix) const {
         throw ConfigError(prefix + ": a hold stage needs exactly one of '" + key("steps") +
                           "' (> 0) or '" + key("duration") + "' (> 0 s)");
       }
-      require(std::isfinite(duration) && duration >= 0.0, key("duration"), duration, "a time in s");
+      require_value(std::isfinite(duration) && duration >= 0.0, key("duration"), duration,
+                    "a time in s");
       break;
   }
-  require(tolerance > 0.0 && tolerance < 0.5, key("tolerance"), tolerance,
-          "a relative stress tolerance in (0, 0.5)");
-  require(unbalanced > 0.0 && unbalanced < 1.0, key("unbalanced"), unbalanced,
-          "an unbalanced-force ratio in (0, 1)");
-  require(max_strain_rate >= 0.0 && std::isfinite(max_strain_rate), key("max_strain_rate"),
-          max_strain_rate, "a servo strain-rate limit in 1/s (0 = automatic)");
+  require_value(tolerance > 0.0 && tolerance < 0.5, key("tolerance"), tolerance,
+                "a relative stress tolerance in (0, 0.5)");
+  require_value(unbalanced > 0.0 && unbalanced < 1.0, key("unbalanced"), unbalanced,
+                "an unbalanced-force ratio in (0, 1)");
+  require_value(max_strain_rate >= 0.0 && std::isfinite(max_strain_rate), key("max_strain_rate"),
+                max_strain_rate, "a servo strain-rate limit in 1/s (0 = automatic)");
   if (check_interval == 0) throw ConfigError(bad_value(key("check_interval"), "0", "> 0 steps"));
   if (max_steps == 0) throw ConfigError(bad_value(key("max_steps"), "0", "> 0 steps"));
 }
@@ -384,7 +348,7 @@ double StageController::stage_axial_strain(const Simulation& sim) const {
 
 void StageController::observe(const Simulation& sim) {
   const Walls& w = sim.walls();
-  const double sa = axial_stress(w), sr = lateral_stress(w);
+  const double sa = w.axial_stress(), sr = w.lateral_stress();
   const double q = sa - sr;
   if (!observed_ || q > res_.q_max) {
     observed_ = true;
@@ -437,14 +401,14 @@ bool StageController::update(Simulation& sim) {
       if (equilibrium()) return finish("equilibrium");
       break;
     case StageKind::Oedometric: {
-      const double sv = axial_stress(w);
+      const double sv = w.axial_stress();
       if (cfg_.strain_rate == 0.0 && equilibrium()) return finish("equilibrium");
       if (cfg_.strain_rate > 0.0 && sv >= cfg_.stress) return finish("target stress");
       if (cfg_.strain_rate < 0.0 && sv <= cfg_.stress) return finish("target stress");
       break;
     }
     case StageKind::Triaxial:
-      if (cfg_.stop_q > 0.0 && axial_stress(w) - lateral_stress(w) >= cfg_.stop_q) {
+      if (cfg_.stop_q > 0.0 && w.axial_stress() - w.lateral_stress() >= cfg_.stop_q) {
         return finish("target q");
       }
       if (stage_axial_strain(sim) >= cfg_.axial_strain) {

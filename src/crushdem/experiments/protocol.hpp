@@ -106,9 +106,6 @@ struct StageConfig {
 /// (largest strain rate of the three axes) and the mean wall stress; NaN when p <= 0.
 double inertial_number(const Walls& w, double d50, double density);
 
-/// Mean |resultant force| on a grain over the mean grain-grain |F_n| (NaN when unknown).
-double unbalanced_force_ratio(const Simulation& sim);
-
 /// Every controller: begin() once, then update() after every steps_to_check() steps until it
 /// returns true. It may change walls and friction; it never steps the simulation itself.
 class Controller {

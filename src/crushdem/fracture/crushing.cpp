@@ -5,6 +5,7 @@
 #include <limits>
 #include <numeric>
 
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/particles/grading.hpp"
 
@@ -17,7 +18,7 @@ constexpr std::uint64_t kOrientationStream = 0x0E1A;
 constexpr std::uint64_t kCrackStream = 0xC4AC;
 
 void require(bool ok, const std::string& key, double v, const std::string& expected) {
-  if (!ok) throw ConfigError(bad_value("crushing." + key, show_number(v), expected));
+  require_value(ok, "crushing." + key, v, expected);
 }
 
 }  // namespace
@@ -83,8 +84,7 @@ void Crusher::begin(Simulation& sim) {
   ParticleStore& p = sim.particles();
   strength_field_ = p.add_field("sigma_lim", std::numeric_limits<double>::quiet_NaN());
   crack_field_ = p.add_field("crack_a", std::numeric_limits<double>::quiet_NaN());
-  initial_d_.resize(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) initial_d_[i] = 2.0 * p.radius[i];
+  initial_d_ = p.diameters();
   d50_ = diameter_at_fraction(initial_d_, 0.5);
   d0_ = cfg_.d0 > 0.0 ? cfg_.d0 : d50_;
   d_c_ = cfg_.dc_ratio * d50_;
@@ -161,25 +161,30 @@ std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
   ParticleStore& p = sim.particles();
   const Simulation::ContactLoad& load = sim.contact_load();
   const std::vector<double>& s = p.field(strength_field_);
-  std::vector<std::size_t> instant, crack;
-  // Cracks grow by v times the time since the last check (the load of this step).
+  // Cracks grow by v times the time since the last check (the load of this step). This runs
+  // every check (every step by default): one parallel pass, each grain on its own, then the
+  // failures gathered in index order.
   const double elapsed = sim.time() - last_check_time_;
   last_check_time_ = sim.time();
   std::vector<double>& a = p.field(crack_field_);
-  for (std::size_t i = 0; i < p.size(); ++i) {
+  const std::size_t N = p.size();
+  std::vector<std::uint8_t> fails(N, 0);  // 1 instant, 2 crack
+#pragma omp parallel for schedule(static) if (worth_threading(N))
+  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
     if (2.0 * p.radius[i] < d_c_) continue;
     if (load.sigma[i] >= s[i]) {
-      instant.push_back(i);
+      fails[i] = 1;
     } else if (cfg_.crack_growth && !std::isnan(a[i])) {
       a[i] += crack_velocity(sim, i) * elapsed;
-      if (a[i] >= p.radius[i]) crack.push_back(i);  // a >= 0.5 d
+      if (a[i] >= p.radius[i]) fails[i] = 2;  // a >= 0.5 d
     }
   }
   // Both causes in one topology phase (the contact load stays valid for every parent).
   std::vector<std::pair<std::size_t, BreakCause>> grains;
-  grains.reserve(instant.size() + crack.size());
-  for (std::size_t i : instant) grains.emplace_back(i, BreakCause::Instant);
-  for (std::size_t i : crack) grains.emplace_back(i, BreakCause::Crack);
+  for (std::size_t i = 0; i < N; ++i) {
+    if (fails[i]) grains.emplace_back(i, fails[i] == 1 ? BreakCause::Instant : BreakCause::Crack);
+  }
   if (grains.empty()) return {};
   return split(sim, std::move(grains));
 }

@@ -200,8 +200,7 @@ class Driver {
     if (std::chrono::duration<double>(now - last_).count() < cfg_.output.progress_seconds) return;
     last_ = now;
     const Walls& w = sim_.walls();
-    const double sz = 0.5 * (w.stress(4) + w.stress(5));
-    const double sr = 0.25 * (w.stress(0) + w.stress(1) + w.stress(2) + w.stress(3));
+    const double sz = w.axial_stress(), sr = w.lateral_stress();
     std::fprintf(stderr,
                  "[crushdem] %s  step %llu  t = %.4e s  sigma_z = %.4g MPa  sigma_r = %.4g MPa  "
                  "q = %.4g MPa",
@@ -239,12 +238,6 @@ class Driver {
   std::size_t snapshots_ = 0;
   clock::time_point t0_, last_;
 };
-
-std::vector<double> diameters(const ParticleStore& p) {
-  std::vector<double> d(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) d[i] = 2.0 * p.radius[i];
-  return d;
-}
 
 JsonObject stage_json(const StageResult& r) {
   JsonObject o;
@@ -325,7 +318,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     }
     write_packing((dir / "sample.txt").string(), pk);
 
-    const std::vector<double> d = diameters(p);
+    const std::vector<double> d = p.diameters();
     JsonObject so;
     so.integer("grains", static_cast<long long>(p.size()));
     so.number("void_ratio", prep.void_ratio());
@@ -376,7 +369,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 
   // The test: a plain run, or stage after stage.
   const StrainReference ref = StrainReference::from(sim.walls());
-  const double d50 = diameter_at_fraction(diameters(sim.particles()), 0.5);
+  const double d50 = diameter_at_fraction(sim.particles().diameters(), 0.5);
   std::vector<JsonObject> stage_results;
   if (!cfg.stages.empty()) {
     CsvWriter series((dir / "timeseries.csv").string());

@@ -153,17 +153,7 @@ std::vector<double> draw_diameters(const GradingCurve& g, double solid_volume, s
 
 std::vector<double> mass_passing(const std::vector<double>& diameters,
                                  const std::vector<double>& sieves) {
-  double total = 0.0;
-  for (double d : diameters) total += d * d * d;
-  std::vector<double> out;
-  for (double s : sieves) {
-    double m = 0.0;
-    for (double d : diameters) {
-      if (d <= s) m += d * d * d;
-    }
-    out.push_back(total > 0 ? m / total : 0.0);
-  }
-  return out;
+  return passing_with_fines(diameters, 0.0, sieves);
 }
 
 double diameter_at_fraction(const std::vector<double>& diameters, double fraction) {

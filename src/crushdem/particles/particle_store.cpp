@@ -142,4 +142,15 @@ double ParticleStore::total_mass() const {
   return deterministic_sum(size(), [&](std::size_t i) { return mass[i]; });
 }
 
+double ParticleStore::solid_volume() const {
+  return deterministic_sum(
+      size(), [&](std::size_t i) { return 4.0 / 3.0 * kPi * radius[i] * radius[i] * radius[i]; });
+}
+
+std::vector<double> ParticleStore::diameters() const {
+  std::vector<double> d(size());
+  for (std::size_t i = 0; i < size(); ++i) d[i] = 2.0 * radius[i];
+  return d;
+}
+
 }  // namespace crushdem

@@ -66,6 +66,10 @@ class ParticleStore {
   void insert_with_id(ParticleId pid, const NewParticle& p);
 
   double total_mass() const;
+  /// Sum of the grain volumes 4/3 pi r^3 [m^3] (thread-count independent).
+  double solid_volume() const;
+  /// Grain diameters 2 r, in storage order [m].
+  std::vector<double> diameters() const;
   /// Changes a radius keeping the density (mass and inertia follow). Call
   /// Simulation::invalidate() afterwards.
   void set_radius(std::size_t i, double r);

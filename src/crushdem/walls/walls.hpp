@@ -71,6 +71,10 @@ class Walls {
   double area(int k) const;
   /// Compressive normal stress on wall k [Pa].
   double stress(int k) const { return state(k).normal_force / area(k); }
+  /// Mean of the two walls of an axis [Pa]; axial is z, lateral the mean of x and y.
+  double axis_stress(int axis) const { return 0.5 * (stress(2 * axis) + stress(2 * axis + 1)); }
+  double axial_stress() const { return axis_stress(2); }
+  double lateral_stress() const { return 0.5 * (axis_stress(0) + axis_stress(1)); }
   /// Outward unit normal of wall k (from the sample into the wall).
   Vec3 outward_normal(int k) const;
 
