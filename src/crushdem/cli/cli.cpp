@@ -115,6 +115,7 @@ const char* kUsage =
     "usage: crushdem <command> [options]\n"
     "  run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]\n"
     "                                            run a simulation described by a TOML file\n"
+    "  resume DIR [--threads N]                  continue an interrupted run from DIR/checkpoint.bin\n"
     "  check CONFIG.toml                         validate a configuration without running\n"
     "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
     "        [--state-out FILE] [--backend cpu|cuda]  peer reference benchmark\n";
@@ -131,6 +132,7 @@ int cli_main(const std::vector<std::string>& args) {
     if (cmd == "bench") return bench_main(rest);
     if (cmd == "run") return run_main(rest);
     if (cmd == "check") return check_main(rest);
+    if (cmd == "resume") return resume_main(rest);
     if (cmd == "--version") {
       std::puts("crushdem 0.1.0");
       return 0;

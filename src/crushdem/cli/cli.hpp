@@ -13,6 +13,7 @@ int cli_main(const std::vector<std::string>& args);
 int bench_main(const std::vector<std::string>& args);
 int run_main(const std::vector<std::string>& args);
 int check_main(const std::vector<std::string>& args);
+int resume_main(const std::vector<std::string>& args);
 
 /// "cpu" or "cuda" (the latter only in a build with CUDA); anything else is a ConfigError.
 void check_backend(const std::string& backend);

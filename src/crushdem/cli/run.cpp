@@ -1,5 +1,8 @@
-// `crushdem run CONFIG.toml --out DIR [--threads N]` and `crushdem check CONFIG.toml`.
+// `crushdem run CONFIG.toml --out DIR [--threads N]`, `crushdem resume DIR [--threads N]` and
+// `crushdem check CONFIG.toml`.
+#include <csignal>
 #include <cstdio>
+#include <functional>
 
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
@@ -12,6 +15,53 @@
 #endif
 
 namespace crushdem::cli {
+
+namespace {
+
+extern "C" void stop_on_signal(int sig) {
+  // The run saves a checkpoint and stops within seconds; a second signal ends it at once.
+  crushdem::request_stop(sig);
+  std::signal(sig, SIG_DFL);
+}
+
+/// SIGINT and SIGTERM ask the run to checkpoint and stop, for as long as this object lives (the
+/// previous handlers, e.g. Python's, come back afterwards).
+class StopOnSignals {
+ public:
+  StopOnSignals()
+      : int_(std::signal(SIGINT, stop_on_signal)), term_(std::signal(SIGTERM, stop_on_signal)) {}
+  ~StopOnSignals() {
+    std::signal(SIGINT, int_);
+    std::signal(SIGTERM, term_);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  using Handler = void (*)(int);
+  Handler int_, term_;
+};
+
+/// Runs (or resumes) with the stop handlers installed; an interrupted run says how to go on.
+int run_or_resume(const std::function<RunSummary()>& go, const std::string& out) {
+  try {
+    const StopOnSignals handlers;
+    const RunSummary s = go();
+    std::printf(
+        "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
+        static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds,
+        out.c_str());
+    return 0;
+  } catch (const Interrupted& e) {
+    std::fprintf(stderr,
+                 "crushdem: stopped by signal %d; the state is saved in %s/checkpoint.bin. "
+                 "Continue with: crushdem resume %s\n",
+                 e.signal(), out.c_str(), out.c_str());
+    return 128 + e.signal();
+  }
+}
+
+}  // namespace
 
 int run_main(const std::vector<std::string>& args) {
   Args a(args, "run");
@@ -52,11 +102,20 @@ int run_main(const std::vector<std::string>& args) {
     };
   }
 #endif
-  const RunSummary s = run_to_directory(cfg, opt);
-  std::printf(
-      "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
-      static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds, out.c_str());
-  return 0;
+  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, out);
+}
+
+int resume_main(const std::vector<std::string>& args) {
+  Args a(args, "resume");
+  const long threads = a.integer("--threads", 0);
+  const bool quiet = a.flag("--quiet");
+  a.finish();
+  const auto pos = a.positionals();
+  if (pos.size() != 1) throw ConfigError("usage: crushdem resume DIR [--threads N] [--quiet]");
+  set_threads(threads);
+  RunOptions opt;
+  opt.progress = !quiet;
+  return run_or_resume([&]() { return resume_directory(pos[0], opt); }, pos[0]);
 }
 
 int check_main(const std::vector<std::string>& args) {

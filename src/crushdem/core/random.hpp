@@ -16,6 +16,7 @@ class RandomStream {
   double uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }
   double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
   std::mt19937_64& engine() { return engine_; }
+  const std::mt19937_64& engine_state() const { return engine_; }
 
  private:
   std::mt19937_64 engine_;

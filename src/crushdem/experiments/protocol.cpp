@@ -259,6 +259,9 @@ void StageConfig::validate(const std::string& prefix) const {
         positive("duration", duration, "a positive ageing time in s (the relaxation clock)");
         if (min_cycles == 0) throw ConfigError(bad_value(key("min_cycles"), "0", "> 0 steps"));
         if (n_break == 0) throw ConfigError(bad_value(key("n_break"), "0", "> 0 grains"));
+        if (record_interval == 0) {
+          throw ConfigError(bad_value(key("record_interval"), "0", "> 0 steps"));
+        }
       } else if ((steps == 0) == !(duration > 0.0)) {
         throw ConfigError(prefix + ": a hold stage needs exactly one of '" + key("steps") +
                           "' (> 0) or '" + key("duration") + "' (> 0 s)");
@@ -337,9 +340,39 @@ void StageController::begin(Simulation& sim) {
       break;
   }
   w.update_velocities(sim.current_dt());
-  phase_start_ = start_step_;
   ageing_time_ = 0.0;
   observe(sim);
+  if (cfg_.kind == StageKind::Age) start_phase(sim);
+}
+
+void StageController::start_phase(const Simulation& sim) {
+  phase_start_ = sim.step_count();
+  phase_volume_ = sim.walls().volume();
+  phase_lateral_ = cfg_.lateral == "servo" ? cfg_.lateral_stress : sim.walls().lateral_stress();
+  if (on_phase_record) on_phase_record(phase_record(sim));
+}
+
+Measurement StageController::phase_record(const Simulation& sim) const {
+  const Walls& w = sim.walls();
+  const double sa = w.axial_stress(), sr = w.lateral_stress();
+  Measurement m;
+  m.emplace_back("dynamic_phase", static_cast<double>(res_.dynamic_phases));
+  m.emplace_back("cycle", static_cast<double>(sim.step_count() - phase_start_));
+  m.emplace_back("ageing_time_s", ageing_time_);
+  m.emplace_back("time_s", sim.time());
+  m.emplace_back("axial_stress_Pa", sa);
+  m.emplace_back("lateral_stress_Pa", sr);
+  m.emplace_back("deviator_stress_Pa", sa - sr);
+  m.emplace_back("confining_fluctuation", phase_lateral_ > 0 ? sr / phase_lateral_ - 1.0 : 0.0);
+  m.emplace_back("volumetric_strain_phase", 1.0 - w.volume() / phase_volume_);
+  m.emplace_back("axial_strain_phase", stage_axial_strain(sim));
+  m.emplace_back("unbalanced_force_ratio", unbalanced_force_ratio(sim));
+  m.emplace_back("breakages_instant",
+                 crusher_ ? static_cast<double>(crusher_->breakages(BreakCause::Instant)) : 0.0);
+  m.emplace_back("breakages_crack",
+                 crusher_ ? static_cast<double>(crusher_->breakages(BreakCause::Crack)) : 0.0);
+  m.emplace_back("n_particles", static_cast<double>(sim.particles().size()));
+  return m;
 }
 
 double StageController::stage_axial_strain(const Simulation& sim) const {
@@ -419,8 +452,12 @@ bool StageController::update(Simulation& sim) {
         return finish("target axial strain");
       }
       break;
-    case StageKind::Age:
-      if (sim.step_count() - phase_start_ >= cfg_.min_cycles) {
+    case StageKind::Age: {
+      const std::uint64_t cycle = sim.step_count() - phase_start_;
+      if (on_phase_record && (cycle % cfg_.record_interval == 0 || cycle >= cfg_.min_cycles)) {
+        on_phase_record(phase_record(sim));
+      }
+      if (cycle >= cfg_.min_cycles) {
         // End of a dynamic phase: record it, then jump the ageing clock (walls still).
         ++res_.dynamic_phases;
         if (on_dynamic_phase_end) on_dynamic_phase_end(sim, ageing_time_, res_.dynamic_phases - 1);
@@ -429,9 +466,10 @@ bool StageController::update(Simulation& sim) {
         const Crusher::Jump j =
             crusher_->ageing_jump(sim, cfg_.n_break, cfg_.duration - ageing_time_);
         ageing_time_ = j.dt >= cfg_.duration - ageing_time_ ? cfg_.duration : ageing_time_ + j.dt;
-        phase_start_ = sim.step_count();
+        start_phase(sim);
       }
       break;
+    }
     case StageKind::Hold:
       if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return finish("duration");
       if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
@@ -462,6 +500,7 @@ std::uint64_t StageController::steps_to_check(Simulation& sim) {
   if (cfg_.kind == StageKind::Age) {
     const std::uint64_t in_phase = sim.step_count() - phase_start_;
     if (in_phase < cfg_.min_cycles) n = std::min(n, cfg_.min_cycles - in_phase);
+    n = std::min(n, cfg_.record_interval - in_phase % cfg_.record_interval);
   }
   return std::max<std::uint64_t>(n, 1);
 }
@@ -474,6 +513,74 @@ std::uint64_t PreparationController::steps_to_check(Simulation& sim) {
 Measurement StageController::columns(const Simulation& sim) const {
   return {{"stage_axial_strain", stage_axial_strain(sim)},
           {"inertial_number", inertial_number(sim.walls(), d50_, sim.config().material.density)}};
+}
+
+// --- checkpoints -------------------------------------------------------------------------------
+
+void PreparationController::save_state(StateWriter& out) const {
+  out.tag("preparation");
+  out.put(mu_);
+  out.put(mu_found_);
+  out.put(e_);
+  out.put(phase_);
+  out.put(start_step_);
+  out.put(warning_);
+}
+
+void PreparationController::load_state(StateReader& in) {
+  in.tag("preparation");
+  in.get(mu_);
+  in.get(mu_found_);
+  in.get(e_);
+  in.get(phase_);
+  in.get(start_step_);
+  in.get(warning_);
+}
+
+void StageController::save_state(StateWriter& out) const {
+  out.tag("stage");
+  out.put(ageing_time_);
+  out.put(phase_start_);
+  out.put(phase_volume_);
+  out.put(phase_lateral_);
+  out.put(ref_);
+  out.put(start_step_);
+  out.put(start_time_);
+  out.put(warned_inertia_);
+  out.put(observed_);
+  for (const std::string* t : {&res_.name, &res_.kind, &res_.end_reason, &res_.warning}) {
+    out.put(*t);
+  }
+  out.put(res_.steps);
+  out.put(res_.dynamic_phases);
+  for (const double v : {res_.q_max, res_.axial_strain_at_q_max, res_.sigma_3_at_q_max,
+                         res_.friction_angle_deg, res_.K0, res_.max_inertial_number,
+                         res_.max_lateral_stress_error, res_.max_lateral_strain,
+                         res_.ageing_time}) {
+    out.put(v);
+  }
+}
+
+void StageController::load_state(StateReader& in) {
+  in.tag("stage");
+  in.get(ageing_time_);
+  in.get(phase_start_);
+  in.get(phase_volume_);
+  in.get(phase_lateral_);
+  in.get(ref_);
+  in.get(start_step_);
+  in.get(start_time_);
+  in.get(warned_inertia_);
+  in.get(observed_);
+  for (std::string* t : {&res_.name, &res_.kind, &res_.end_reason, &res_.warning}) in.get(*t);
+  in.get(res_.steps);
+  in.get(res_.dynamic_phases);
+  for (double* v : {&res_.q_max, &res_.axial_strain_at_q_max, &res_.sigma_3_at_q_max,
+                    &res_.friction_angle_deg, &res_.K0, &res_.max_inertial_number,
+                    &res_.max_lateral_stress_error, &res_.max_lateral_strain,
+                    &res_.ageing_time}) {
+    in.get(*v);
+  }
 }
 
 }  // namespace crushdem

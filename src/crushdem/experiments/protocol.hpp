@@ -84,6 +84,7 @@ struct StageConfig {
   double duration = 0.0;              // [s]
   std::uint64_t min_cycles = 150000;  // age: steps per dynamic phase (STUDY)
   std::uint64_t n_break = 30;         // age: grains brought to failure per jump (STUDY)
+  std::uint64_t record_interval = 1000;  // age: steps between rows of phases.csv within a phase
   // Equilibrium (isotropic, servo oedometric) and limits.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this
@@ -116,6 +117,10 @@ class Controller {
   virtual std::uint64_t steps_to_check(Simulation& sim) = 0;
   /// Extra columns for the time series (stage-specific), in a fixed order.
   virtual Measurement columns(const Simulation& sim) const = 0;
+  /// What begin() and update() have set up and counted so far (checkpoints); load_state()
+  /// replaces begin() when a run resumes.
+  virtual void save_state(StateWriter& out) const = 0;
+  virtual void load_state(StateReader& in) = 0;
 };
 
 /// The place a grain cloud starts from, drawn from the grading (sizes) and placed without
@@ -134,6 +139,8 @@ class PreparationController final : public Controller {
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
   Measurement columns(const Simulation& sim) const override;
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
   double preparation_friction() const { return mu_found_; }
   double void_ratio() const { return e_; }
   /// Empty when the target was reached; otherwise what went wrong.
@@ -171,10 +178,18 @@ class StageController final : public Controller {
   StageController(const StageConfig& cfg, double d50, Crusher* crusher = nullptr);
   /// Called at the end of every dynamic phase of an "age" stage (ageing clock, phase index).
   std::function<void(const Simulation&, double, std::uint64_t)> on_dynamic_phase_end;
+  /// Called every record_interval cycles of each dynamic phase, from cycle 0 (just after the
+  /// ageing jump, before the grains it brought to failure split) to its last cycle, with a
+  /// phase_record() row (the study's Figure 2: what a jump disturbs).
+  std::function<void(const Measurement&)> on_phase_record;
+  /// The row for phases.csv at the current state (age stages).
+  Measurement phase_record(const Simulation& sim) const;
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
   Measurement columns(const Simulation& sim) const override;
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
   const StageResult& result() const { return res_; }
   /// Called for every time-series row (tracks peaks and limits at output resolution too).
   void observe(const Simulation& sim);
@@ -187,6 +202,9 @@ class StageController final : public Controller {
   Crusher* crusher_ = nullptr;
   double ageing_time_ = 0.0;
   std::uint64_t phase_start_ = 0;
+  double phase_volume_ = 0.0;   // box volume at cycle 0 of the current phase [m^3]
+  double phase_lateral_ = 0.0;  // reference of the confining fluctuation [Pa]
+  void start_phase(const Simulation& sim);
   StrainReference ref_;
   std::uint64_t start_step_ = 0;
   double start_time_ = 0.0;

@@ -116,6 +116,10 @@ class Crusher {
   std::size_t strength_field() const { return strength_field_; }
   const CrushingConfig& config() const { return cfg_; }
   const SplitPattern& pattern() const { return pattern_; }
+  /// Random streams, reference sizes and accounting (the per-grain strengths and cracks are
+  /// particle fields, saved with the Simulation). load_state() replaces begin() on resume.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 
  private:
   CrushingConfig cfg_;

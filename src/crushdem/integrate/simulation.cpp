@@ -552,6 +552,78 @@ void Simulation::track_contact_load(double r_prime_factor) {
   forces_valid_ = false;  // the next evaluation fills the load arrays
 }
 
+// --- checkpoints -------------------------------------------------------------------------------
+
+void Simulation::save_state(StateWriter& out) const {
+  out.tag("simulation");
+  p_.save_state(out);
+  nl_.save_state(out);
+  walls_.save_state(out);
+  wc_.save_state(out);
+  out.tag("entries");
+  for (const auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_, &entry_R_star_,
+                        &entry_m_eff_, &entry_sqrt_R_star_}) {
+    out.put(*a);
+  }
+  out.put(touching_);
+  out.put(wall_offsets_);
+  out.put(saved_pairs_);
+  out.put(saved_walls_);
+  out.tag("clock");
+  out.put(history_saved_);
+  out.put(skin_);
+  out.put(dt_);
+  out.put(dt_fixed_);
+  out.put(dt_computed_at_);
+  out.put(dt_valid_);
+  out.put(forces_valid_);
+  out.put(nl_valid_);
+  out.put(time_);
+  out.put(steps_);
+  // cp_ holds tables (pointers) built from the configuration: only its friction can change.
+  out.put(cfg_.material.friction);
+  out.put(cp_.mu);
+  out.put(load_factor_);
+  for (const auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) {
+    out.put(*a);
+  }
+}
+
+void Simulation::load_state(StateReader& in) {
+  in.tag("simulation");
+  p_.load_state(in);
+  nl_.load_state(in);
+  walls_.load_state(in);
+  wc_.load_state(in);
+  in.tag("entries");
+  for (auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_, &entry_R_star_, &entry_m_eff_,
+                  &entry_sqrt_R_star_}) {
+    in.get(*a);
+  }
+  in.get(touching_);
+  in.get(wall_offsets_);
+  in.get(saved_pairs_);
+  in.get(saved_walls_);
+  in.tag("clock");
+  in.get(history_saved_);
+  in.get(skin_);
+  in.get(dt_);
+  in.get(dt_fixed_);
+  in.get(dt_computed_at_);
+  in.get(dt_valid_);
+  in.get(forces_valid_);
+  in.get(nl_valid_);
+  in.get(time_);
+  in.get(steps_);
+  in.get(cfg_.material.friction);
+  in.get(cp_.mu);
+  in.get(load_factor_);
+  for (auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) in.get(*a);
+  if (nl_valid_ && nl_.num_particles() != p_.size()) {
+    throw RuntimeFailure("checkpoint: neighbour list and particles disagree");
+  }
+}
+
 // --- time integration --------------------------------------------------------------------------
 
 void Simulation::set_friction(double mu) {

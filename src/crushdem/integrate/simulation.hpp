@@ -115,6 +115,13 @@ class Simulation {
   void track_contact_load(double r_prime_factor);  // 0 turns tracking off
   const ContactLoad& contact_load() const { return load_; }
 
+  /// Everything a step depends on, bit for bit: particles, neighbour list (a list rebuilt at
+  /// another step would sum forces in another order), contact history and last forces, walls,
+  /// clock, time-step state, friction and contact-load tracking. A Simulation built from the same
+  /// configuration and loaded with this state continues exactly as the saved one would have.
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
+
   /// Bytes held by the engine's arrays (particles, neighbour list, contacts).
   std::size_t memory_bytes() const;
 

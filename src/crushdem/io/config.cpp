@@ -298,7 +298,7 @@ void read_stage(Section& s, StageConfig& c) {
                std::string(k) == "axial_strain" || std::string(k) == "stop_q";
       case StageKind::Age:
         for (const char* h : {"axial", "lateral", "axial_stress", "lateral_stress", "duration",
-                              "min_cycles", "n_break"}) {
+                              "min_cycles", "n_break", "record_interval"}) {
           if (std::string(k) == h) return true;
         }
         return false;
@@ -313,7 +313,8 @@ void read_stage(Section& s, StageConfig& c) {
   };
   for (const char* k :
        {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial", "lateral",
-        "axial_stress", "lateral_stress", "steps", "duration", "min_cycles", "n_break"}) {
+        "axial_stress", "lateral_stress", "steps", "duration", "min_cycles", "n_break",
+        "record_interval"}) {
     if (s.has(k) && !uses(k)) {
       throw ConfigError(
           bad_value(s.key(k), "given", std::string("no '") + k + "' in a \"" + type + "\" stage"));
@@ -332,6 +333,7 @@ void read_stage(Section& s, StageConfig& c) {
   s.number("duration", c.duration);
   s.count("min_cycles", c.min_cycles);
   s.count("n_break", c.n_break);
+  s.count("record_interval", c.record_interval);
   s.number("tolerance", c.tolerance);
   s.number("unbalanced", c.unbalanced);
   s.number("max_strain_rate", c.max_strain_rate);
@@ -366,7 +368,12 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     Section s = r.sub("particles");
     s.string("file", c.particles.file);
     if (!c.particles.file.empty() && std::filesystem::path(c.particles.file).is_relative()) {
-      c.particles.file = (std::filesystem::path(base_dir) / c.particles.file).string();
+      // Absolute, so that the resolved config.toml (read again by `crushdem resume`) still
+      // points at the file from inside the output directory.
+      c.particles.file =
+          std::filesystem::absolute(std::filesystem::path(base_dir) / c.particles.file)
+              .lexically_normal()
+              .string();
     }
     Section g = s.sub("generate");
     g.count("count", c.particles.generate.count);
@@ -403,7 +410,9 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.number("v0", k.v0);
     s.number("n", k.n);
     if (!k.pattern.empty() && std::filesystem::path(k.pattern).is_relative()) {
-      k.pattern = (std::filesystem::path(base_dir) / k.pattern).string();
+      k.pattern = std::filesystem::absolute(std::filesystem::path(base_dir) / k.pattern)
+                      .lexically_normal()
+                      .string();
     }
     s.finish();
   }
@@ -470,6 +479,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.count("interval", c.output.interval);
     s.count("vtk_interval", c.output.vtk_interval);
     s.number("progress_seconds", c.output.progress_seconds);
+    s.number("checkpoint_seconds", c.output.checkpoint_seconds);
     s.finish();
   }
   r.finish();
@@ -541,6 +551,9 @@ void OutputConfig::validate() const {
     throw ConfigError(
         bad_value("output.progress_seconds", std::to_string(progress_seconds), "a time >= 0 in s"));
   }
+  require_value(checkpoint_seconds >= 0.0 && std::isfinite(checkpoint_seconds),
+                "output.checkpoint_seconds", checkpoint_seconds,
+                "a wall-clock time >= 0 in s (0: checkpoints at events and stage ends only)");
 }
 
 void RunConfig::validate() const {
@@ -634,6 +647,18 @@ toml::Table to_toml(const SimulationConfig& c) {
   return t;
 }
 
+namespace {
+toml::Table output_table(const OutputConfig& o) {
+  using toml::Value;
+  toml::Table t;
+  t["interval"] = cnt(o.interval);
+  t["vtk_interval"] = cnt(o.vtk_interval);
+  t["progress_seconds"] = num(o.progress_seconds);
+  t["checkpoint_seconds"] = num(o.checkpoint_seconds);
+  return t;
+}
+}  // namespace
+
 toml::Table to_toml(const RunConfig& c) {
   Table t = to_toml(c.simulation);
   if (c.has_sample || !c.stages.empty()) t.erase("walls");  // the stages set the walls
@@ -700,6 +725,7 @@ toml::Table to_toml(const RunConfig& c) {
           st["duration"] = num(s.duration);
           st["min_cycles"] = cnt(s.min_cycles);
           st["n_break"] = cnt(s.n_break);
+          st["record_interval"] = cnt(s.record_interval);
           break;
       }
       st["tolerance"] = num(s.tolerance);
@@ -733,11 +759,7 @@ toml::Table to_toml(const RunConfig& c) {
     t["crushing"] = Value::make_table(ct);
   }
   if (c.has_sample || !c.stages.empty()) {
-    Table o;
-    o["interval"] = cnt(c.output.interval);
-    o["vtk_interval"] = cnt(c.output.vtk_interval);
-    o["progress_seconds"] = num(c.output.progress_seconds);
-    t["output"] = Value::make_table(o);
+    t["output"] = Value::make_table(output_table(c.output));
     if (c.has_sample) return t;
   }
   Table p;
@@ -757,11 +779,7 @@ toml::Table to_toml(const RunConfig& c) {
   if (c.steps > 0) r["steps"] = cnt(c.steps);
   if (c.duration > 0.0) r["duration"] = num(c.duration);
   t["run"] = Value::make_table(r);
-  Table o;
-  o["interval"] = cnt(c.output.interval);
-  o["vtk_interval"] = cnt(c.output.vtk_interval);
-  o["progress_seconds"] = num(c.output.progress_seconds);
-  t["output"] = Value::make_table(o);
+  t["output"] = Value::make_table(output_table(c.output));
   return t;
 }
 

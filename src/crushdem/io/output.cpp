@@ -1,6 +1,7 @@
 #include "crushdem/io/output.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include "crushdem/core/error.hpp"
@@ -19,15 +20,31 @@ CsvWriter::~CsvWriter() {
   if (f_) std::fclose(f_);
 }
 
+void CsvWriter::start(const std::vector<std::string>& columns) {
+  if (f_) std::fclose(f_);
+  f_ = std::fopen(path_.c_str(), "w");
+  if (!f_) throw ConfigError("cannot write '" + path_ + "'");
+  columns_ = columns;
+  for (std::size_t k = 0; k < columns.size(); ++k) {
+    std::fprintf(f_, "%s%s", k ? "," : "", columns[k].c_str());
+  }
+  std::fputc('\n', f_);
+  std::fflush(f_);
+}
+
+void CsvWriter::write_line(const std::string& line) {
+  if (!f_) throw std::logic_error("CsvWriter::write_line before start(): " + path_);
+  std::fputs(line.c_str(), f_);
+  std::fputc('\n', f_);
+  std::fflush(f_);
+}
+
 void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
   if (!f_) {
-    f_ = std::fopen(path_.c_str(), "w");
-    if (!f_) throw ConfigError("cannot write '" + path_ + "'");
-    for (std::size_t k = 0; k < row.size(); ++k) {
-      std::fprintf(f_, "%s%s", k ? "," : "", row[k].first.c_str());
-      columns_.push_back(row[k].first);
-    }
-    std::fputc('\n', f_);
+    std::vector<std::string> columns;
+    columns.reserve(row.size());
+    for (const auto& kv : row) columns.push_back(kv.first);
+    start(columns);
   }
   if (row.size() != columns_.size()) {
     throw std::logic_error("CSV row has " + std::to_string(row.size()) + " columns, header " +
@@ -38,6 +55,31 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
   }
   std::fputc('\n', f_);
   std::fflush(f_);
+}
+
+long long CsvWriter::size() const {
+  return f_ ? static_cast<long long>(std::ftell(f_)) : -1;
+}
+
+void CsvWriter::resume(long long size, const std::vector<std::string>& columns) {
+  namespace fs = std::filesystem;
+  if (f_) std::fclose(f_);
+  f_ = nullptr;
+  columns_.clear();
+  std::error_code ec;
+  if (size < 0) {
+    fs::remove(path_, ec);
+    return;
+  }
+  if (!fs::exists(path_) || fs::file_size(path_) < static_cast<std::uintmax_t>(size)) {
+    throw RuntimeFailure("cannot resume: '" + path_ + "' is missing or shorter than at the " +
+                         "checkpoint (" + std::to_string(size) + " bytes)");
+  }
+  fs::resize_file(path_, static_cast<std::uintmax_t>(size), ec);
+  if (ec) throw RuntimeFailure("cannot resume: '" + path_ + "': " + ec.message());
+  f_ = std::fopen(path_.c_str(), "a");
+  if (!f_) throw RuntimeFailure("cannot resume: cannot append to '" + path_ + "'");
+  columns_ = columns;
 }
 
 namespace {

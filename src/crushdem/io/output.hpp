@@ -21,6 +21,17 @@ class CsvWriter {
   CsvWriter(const CsvWriter&) = delete;
   CsvWriter& operator=(const CsvWriter&) = delete;
   void write(const std::vector<std::pair<std::string, double>>& row);
+  /// Opens the file with just its header (rows of text follow with write_line).
+  void start(const std::vector<std::string>& columns);
+  /// Appends one preformatted line (rows with text fields), flushed.
+  void write_line(const std::string& line);
+  /// Bytes written so far (-1 before the first row); everything up to here is on disk.
+  long long size() const;
+  const std::vector<std::string>& columns() const { return columns_; }
+  /// Continues a file written by an interrupted run: cuts it back to `size` bytes (what the
+  /// checkpoint saw) and appends from there; size < 0 removes it (it had no row yet).
+  void resume(long long size, const std::vector<std::string>& columns);
+  const std::string& path() const { return path_; }
 
  private:
   std::string path_;

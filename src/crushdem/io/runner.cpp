@@ -3,12 +3,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <memory>
+#include <sstream>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/experiments/protocol.hpp"
 #include "crushdem/fracture/crushing.hpp"
@@ -74,6 +79,8 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
 
 namespace {
 
+volatile std::sig_atomic_t g_stop_signal = 0;
+
 std::string stamp(std::size_t k) {
   char b[16];
   std::snprintf(b, sizeof b, "%06zu", k);
@@ -99,6 +106,16 @@ class FixedLengthController final : public Controller {
     return static_cast<std::uint64_t>(std::max(1.0, left));
   }
   Measurement columns(const Simulation&) const override { return {}; }
+  void save_state(StateWriter& out) const override {
+    out.tag("run");
+    out.put(start_step_);
+    out.put(start_time_);
+  }
+  void load_state(StateReader& in) override {
+    in.tag("run");
+    in.get(start_step_);
+    in.get(start_time_);
+  }
   double fraction(const Simulation& sim) const {
     return steps_ > 0
                ? static_cast<double>(sim.step_count() - start_step_) / static_cast<double>(steps_)
@@ -112,13 +129,48 @@ class FixedLengthController final : public Controller {
   double start_time_ = 0.0;
 };
 
+void put_json(StateWriter& out, const JsonObject& o) {
+  std::vector<std::string> keys, values;
+  for (const auto& [k, v] : o.fields) {
+    keys.push_back(k);
+    values.push_back(v);
+  }
+  out.put(keys);
+  out.put(values);
+}
+
+JsonObject get_json(StateReader& in) {
+  std::vector<std::string> keys, values;
+  in.get(keys);
+  in.get(values);
+  JsonObject o;
+  for (std::size_t k = 0; k < keys.size() && k < values.size(); ++k) {
+    o.fields.emplace_back(keys[k], values[k]);
+  }
+  return o;
+}
+
 /// Steps a simulation under one controller after another, in chunks that end exactly on the
 /// output points and the controller's checks (the same steps as one at a time, so results do not
-/// depend on the chunking or on the backend taking a chunk at once).
+/// depend on the chunking or on the backend taking a chunk at once). Owns the result files, so
+/// that a checkpoint records how far each has been written.
 class Driver {
  public:
   Driver(Simulation& sim, const RunConfig& cfg, const RunOptions& opt)
-      : sim_(sim), cfg_(cfg), opt_(opt), dir_(opt.out_dir), t0_(clock::now()), last_(t0_) {}
+      : sim_(sim),
+        cfg_(cfg),
+        opt_(opt),
+        dir_(opt.out_dir),
+        t0_(clock::now()),
+        last_(t0_),
+        last_checkpoint_(t0_) {}
+
+  /// The CSV file `name` in the output directory (opened when its first row is written).
+  CsvWriter& file(const std::string& name) {
+    auto& f = files_[name];
+    if (!f) f = std::make_unique<CsvWriter>((dir_ / name).string());
+    return *f;
+  }
 
   void snapshot() {
     const std::string k = stamp(snapshots_++);
@@ -130,31 +182,35 @@ class Driver {
   }
 
   /// Grains break from now on: the criterion is checked every crushing.interval steps (counted
-  /// from step 0) and every breakage is appended to breakage.csv.
-  void attach_crusher(Crusher* crusher) {
+  /// from step 0) and every breakage is appended to breakage.csv (started unless resumed).
+  void attach_crusher(Crusher* crusher, bool resumed) {
     crusher_ = crusher;
-    const std::string path = (dir_ / "breakage.csv").string();
-    log_ = std::fopen(path.c_str(), "w");
-    if (!log_) throw ConfigError("cannot write '" + path + "'");
-    std::fprintf(log_,
-                 "time_s,step,id,diameter_m,cause,sigma_Pa,sigma_lim_Pa,fragments,"
-                 "removed_fragments,fragment_ids\n");
-    std::fflush(log_);
+    if (!resumed) {
+      file("breakage.csv")
+          .start({"time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
+                  "fragments", "removed_fragments", "fragment_ids"});
+    }
   }
-  ~Driver() {
-    if (log_) std::fclose(log_);
-  }
-  Driver(const Driver&) = delete;
-  Driver& operator=(const Driver&) = delete;
+
+  /// Called with the running controller and the steps left to its next check whenever a
+  /// checkpoint is due inside drive(): at a requested event, every output.checkpoint_seconds of
+  /// wall-clock time, and on a stop request (after which drive() throws Interrupted).
+  std::function<void(const Controller&, std::uint64_t)> checkpoint;
+  void request_checkpoint() { checkpoint_requested_ = true; }
+  void checkpoint_written() { last_checkpoint_ = clock::now(); }
 
   /// Runs `c` to its end; `row` gives the time-series row (written at the start, every output
-  /// interval and at the end).
+  /// interval and at the end). resumed: `c` was restored from a checkpoint taken inside this
+  /// loop, `to_check` steps before its next check (begin() and the first row are not repeated).
   void drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
-             const std::string& label, const std::function<double()>& fraction = {}) {
-    c.begin(sim_);
-    csv.write(row());
+             const std::string& label, const std::function<double()>& fraction = {},
+             bool resumed = false, std::uint64_t to_check = 0) {
+    if (!resumed) {
+      c.begin(sim_);
+      csv.write(row());
+      to_check = c.steps_to_check(sim_);
+    }
     bool finished = false;
-    std::uint64_t to_check = c.steps_to_check(sim_);
     const std::uint64_t interval = cfg_.output.interval, vtk = cfg_.output.vtk_interval;
     while (!finished) {
       const std::uint64_t s0 = sim_.step_count();
@@ -164,6 +220,9 @@ class Driver {
         const std::uint64_t k = crusher_->config().interval;
         n = std::min(n, k - s0 % k);
       }
+      // Short chunks on the CPU so that a stop request is answered within seconds (the chunking
+      // does not change the result); another backend keeps its long chunks.
+      if (!opt_.advance) n = std::min<std::uint64_t>(n, kMaxChunk);
       if (opt_.advance) {
         opt_.advance(sim_, n);
       } else {
@@ -186,14 +245,52 @@ class Driver {
       if (s % interval == 0 || finished) csv.write(row());
       if (vtk > 0 && s % vtk == 0 && !finished) snapshot();  // the final one follows the run
       progress(label, fraction);
+      if (!finished && checkpoint) {
+        const int stop = g_stop_signal;
+        const double since = std::chrono::duration<double>(clock::now() - last_checkpoint_).count();
+        const double every = cfg_.output.checkpoint_seconds;
+        if (checkpoint_requested_ || stop != 0 || (every > 0.0 && since >= every)) {
+          checkpoint(c, to_check);
+          checkpoint_requested_ = false;
+        }
+        if (stop != 0) throw Interrupted(stop);
+      }
     }
   }
+
+  /// Before the boundary checkpoint between two parts of a run.
+  bool stop_requested() const { return g_stop_signal != 0; }
 
   double seconds() const { return std::chrono::duration<double>(clock::now() - t0_).count(); }
   std::size_t snapshots() const { return snapshots_; }
 
+  void save_state(StateWriter& out) const {
+    out.tag("files");
+    out.put(static_cast<std::uint64_t>(snapshots_));
+    out.put(static_cast<std::uint64_t>(files_.size()));
+    for (const auto& [name, f] : files_) {
+      out.put(name);
+      out.put(f->size());
+      out.put(f->columns());
+    }
+  }
+  void load_state(StateReader& in) {
+    in.tag("files");
+    snapshots_ = static_cast<std::size_t>(in.value<std::uint64_t>());
+    const auto n = in.value<std::uint64_t>();
+    for (std::uint64_t k = 0; k < n; ++k) {
+      std::string name;
+      in.get(name);
+      const auto size = in.value<long long>();
+      std::vector<std::string> columns;
+      in.get(columns);
+      file(name).resume(size, columns);
+    }
+  }
+
  private:
   using clock = std::chrono::steady_clock;
+  static constexpr std::uint64_t kMaxChunk = 2000;
   void progress(const std::string& label, const std::function<double()>& fraction) {
     if (!opt_.progress || !(cfg_.output.progress_seconds > 0)) return;
     const auto now = clock::now();
@@ -215,28 +312,30 @@ class Driver {
   }
 
   void log(const std::vector<BreakageEvent>& events) {
+    CsvWriter& out = file("breakage.csv");
     for (const BreakageEvent& e : events) {
-      std::fprintf(log_, "%s,%llu,%llu,%s,%s,%s,%s,%zu,%d,", format_double(e.time).c_str(),
-                   static_cast<unsigned long long>(e.step), static_cast<unsigned long long>(e.id),
-                   format_double(e.diameter).c_str(), to_string(e.cause),
-                   format_double(e.sigma).c_str(), format_double(e.sigma_lim).c_str(),
-                   e.fragments.size(), e.removed_fragments);
+      std::string line = format_double(e.time) + "," + std::to_string(e.step) + "," +
+                         std::to_string(e.id) + "," + format_double(e.diameter) + "," +
+                         to_string(e.cause) + "," + format_double(e.sigma) + "," +
+                         format_double(e.sigma_lim) + "," + std::to_string(e.fragments.size()) +
+                         "," + std::to_string(e.removed_fragments) + ",";
       for (std::size_t k = 0; k < e.fragments.size(); ++k) {
-        std::fprintf(log_, "%s%llu", k ? " " : "", static_cast<unsigned long long>(e.fragments[k]));
+        if (k) line += ' ';
+        line += std::to_string(e.fragments[k]);
       }
-      std::fprintf(log_, "\n");
+      out.write_line(line);  // flushed: finished work is on disk
     }
-    if (!events.empty()) std::fflush(log_);  // finished work is on disk
   }
 
   Simulation& sim_;
   const RunConfig& cfg_;
   const RunOptions& opt_;
   Crusher* crusher_ = nullptr;
-  std::FILE* log_ = nullptr;
+  std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
   std::filesystem::path dir_;
   std::size_t snapshots_ = 0;
-  clock::time_point t0_, last_;
+  bool checkpoint_requested_ = false;
+  clock::time_point t0_, last_, last_checkpoint_;
 };
 
 JsonObject stage_json(const StageResult& r) {
@@ -259,25 +358,125 @@ JsonObject stage_json(const StageResult& r) {
   return o;
 }
 
+constexpr const char* kCheckpointTag = "crushdem-checkpoint-1";
+constexpr std::uint32_t kPartPreparation = 0, kPartRun = 1, kPartFirstStage = 2;
+
+/// Where a run stands between steps, beyond the simulation and the controllers: which part
+/// (preparation, plain run, stage k) it is in, and what earlier parts produced for summary.json.
+struct Progress {
+  std::uint32_t part = 0;
+  bool begun = false;            // the part's controller has begun (its state is saved too)
+  std::uint64_t to_check = 0;    // steps to the controller's next check
+  double wall_seconds = 0.0;     // wall-clock time of the run before this process
+  bool has_sample_json = false;  // preparation finished
+  JsonObject sample_json;
+  std::vector<JsonObject> stage_results;
+  std::vector<std::string> warnings;
+  StrainReference ref0, ref;  // strains of the preparation, and of the test
+  double d50 = 0.0;           // of the sample at the start of the test
+  bool has_crusher = false;
+
+  void save(StateWriter& out) const {
+    out.tag("progress");
+    out.put(part);
+    out.put(begun);
+    out.put(to_check);
+    out.put(wall_seconds);
+    out.put(has_sample_json);
+    put_json(out, sample_json);
+    out.put(static_cast<std::uint64_t>(stage_results.size()));
+    for (const JsonObject& o : stage_results) put_json(out, o);
+    out.put(warnings);
+    out.put(ref0);
+    out.put(ref);
+    out.put(d50);
+    out.put(has_crusher);
+  }
+  void load(StateReader& in) {
+    in.tag("progress");
+    in.get(part);
+    in.get(begun);
+    in.get(to_check);
+    in.get(wall_seconds);
+    in.get(has_sample_json);
+    sample_json = get_json(in);
+    const auto n = in.value<std::uint64_t>();
+    stage_results.clear();
+    for (std::uint64_t k = 0; k < n; ++k) stage_results.push_back(get_json(in));
+    in.get(warnings);
+    in.get(ref0);
+    in.get(ref);
+    in.get(d50);
+    in.get(has_crusher);
+  }
+};
+
+std::string read_binary(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ConfigError("cannot read '" + path + "'");
+  std::ostringstream o;
+  o << f.rdbuf();
+  return o.str();
+}
+
+/// Written next to the results and renamed into place, so that a crash while writing leaves the
+/// previous checkpoint intact.
+void write_checkpoint_file(const std::filesystem::path& dir, const std::string& bytes) {
+  const std::filesystem::path tmp = dir / "checkpoint.bin.tmp", final_path = dir / "checkpoint.bin";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    f.flush();
+    if (!f) throw RuntimeFailure("cannot write checkpoint '" + tmp.string() + "'");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, final_path, ec);
+  if (ec) throw RuntimeFailure("cannot write checkpoint '" + final_path.string() + "': " +
+                               ec.message());
+}
+
 }  // namespace
+
+void request_stop(int signal) {
+  g_stop_signal = signal;
+}
 
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   namespace fs = std::filesystem;
+  g_stop_signal = 0;
   std::error_code ec;
   const fs::path dir(opt.out_dir);
   fs::create_directories(dir / "vtk", ec);
   if (ec)
     throw ConfigError("--out '" + opt.out_dir + "': cannot create directory: " + ec.message());
-  write_text_file((dir / "config.toml").string(), toml::serialize(to_toml(cfg)));
+  const std::string config_text = toml::serialize(to_toml(cfg));
+  if (!opt.resume) write_text_file((dir / "config.toml").string(), config_text);
 
-  JsonObject summary;
-  summary.string("crushdem_version", "0.1.0");
-  std::vector<std::string> warnings;
+  // Resuming: the checkpoint says where the run stood; the state is read part by part below.
+  Progress st;
+  std::unique_ptr<StateReader> in;
+  if (opt.resume) {
+    const std::string path = (dir / "checkpoint.bin").string();
+    if (!fs::exists(path)) {
+      throw ConfigError("crushdem resume: no checkpoint in '" + opt.out_dir + "'" +
+                        (fs::exists(dir / "summary.json") ? " (the run has finished)" : ""));
+    }
+    in = std::make_unique<StateReader>(read_binary(path), path);
+    in->tag(kCheckpointTag);
+    std::string saved_config;
+    in->get(saved_config);
+    if (saved_config != config_text) {
+      throw ConfigError("crushdem resume: " + (dir / "config.toml").string() +
+                        " differs from the configuration the checkpoint was taken with");
+    }
+    st.load(*in);
+  }
+  const bool resumed = opt.resume;
 
   // The sample: prepared here from a grading curve, or read / generated as configured.
   SimulationConfig sim_cfg = cfg.simulation;
   LooseCloud cloud;
-  if (cfg.has_sample) {
+  if (cfg.has_sample && !resumed) {
     cloud = make_loose_cloud(cfg.sample);
     for (int a = 0; a < 3; ++a) {
       sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = 0.0;
@@ -286,23 +485,79 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   }
   Simulation sim(sim_cfg);
   Driver driver(sim, cfg, opt);
-  if (cfg.has_sample) {
-    for (std::size_t i = 0; i < cloud.radius.size(); ++i) {
-      sim.add_particle(cloud.position[i], cloud.radius[i]);
+  std::unique_ptr<Crusher> crusher;
+  auto make_crusher = [&]() {
+    crusher = std::make_unique<Crusher>(
+        cfg.crushing, cfg.crushing.pattern.empty() ? SplitPattern::default14()
+                                                   : SplitPattern::from_file(cfg.crushing.pattern));
+  };
+  if (resumed) {
+    driver.load_state(*in);
+    sim.load_state(*in);
+    if (st.has_crusher) {
+      make_crusher();
+      crusher->load_state(*in);
+      driver.attach_crusher(crusher.get(), true);
     }
-    sim.compute_forces();
-    driver.snapshot();
+    if (opt.progress) {
+      std::fprintf(stderr, "[crushdem] resuming at step %llu, t = %.6e s\n",
+                   static_cast<unsigned long long>(sim.step_count()), sim.time());
+    }
+  }
+  // The whole state at this point of the run: the part, the files, the simulation, the crusher
+  // and the running controller (none between two parts).
+  auto save_checkpoint = [&](const Controller* running, std::uint64_t to_check) {
+    st.begun = running != nullptr;
+    st.to_check = to_check;
+    st.has_crusher = crusher != nullptr;
+    const double wall_before = st.wall_seconds;
+    st.wall_seconds += driver.seconds();
+    StateWriter out;
+    out.tag(kCheckpointTag);
+    out.put(config_text);
+    st.save(out);
+    st.wall_seconds = wall_before;
+    driver.save_state(out);
+    sim.save_state(out);
+    if (crusher) crusher->save_state(out);
+    if (running) running->save_state(out);
+    write_checkpoint_file(dir, out.bytes());
+    driver.checkpoint_written();
+  };
+  driver.checkpoint = [&](const Controller& c, std::uint64_t to_check) {
+    save_checkpoint(&c, to_check);
+  };
+  // Between two parts: a checkpoint, then stop here if asked to.
+  auto boundary = [&](std::uint32_t part) {
+    st.part = part;
+    save_checkpoint(nullptr, 0);
+    if (driver.stop_requested()) throw Interrupted(static_cast<int>(g_stop_signal));
+  };
+  // The controller of the part the checkpoint was taken in continues where it was.
+  auto resume_here = [&](std::uint32_t part) { return resumed && st.begun && st.part == part; };
+
+  if (cfg.has_sample && (!resumed || st.part == kPartPreparation)) {
+    if (!resumed) {
+      for (std::size_t i = 0; i < cloud.radius.size(); ++i) {
+        sim.add_particle(cloud.position[i], cloud.radius[i]);
+      }
+      sim.compute_forces();
+      driver.snapshot();
+      st.ref0 = StrainReference::from(sim.walls());
+      st.part = kPartPreparation;
+    }
     PreparationController prep(cfg.sample, cfg.simulation.material.friction);
-    const StrainReference ref0 = StrainReference::from(sim.walls());
-    CsvWriter csv((dir / (cfg.stages.empty() ? "timeseries.csv" : "preparation.csv")).string());
+    const bool cont = resume_here(kPartPreparation);
+    if (cont) prep.load_state(*in);
+    CsvWriter& csv = driver.file(cfg.stages.empty() ? "timeseries.csv" : "preparation.csv");
     driver.drive(
         prep, csv,
         [&]() {
-          Measurement m = measure(sim, ref0);
+          Measurement m = measure(sim, st.ref0);
           for (auto& kv : prep.columns(sim)) m.push_back(kv);
           return m;
         },
-        "prepare");
+        "prepare", {}, cont, st.to_check);
     // The sample file: grains and the box, reusable as particles.file by any test.
     Packing pk;
     for (int k = 0; k < kNumWalls; ++k) {
@@ -330,9 +585,10 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     so.numbers("passing_target", cfg.sample.grading.passing);
     so.numbers("passing", mass_passing(d, cfg.sample.grading.diameter));
     so.string("warning", prep.warning());
-    summary.object("sample", so);
+    st.sample_json = so;
+    st.has_sample_json = true;
     if (!prep.warning().empty()) {
-      warnings.push_back(prep.warning());
+      st.warnings.push_back(prep.warning());
       std::fprintf(stderr, "[crushdem] warning: %s\n", prep.warning().c_str());
     }
     if (opt.progress) {
@@ -341,43 +597,43 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                    "%.4g\n",
                    p.size(), prep.void_ratio(), cfg.sample.void_ratio, prep.preparation_friction());
     }
-  } else {
+  } else if (!cfg.has_sample && !resumed) {
     add_configured_particles(sim, cfg);
     sim.compute_forces();
     driver.snapshot();
   }
 
-  // Crushing acts during the test (not during preparation).
-  std::unique_ptr<Crusher> crusher;
-  std::unique_ptr<CsvWriter> grading;
-  std::vector<double> sieves;
-  if (cfg.crushing.enabled) {
-    crusher = std::make_unique<Crusher>(
-        cfg.crushing, cfg.crushing.pattern.empty() ? SplitPattern::default14()
-                                                   : SplitPattern::from_file(cfg.crushing.pattern));
-    crusher->begin(sim);
-    driver.attach_crusher(crusher.get());
-    sieves = grading_sieves(*crusher);
-    grading = std::make_unique<CsvWriter>((dir / "grading.csv").string());
+  // The test starts here. Crushing acts during the test (not during preparation).
+  const bool in_test = resumed && st.part != kPartPreparation;
+  if (!in_test) {
+    st.ref = StrainReference::from(sim.walls());
+    st.d50 = diameter_at_fraction(sim.particles().diameters(), 0.5);
+    if (cfg.crushing.enabled) {
+      make_crusher();
+      crusher->begin(sim);
+      driver.attach_crusher(crusher.get(), false);
+    }
   }
+  std::vector<double> sieves;
+  if (crusher) sieves = grading_sieves(*crusher);
   // Every time-series row: the crushing columns and a grading row when grains can break.
   auto crushing_row = [&](Measurement& m) {
     if (!crusher) return;
     for (auto& kv : crushing_measurements(sim, *crusher)) m.push_back(kv);
-    grading->write(grading_measurements(sim, *crusher, sieves));
+    driver.file("grading.csv").write(grading_measurements(sim, *crusher, sieves));
   };
 
   // The test: a plain run, or stage after stage.
-  const StrainReference ref = StrainReference::from(sim.walls());
-  const double d50 = diameter_at_fraction(sim.particles().diameters(), 0.5);
-  std::vector<JsonObject> stage_results;
+  const StrainReference& ref = st.ref;
   if (!cfg.stages.empty()) {
-    CsvWriter series((dir / "timeseries.csv").string());
-    std::unique_ptr<CsvWriter> events;  // one row per dynamic phase of "age" stages
-    for (std::size_t k = 0; k < cfg.stages.size(); ++k) {
-      StageController stage(cfg.stages[k], d50, crusher.get());
+    CsvWriter& series = driver.file("timeseries.csv");
+    const std::size_t first = in_test ? st.part - kPartFirstStage : 0;
+    for (std::size_t k = first; k < cfg.stages.size(); ++k) {
+      const auto part = static_cast<std::uint32_t>(kPartFirstStage + k);
+      const bool cont = resume_here(part);
+      if (!cont) boundary(part);
+      StageController stage(cfg.stages[k], st.d50, crusher.get());
       if (cfg.stages[k].kind == StageKind::Age) {
-        if (!events) events = std::make_unique<CsvWriter>((dir / "events.csv").string());
         stage.on_dynamic_phase_end = [&, k](const Simulation& s, double t_age,
                                             std::uint64_t phase) {
           Measurement m;
@@ -386,9 +642,17 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
           m.emplace_back("dynamic_phase", static_cast<double>(phase));
           for (auto& kv : measure(s, ref)) m.push_back(kv);
           for (auto& kv : crushing_measurements(s, *crusher)) m.push_back(kv);
-          events->write(m);
+          driver.file("events.csv").write(m);
+          driver.request_checkpoint();  // every event is a checkpoint
+        };
+        stage.on_phase_record = [&, k](const Measurement& r) {
+          Measurement m;
+          m.emplace_back("stage", static_cast<double>(k));
+          for (const auto& kv : r) m.push_back(kv);
+          driver.file("phases.csv").write(m);
         };
       }
+      if (cont) stage.load_state(*in);
       driver.drive(
           stage, series,
           [&]() {
@@ -399,9 +663,9 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
             crushing_row(m);
             return m;
           },
-          cfg.stages[k].label());
-      stage_results.push_back(stage_json(stage.result()));
-      if (!stage.result().warning.empty()) warnings.push_back(stage.result().warning);
+          cfg.stages[k].label(), {}, cont, st.to_check);
+      st.stage_results.push_back(stage_json(stage.result()));
+      if (!stage.result().warning.empty()) st.warnings.push_back(stage.result().warning);
       if (opt.progress) {
         std::fprintf(stderr, "[crushdem] stage '%s' ended (%s) after %llu steps\n",
                      stage.result().name.c_str(), stage.result().end_reason.c_str(),
@@ -409,26 +673,31 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
       }
     }
   } else if (!cfg.has_sample) {
-    CsvWriter series((dir / "timeseries.csv").string());
+    const bool cont = resume_here(kPartRun);
+    if (!cont) boundary(kPartRun);
     FixedLengthController run(cfg.steps, cfg.duration);
+    if (cont) run.load_state(*in);
     driver.drive(
-        run, series,
+        run, driver.file("timeseries.csv"),
         [&]() {
           Measurement m = measure(sim, ref);
           crushing_row(m);
           return m;
         },
-        "run", [&]() { return run.fraction(sim); });
+        "run", [&]() { return run.fraction(sim); }, cont, st.to_check);
   }
   driver.snapshot();
-  const double secs = driver.seconds();
+  const double secs = st.wall_seconds + driver.seconds();
 
+  JsonObject summary;
+  summary.string("crushdem_version", "0.1.0");
+  if (st.has_sample_json) summary.object("sample", st.sample_json);
   summary.integer("steps", static_cast<long long>(sim.step_count()));
   summary.number("time_s", sim.time());
   summary.integer("particles", static_cast<long long>(sim.particles().size()));
   summary.integer("snapshots", static_cast<long long>(driver.snapshots()));
-  if (!stage_results.empty()) summary.array("stages", stage_results);
-  summary.integer("warnings", static_cast<long long>(warnings.size()));
+  if (!st.stage_results.empty()) summary.array("stages", st.stage_results);
+  summary.integer("warnings", static_cast<long long>(st.warnings.size()));
   if (crusher) {
     JsonObject co;
     co.number("d50_initial_m", crusher->d50_initial());
@@ -447,6 +716,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   JsonObject timing;
   timing.string("backend", opt.backend);
   timing.number("wall_seconds", secs);
+  timing.integer("resumed", resumed ? 1 : 0);
 #ifdef CRUSHDEM_HAVE_OPENMP
   timing.integer("threads", omp_get_max_threads());
 #else
@@ -458,6 +728,8 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                                                  : 0.0);
   timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
   write_text_file((dir / "timing.json").string(), timing.dump() + "\n");
+  // The run is complete: its checkpoint is no longer needed.
+  fs::remove(dir / "checkpoint.bin", ec);
 
   RunSummary r;
   r.steps = sim.step_count();
@@ -465,6 +737,18 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   r.wall_seconds = secs;
   r.particles = sim.particles().size();
   return r;
+}
+
+RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
+  const std::string path = (std::filesystem::path(dir) / "config.toml").string();
+  if (!std::filesystem::exists(path)) {
+    throw ConfigError("crushdem resume: '" + dir + "' has no config.toml (not a crushdem run)");
+  }
+  const RunConfig cfg = load_run_config(path);
+  RunOptions o = opt;
+  o.out_dir = dir;
+  o.resume = true;
+  return run_to_directory(cfg, o);
 }
 
 }  // namespace crushdem

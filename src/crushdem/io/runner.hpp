@@ -4,9 +4,14 @@
 //   summary.json     final state and run description (identical for any thread count)
 //   timing.json      wall-clock time, threads, throughput (the only file that varies)
 //   vtk/particles_NNNNNN.vtk, vtk/box_NNNNNN.vtk   snapshots for ParaView
+//   checkpoint.bin   the whole state while the run is going (at every ageing event, between
+//                    stages, every output.checkpoint_seconds and on a stop request); removed
+//                    when the run ends. `crushdem resume DIR` continues from it, and the files
+//                    come out identical to those of an uninterrupted run.
 #pragma once
 
 #include <functional>
+#include <stdexcept>
 #include <string>
 
 #include "crushdem/io/config.hpp"
@@ -22,6 +27,22 @@ struct RunOptions {
   std::function<void(Simulation&, std::uint64_t)> advance;
   std::function<void(Simulation&)> sync;
   std::string backend = "cpu";  // recorded in timing.json
+  bool resume = false;          // continue from out_dir/checkpoint.bin
+};
+
+/// Asks the running run_to_directory to write a checkpoint and stop at its next chunk boundary
+/// (within seconds). Async-signal-safe: the CLI calls it from its SIGINT / SIGTERM handler.
+void request_stop(int signal);
+
+/// Thrown by run_to_directory when it stopped on request, after saving its checkpoint.
+class Interrupted : public std::runtime_error {
+ public:
+  explicit Interrupted(int signal)
+      : std::runtime_error("interrupted by signal " + std::to_string(signal)), signal_(signal) {}
+  int signal() const { return signal_; }
+
+ private:
+  int signal_;
 };
 
 struct RunSummary {
@@ -38,5 +59,8 @@ void add_packing_particles(Simulation& sim, const Packing& pk);
 void add_configured_particles(Simulation& sim, const RunConfig& cfg);
 
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt);
+
+/// Continues the run in `dir` from its checkpoint (configuration from dir/config.toml).
+RunSummary resume_directory(const std::string& dir, const RunOptions& opt);
 
 }  // namespace crushdem

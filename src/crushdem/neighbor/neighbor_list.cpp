@@ -269,4 +269,34 @@ std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, dou
   return order;
 }
 
+void NeighborList::save_state(StateWriter& out) const {
+  out.tag("neighbors");
+  out.put(offsets);
+  out.put(neighbors);
+  out.put(column_offsets);
+  out.put(column_members);
+  out.put(color_offsets);
+  out.put(owner);
+  out.put(skin_);
+  out.put(static_cast<std::uint64_t>(builds_));
+  out.put(x0_);
+  out.put(y0_);
+  out.put(z0_);
+}
+
+void NeighborList::load_state(StateReader& in) {
+  in.tag("neighbors");
+  in.get(offsets);
+  in.get(neighbors);
+  in.get(column_offsets);
+  in.get(column_members);
+  in.get(color_offsets);
+  in.get(owner);
+  in.get(skin_);
+  builds_ = static_cast<std::size_t>(in.value<std::uint64_t>());
+  in.get(x0_);
+  in.get(y0_);
+  in.get(z0_);
+}
+
 }  // namespace crushdem

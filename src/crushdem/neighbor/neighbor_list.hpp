@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/particles/particle_store.hpp"
 
 namespace crushdem {
@@ -59,6 +60,11 @@ class NeighborList {
   const std::vector<double>& x_ref() const { return x0_; }
   const std::vector<double>& y_ref() const { return y0_; }
   const std::vector<double>& z_ref() const { return z0_; }
+
+  /// The list, its columns and the reference positions, bit for bit (checkpoints: a list
+  /// rebuilt at another step would order the force sums differently).
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 
   // CSR half list: the partners of i are neighbors[offsets[i] .. offsets[i+1]).
   std::vector<Index> offsets, neighbors;

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
@@ -70,6 +71,10 @@ class ParticleStore {
   double solid_volume() const;
   /// Grain diameters 2 r, in storage order [m].
   std::vector<double> diameters() const;
+  /// Every array, the extra fields and the id counter, bit for bit (checkpoints).
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
+
   /// Changes a radius keeping the density (mass and inertia follow). Call
   /// Simulation::invalidate() afterwards.
   void set_radius(std::size_t i, double r);

@@ -117,4 +117,34 @@ void WallContacts::resize(std::size_t n) {
   }
 }
 
+void Walls::save_state(StateWriter& out) const {
+  out.tag("walls");
+  for (const WallConfig& c : cfg_) out.put(c);
+  for (const WallState& st : st_) out.put(st);
+}
+
+void Walls::load_state(StateReader& in) {
+  in.tag("walls");
+  for (WallConfig& c : cfg_) in.get(c);
+  for (WallState& st : st_) in.get(st);
+}
+
+void WallContacts::save_state(StateWriter& out) const {
+  out.tag("wall_contacts");
+  out.put(particle);
+  out.put(wall);
+  for (const auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
+    out.put(*a);
+  }
+}
+
+void WallContacts::load_state(StateReader& in) {
+  in.tag("wall_contacts");
+  in.get(particle);
+  in.get(wall);
+  for (auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
+    in.get(*a);
+  }
+}
+
 }  // namespace crushdem

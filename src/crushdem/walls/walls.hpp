@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
@@ -84,6 +85,9 @@ class Walls {
   void move(double dt);
   double max_displacement_since_build() const;
   void reset_displacements();
+  /// Modes, targets, positions, velocities and servo state, bit for bit (checkpoints).
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 
  private:
   std::array<WallConfig, kNumWalls> cfg_{};
@@ -101,6 +105,8 @@ struct WallContacts {
 
   std::size_t size() const { return particle.size(); }
   void resize(std::size_t n);
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
 };
 
 }  // namespace crushdem

@@ -1,0 +1,203 @@
+// Checkpoint and resume (issue 5): the saved state is complete, so a run continued from it gives
+// bit-identical results, and a run stopped on request and resumed writes the same files as an
+// uninterrupted one. (The SIGKILL case, through the command line, is in tests/python.)
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+#include "crushdem/fracture/crushing.hpp"
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/runner.hpp"
+#include "crushdem/io/toml.hpp"
+#include "crushdem/particles/generate.hpp"
+
+namespace crushdem {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+// 300 grains squeezed by servo walls, weak enough to break, with crack growth: then a creep
+// stage (servo walls during dynamic phases) with off-DEM ageing jumps.
+const char* kConfig = R"(
+[contact]
+law = "rough"
+[box]
+min = [0.0, 0.0, 0.0]
+max = [1.25e-3, 1.25e-3, 1.25e-3]
+[particles.generate]
+count = 300
+diameter_min = 0.06e-3
+diameter_max = 0.2e-3
+seed = 3
+[crushing]
+sigma_lim0 = 3e8
+d_min = 0.05e-3
+seed = 5
+crack_growth = true
+[[stage]]
+type = "hold"
+axial = "servo"
+axial_stress = 2e6
+lateral = "servo"
+lateral_stress = 2e6
+max_strain_rate = 3000.0
+steps = 25000
+[[stage]]
+type = "age"
+axial = "servo"
+axial_stress = 2e6
+lateral = "servo"
+lateral_stress = 2e6
+duration = 86400.0
+min_cycles = 1500
+n_break = 3
+record_interval = 500
+[output]
+interval = 500
+vtk_interval = 6000
+progress_seconds = 0
+checkpoint_seconds = 0
+)";
+
+RunConfig config(const fs::path& base) {
+  return run_config_from_toml(toml::parse(kConfig, "test"), "test", base.string());
+}
+
+TEST(Checkpoint, ASavedSimulationContinuesBitForBit) {
+  const fs::path base = fs::temp_directory_path() / "crushdem_checkpoint_sim";
+  const RunConfig cfg = config(base);
+  auto build = [&](Simulation& sim) {
+    add_configured_particles(sim, cfg);
+    auto crusher = std::make_unique<Crusher>(cfg.crushing, SplitPattern::default14());
+    crusher->begin(sim);
+    return crusher;
+  };
+  Simulation a(cfg.simulation);
+  auto ca = build(a);
+  for (int k = 0; k < kNumWalls; ++k) {
+    a.walls().config(k).mode = WallMode::Servo;
+    a.walls().config(k).target_stress = 2e6;
+    a.walls().config(k).max_speed = 2.0;
+  }
+  auto advance = [](Simulation& sim, Crusher& c, int n) {
+    for (int s = 0; s < n; ++s) {
+      sim.step(1);
+      if (!c.apply(sim).empty()) sim.compute_forces();
+    }
+  };
+  advance(a, *ca, 25000);
+  ASSERT_GT(ca->breakages(BreakCause::Instant), 0u) << "nothing broke: the test is too gentle";
+
+  StateWriter out;
+  a.save_state(out);
+  ca->save_state(out);
+  Simulation b(cfg.simulation);
+  Crusher cb(cfg.crushing, SplitPattern::default14());
+  StateReader in(out.bytes(), "memory");
+  b.load_state(in);
+  cb.load_state(in);
+  EXPECT_TRUE(in.at_end());
+
+  advance(a, *ca, 3000);
+  advance(b, cb, 3000);
+  const ParticleStore &pa = a.particles(), &pb = b.particles();
+  ASSERT_EQ(pa.size(), pb.size());
+  EXPECT_EQ(pa.id, pb.id);
+  EXPECT_EQ(pa.x, pb.x);  // exact equality, every coordinate
+  EXPECT_EQ(pa.y, pb.y);
+  EXPECT_EQ(pa.z, pb.z);
+  EXPECT_EQ(pa.wz, pb.wz);
+  EXPECT_EQ(a.time(), b.time());
+  EXPECT_EQ(a.walls().position(5), b.walls().position(5));
+  EXPECT_EQ(ca->breakages(BreakCause::Instant), cb.breakages(BreakCause::Instant));
+  EXPECT_EQ(ca->removed_volume(), cb.removed_volume());
+  const std::size_t crack = ca->crack_field();
+  // Bit for bit (grains that cannot crack hold NaN).
+  const std::vector<double>&fa = pa.field(crack), &fb = pb.field(crack);
+  ASSERT_EQ(fa.size(), fb.size());
+  EXPECT_EQ(std::memcmp(fa.data(), fb.data(), fa.size() * sizeof(double)), 0);
+}
+
+TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
+  const fs::path base = fs::temp_directory_path() / "crushdem_checkpoint_run";
+  fs::remove_all(base);
+  const RunConfig cfg = config(base);
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (base / "whole").string();
+  run_to_directory(cfg, opt);
+
+  // The same run, asked to stop while it runs (as SIGINT does), then resumed.
+  opt.out_dir = (base / "stopped").string();
+  std::thread stopper([] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    request_stop(SIGINT);
+  });
+  bool interrupted = false;
+  try {
+    run_to_directory(cfg, opt);
+  } catch (const Interrupted& e) {
+    interrupted = true;
+    EXPECT_EQ(e.signal(), SIGINT);
+  }
+  stopper.join();
+  ASSERT_TRUE(interrupted) << "the run ended before the stop request: make it longer";
+  ASSERT_TRUE(fs::exists(base / "stopped" / "checkpoint.bin"));
+  ASSERT_FALSE(fs::exists(base / "stopped" / "summary.json"));
+  resume_directory((base / "stopped").string(), opt);
+  EXPECT_FALSE(fs::exists(base / "stopped" / "checkpoint.bin")) << "kept after the run ended";
+
+  std::size_t compared = 0;
+  for (const auto& e : fs::recursive_directory_iterator(base / "whole")) {
+    if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
+    const fs::path other = base / "stopped" / fs::relative(e.path(), base / "whole");
+    EXPECT_TRUE(fs::exists(other)) << other;
+    EXPECT_EQ(slurp(e.path()), slurp(other)) << "differs: " << fs::relative(e.path(), base);
+    ++compared;
+  }
+  // config, timeseries, summary, breakage, grading, events, phases and the snapshots.
+  EXPECT_GE(compared, 9u);
+  const std::string events = slurp(base / "whole" / "events.csv");
+  EXPECT_GE(std::count(events.begin(), events.end(), '\n'), 3) << "too few dynamic phases";
+  fs::remove_all(base);
+}
+
+TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
+  const fs::path base = fs::temp_directory_path() / "crushdem_checkpoint_refuse";
+  fs::remove_all(base);
+  fs::create_directories(base);
+  RunOptions opt;
+  opt.progress = false;
+  EXPECT_THROW(resume_directory((base / "nothing").string(), opt), ConfigError);
+  // A finished run has no checkpoint left.
+  RunConfig cfg = config(base);
+  cfg.stages.resize(1);
+  cfg.stages[0].steps = 200;
+  opt.out_dir = (base / "done").string();
+  run_to_directory(cfg, opt);
+  try {
+    resume_directory(opt.out_dir, opt);
+    ADD_FAILURE() << "resumed a finished run";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("finished"), std::string::npos) << e.what();
+  }
+  fs::remove_all(base);
+}
+
+}  // namespace
+}  // namespace crushdem
