@@ -67,6 +67,7 @@ duration = 86400.0
 min_cycles = 1500
 n_break = 3
 record_interval = 500
+max_strain_rate = 3000.0
 [output]
 interval = 500
 vtk_interval = 6000

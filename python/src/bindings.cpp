@@ -485,6 +485,26 @@ NB_MODULE(_core, m) {
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`.");
   m.def(
+      "resume",
+      [](const std::string& out, bool progress) {
+        RunOptions opt;
+        opt.progress = progress;
+        RunSummary s;
+        {
+          nb::gil_scoped_release release;
+          s = resume_directory(out, opt);
+        }
+        nb::dict d;
+        d["steps"] = s.steps;
+        d["time"] = s.time;
+        d["wall_seconds"] = s.wall_seconds;
+        d["particles"] = s.particles;
+        return d;
+      },
+      "out"_a, "progress"_a = true,
+      "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
+      "the files come out as those of an uninterrupted run.");
+  m.def(
       "resolved_run_config",
       [](nb::dict config, const std::string& base_dir) {
         return toml::serialize(

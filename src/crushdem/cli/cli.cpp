@@ -115,7 +115,8 @@ const char* kUsage =
     "usage: crushdem <command> [options]\n"
     "  run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]\n"
     "                                            run a simulation described by a TOML file\n"
-    "  resume DIR [--threads N]                  continue an interrupted run from DIR/checkpoint.bin\n"
+    "  resume DIR [--threads N]                  continue an interrupted run from "
+    "DIR/checkpoint.bin\n"
     "  check CONFIG.toml                         validate a configuration without running\n"
     "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
     "        [--state-out FILE] [--backend cpu|cuda]  peer reference benchmark\n";

@@ -49,8 +49,7 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out)
     const RunSummary s = go();
     std::printf(
         "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
-        static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds,
-        out.c_str());
+        static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds, out.c_str());
     return 0;
   } catch (const Interrupted& e) {
     std::fprintf(stderr,

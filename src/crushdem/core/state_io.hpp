@@ -70,7 +70,8 @@ class StateReader {
     static_assert(std::is_trivially_copyable_v<T>, "get() reads vectors of plain values");
     std::uint64_t n = 0;
     get(n);
-    if (n > (buf_.size() - pos_) / (sizeof(T) > 0 ? sizeof(T) : 1)) fail("array length");
+    constexpr std::size_t kSize = sizeof(T);  // never 0 for a complete type
+    if (n > (buf_.size() - pos_) / kSize) fail("array length");
     v.resize(n);
     if (n > 0) {
       std::memcpy(v.data(), buf_.data() + pos_, n * sizeof(T));

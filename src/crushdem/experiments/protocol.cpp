@@ -553,10 +553,10 @@ void StageController::save_state(StateWriter& out) const {
   }
   out.put(res_.steps);
   out.put(res_.dynamic_phases);
-  for (const double v : {res_.q_max, res_.axial_strain_at_q_max, res_.sigma_3_at_q_max,
-                         res_.friction_angle_deg, res_.K0, res_.max_inertial_number,
-                         res_.max_lateral_stress_error, res_.max_lateral_strain,
-                         res_.ageing_time}) {
+  for (const double v :
+       {res_.q_max, res_.axial_strain_at_q_max, res_.sigma_3_at_q_max, res_.friction_angle_deg,
+        res_.K0, res_.max_inertial_number, res_.max_lateral_stress_error, res_.max_lateral_strain,
+        res_.ageing_time}) {
     out.put(v);
   }
 }
@@ -577,8 +577,7 @@ void StageController::load_state(StateReader& in) {
   in.get(res_.dynamic_phases);
   for (double* v : {&res_.q_max, &res_.axial_strain_at_q_max, &res_.sigma_3_at_q_max,
                     &res_.friction_angle_deg, &res_.K0, &res_.max_inertial_number,
-                    &res_.max_lateral_stress_error, &res_.max_lateral_strain,
-                    &res_.ageing_time}) {
+                    &res_.max_lateral_stress_error, &res_.max_lateral_strain, &res_.ageing_time}) {
     in.get(*v);
   }
 }

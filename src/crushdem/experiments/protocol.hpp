@@ -81,9 +81,9 @@ struct StageConfig {
   double axial_stress = 0.0;      // [Pa] for axial = "servo"
   double lateral_stress = 0.0;    // [Pa] for lateral = "servo"
   std::uint64_t steps = 0;
-  double duration = 0.0;              // [s]
-  std::uint64_t min_cycles = 150000;  // age: steps per dynamic phase (STUDY)
-  std::uint64_t n_break = 30;         // age: grains brought to failure per jump (STUDY)
+  double duration = 0.0;                 // [s]
+  std::uint64_t min_cycles = 150000;     // age: steps per dynamic phase (STUDY)
+  std::uint64_t n_break = 30;            // age: grains brought to failure per jump (STUDY)
   std::uint64_t record_interval = 1000;  // age: steps between rows of phases.csv within a phase
   // Equilibrium (isotropic, servo oedometric) and limits.
   double tolerance = 0.002;      // every servo wall within this relative error of its target

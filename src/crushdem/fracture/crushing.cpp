@@ -307,8 +307,8 @@ void Crusher::save_state(StateWriter& out) const {
   out.put(crack_rng_.engine_state());
   out.put(static_cast<std::uint64_t>(strength_field_));
   out.put(static_cast<std::uint64_t>(crack_field_));
-  for (const double v : {last_check_time_, d0_, d_c_, d50_, d_ref_, rho_, removed_volume_,
-                         removed_mass_}) {
+  for (const double v :
+       {last_check_time_, d0_, d_c_, d50_, d_ref_, rho_, removed_volume_, removed_mass_}) {
     out.put(v);
   }
   out.put(initial_d_);
@@ -323,8 +323,8 @@ void Crusher::load_state(StateReader& in) {
   in.get(crack_rng_.engine());
   strength_field_ = static_cast<std::size_t>(in.value<std::uint64_t>());
   crack_field_ = static_cast<std::size_t>(in.value<std::uint64_t>());
-  for (double* v : {&last_check_time_, &d0_, &d_c_, &d50_, &d_ref_, &rho_, &removed_volume_,
-                    &removed_mass_}) {
+  for (double* v :
+       {&last_check_time_, &d0_, &d_c_, &d50_, &d_ref_, &rho_, &removed_volume_, &removed_mass_}) {
     in.get(*v);
   }
   in.get(initial_d_);

@@ -311,10 +311,9 @@ void read_stage(Section& s, StageConfig& c) {
     }
     return false;
   };
-  for (const char* k :
-       {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial", "lateral",
-        "axial_stress", "lateral_stress", "steps", "duration", "min_cycles", "n_break",
-        "record_interval"}) {
+  for (const char* k : {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial",
+                        "lateral", "axial_stress", "lateral_stress", "steps", "duration",
+                        "min_cycles", "n_break", "record_interval"}) {
     if (s.has(k) && !uses(k)) {
       throw ConfigError(
           bad_value(s.key(k), "given", std::string("no '") + k + "' in a \"" + type + "\" stage"));

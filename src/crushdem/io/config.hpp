@@ -33,9 +33,9 @@ struct ParticlesConfig {
 };
 
 struct OutputConfig {
-  std::uint64_t interval = 1000;   // steps between rows of timeseries.csv
-  std::uint64_t vtk_interval = 0;  // steps between VTK snapshots (0 = first and last only)
-  double progress_seconds = 2.0;   // wall-clock seconds between progress lines
+  std::uint64_t interval = 1000;      // steps between rows of timeseries.csv
+  std::uint64_t vtk_interval = 0;     // steps between VTK snapshots (0 = first and last only)
+  double progress_seconds = 2.0;      // wall-clock seconds between progress lines
   double checkpoint_seconds = 600.0;  // wall-clock seconds between periodic checkpoints (0: at
                                       // events and stage ends only)
   void validate() const;

@@ -431,8 +431,8 @@ void write_checkpoint_file(const std::filesystem::path& dir, const std::string& 
   }
   std::error_code ec;
   std::filesystem::rename(tmp, final_path, ec);
-  if (ec) throw RuntimeFailure("cannot write checkpoint '" + final_path.string() + "': " +
-                               ec.message());
+  if (ec)
+    throw RuntimeFailure("cannot write checkpoint '" + final_path.string() + "': " + ec.message());
 }
 
 }  // namespace
