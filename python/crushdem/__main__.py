@@ -1,6 +1,8 @@
-"""The ``crushdem`` command: the C++ command line (run, check, bench, ...) plus ``plot``.
+"""The ``crushdem`` command: the C++ command line (run, check, bench, ...) plus ``plot`` and
+``reproduce``.
 
-``crushdem plot DIR`` draws the time series of a finished run; every other command is handed to
+``crushdem plot DIR`` draws the time series of a finished run; ``crushdem reproduce --out DIR``
+runs the reference study's section 3 and draws its figures; every other command is handed to
 the same C++ front end as the standalone executable.
 """
 
@@ -10,6 +12,8 @@ import sys
 from typing import List, Optional
 
 _PLOT_USAGE = f"{'  plot DIR':<44}draw DIR/timeseries.csv as PNG figures\n"
+_REPRODUCE_USAGE = (f"{'  reproduce --out DIR [--quick] [--threads N]'}\n"
+                    f"{'':<44}run the study's section 3, draw its figures\n")
 
 
 def main(argv: Optional[List[str]] = None) -> None:
@@ -19,6 +23,10 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import plot
 
         sys.exit(plot.main(args[1:]))
+    if args and args[0] == "reproduce":
+        from . import reproduce
+
+        sys.exit(reproduce.main(args[1:]))
 
     from . import _core
 
@@ -28,7 +36,7 @@ def main(argv: Optional[List[str]] = None) -> None:
     sys.stderr.flush()
     rc = _core.cli_main(args)
     if not args or args[0] in ("-h", "--help", "help"):
-        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE)
+        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE + _REPRODUCE_USAGE)
     sys.exit(rc)
 
 

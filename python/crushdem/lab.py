@@ -159,17 +159,19 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
                           duration: float = 86400.0, strain_rate: float = 10.0,
                           min_cycles: int = 150000, n_break: int = 30,
                           progress: bool = False, stage: Optional[Mapping[str, Any]] = None,
+                          age_stage: Optional[Mapping[str, Any]] = None,
                           **sections: Any) -> Result:
     """Oedometric stress relaxation (study section 3.1): load to the vertical ``stress`` with
     crushing on, fix the walls, age for ``duration`` seconds of ageing time with the on-off
-    scheme. ``crushing`` keys pass through (crack growth is turned on)."""
+    scheme. ``crushing`` keys pass through (crack growth is turned on). ``age_stage``: keys for
+    the age stage only (e.g. ``max_strain_rate``), on top of the common ``stage`` keys."""
     common = stage or {}
     _crushing_with_cracks(sections)
     cfg = _base(sample, sections)
     cfg["stage"] = [
         _stage("oedometric", "loading", common, stress=stress, strain_rate=strain_rate),
-        _stage("age", "relaxation", common, duration=duration, min_cycles=min_cycles,
-               n_break=n_break),
+        _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
+               min_cycles=min_cycles, n_break=n_break),
     ]
     return run(cfg, out, progress=progress)
 
@@ -177,17 +179,18 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
 def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                duration: float = 86400.0, strain_rate: float = 10.0, min_cycles: int = 150000,
                n_break: int = 30, progress: bool = False,
-               stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
+               stage: Optional[Mapping[str, Any]] = None,
+               age_stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Oedometric creep: load to the vertical ``stress``, then hold it by servo control of the
     top wall during every dynamic phase while the sample ages; the axial strain against ageing
-    time is the creep curve (``events.csv``)."""
+    time is the creep curve (``events.csv``). ``age_stage``: keys for the age stage only."""
     common = stage or {}
     _crushing_with_cracks(sections)
     cfg = _base(sample, sections)
     cfg["stage"] = [
         _stage("oedometric", "loading", common, stress=stress, strain_rate=strain_rate),
-        _stage("age", "creep", common, duration=duration, min_cycles=min_cycles, n_break=n_break,
-               axial="servo", axial_stress=stress),
+        _stage("age", "creep", {**common, **(age_stage or {})}, duration=duration,
+               min_cycles=min_cycles, n_break=n_break, axial="servo", axial_stress=stress),
     ]
     return run(cfg, out, progress=progress)
 
@@ -196,10 +199,14 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
                         stop_q: float, duration: float = 86400.0, strain_rate: float = 50.0,
                         axial_strain: float = 0.30, min_cycles: int = 150000,
                         n_break: int = 30, progress: bool = False,
-                        stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
+                        stage: Optional[Mapping[str, Any]] = None,
+                        age_stage: Optional[Mapping[str, Any]] = None,
+                        **sections: Any) -> Result:
     """Triaxial stress relaxation (study section 3.2): isotropic compression to ``sigma_3``,
     shear until q reaches ``stop_q`` (e.g. 0.7 q_max), then hold the axial strain with the
-    lateral walls servo-controlled at ``sigma_3`` during dynamic phases, and age."""
+    lateral walls servo-controlled at ``sigma_3`` during dynamic phases, and age.
+    ``age_stage``: keys for the age stage only (e.g. a faster lateral servo,
+    ``max_strain_rate``, which the other stages must not get)."""
     common = stage or {}
     _crushing_with_cracks(sections)
     cfg = _base(sample, sections)
@@ -207,7 +214,8 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
         _stage("isotropic", "isotropic", common, stress=sigma_3),
         _stage("triaxial", "shear", common, sigma_3=sigma_3, strain_rate=strain_rate,
                axial_strain=axial_strain, stop_q=stop_q),
-        _stage("age", "relaxation", common, duration=duration, min_cycles=min_cycles,
-               n_break=n_break, axial="fixed", lateral="servo", lateral_stress=sigma_3),
+        _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
+               min_cycles=min_cycles, n_break=n_break, axial="fixed", lateral="servo",
+               lateral_stress=sigma_3),
     ]
     return run(cfg, out, progress=progress)

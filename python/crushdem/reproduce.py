@@ -1,0 +1,891 @@
+"""``crushdem reproduce --out DIR [--quick] [--threads N]``: the reference study's section 3
+(stress relaxation of a crushable quartz sand) run end to end, with its four figures.
+
+The study (../shared/seeds, section 3; model-notes 4.4 and 4.5) has one sample and three tests:
+
+* an oedometric stress relaxation: load to sigma_v = 7.5 MPa with crushing on, fix the walls,
+  age one day with the on-off scheme (dynamic phases of ``min_cycles`` steps alternating with
+  off-DEM jumps that bring ``n_break`` grains to failure);
+* a drained triaxial shear at sigma_3 = 10 MPa to 30 % axial strain, only to find q_max;
+* a triaxial stress relaxation: the same shear stopped at q = 0.7 q_max, then the axial strain
+  held (lateral walls servo-controlled at 10 MPa during dynamic phases) for one day of ageing.
+
+Each run is an ordinary run directory under DIR (``sample/``, ``oedometric_relaxation/``,
+``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem.lab`, so
+``crushdem plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
+(written last, when a run finishes) is not run again: a re-invocation after an interruption goes
+on where it stopped (an interrupted run continues from its ``checkpoint.bin`` when this build
+has ``_core.resume``, otherwise it starts over). ``DIR/settings.json`` records the settings of
+the first invocation; a later one with other settings (``--quick`` against the study scale,
+another ``--sample``) stops rather than mixing results.
+
+Figures (PNG, with the CSV of what each draws; ``#`` lines at the top of a CSV say how it was
+computed), all against the ageing time t (the relaxation clock, off-DEM jumps only) on a log axis,
+one point per dynamic phase (the study's red dots):
+
+* ``fig1_oedometric_relaxation``  sigma_v(t) / sigma_v(4 s), sigma_v = mean of the two axial wall
+  stresses. sigma_v(4 s) is interpolated linearly in log t between the phases on either side of
+  4 s; when the first phase after t = 0 is already later than 4 s (the first jumps can be long),
+  linearly in t between the t = 0 phase and that one (the CSV header says which).
+* ``fig2_dynamic_phase4``  during the 4th dynamic phase of the triaxial relaxation: (a) the
+  confining pressure fluctuation and (b) the volumetric strain generated, against the cycles of
+  the phase, from the run's ``phases.csv`` (one row every ``record_interval`` steps of each
+  phase). Left out, with a message, when the run has no ``phases.csv`` or fewer than 4 phases.
+* ``fig3_triaxial_relaxation``  q against t with the straight line q = a + b log10 t fitted to
+  the phases with t > 0 (b: the change of q per log cycle; R^2).
+* ``fig4_force_statistics``  standard deviations of |F_n| (a) and |F_t| (b) over grain-grain
+  contacts, triaxial and oedometric relaxation.
+
+``DIR/reproduce.json`` holds the key numbers (sigma_v ratios at 1 h and 1 day, q_max, the fit,
+phases, breakages, grains, wall-clock time of each run); a table of them is printed at the end.
+
+``--quick`` runs the same pipeline on a 500-grain sample (e = 0.75: a cube that small packs
+looser, docs/laboratory-tests.md) with short dynamic phases, to check the pipeline in a few
+minutes; its numbers are not the study's.
+
+Threads: ``_core.run`` has no thread argument and OpenMP reads OMP_NUM_THREADS only when its
+runtime loads, which happens when ``crushdem`` is imported (before this module runs). ``--threads``
+therefore calls ``omp_set_num_threads`` of the OpenMP runtime already loaded by ``_core`` (through
+ctypes); each run's ``timing.json`` records the count used. Results do not depend on it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import ctypes
+import json
+import math
+import os
+import sys
+import time
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .plot import (DAY_S, HOUR_S, MPA, _has, _num, _vertical_stress, read_events,
+                   read_summary, read_timeseries)
+
+T_REF_S = 4.0          # the study normalises sigma_v by its value at 4 s of ageing
+FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
+RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
+
+# Table 1 of the study (model-notes 1-3); the crushing keys are those of examples/*crushing.toml.
+MATERIAL = {"density": 2650.0, "shear_modulus": 32e9, "poisson_ratio": 0.19, "friction": 0.275}
+CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
+NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e-3],
+        "passing": [0.0, 0.10, 0.30, 0.50, 0.70, 0.90, 1.0]}
+# density_scaling as in examples/relaxation_small.toml and the runs of docs/crushing.md: the
+# fragments keep the initial time step (14-fragment splitting would lower it about five times,
+# which a one-day relaxation of 150,000-cycle phases cannot afford); only inertia changes, and the
+# inertial number is reported per stage.
+CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distribution": "normal",
+            "r_prime": "R_star", "dc_ratio": 0.55, "d_min": 0.01e-3, "crack_growth": True,
+            "v0": 0.1, "n": 60.0, "density_scaling": True}
+
+
+def settings(quick: bool) -> Dict[str, Any]:
+    """The parameters of every run, study scale or ``--quick``, as one JSON-able dict."""
+    s: Dict[str, Any] = {
+        "mode": "quick" if quick else "study",
+        "material": dict(MATERIAL),
+        "contact": dict(CONTACT),
+        "crushing": dict(CRUSHING),
+        "sample": {"side": 4e-3, "void_ratio": 0.65, "seed": 1, "stress": 100e3,
+                   "grading": NE34},
+        "oedometric": {"stress": 7.5e6, "strain_rate": 10.0},
+        "triaxial": {"sigma_3": 10e6, "strain_rate": 50.0, "axial_strain": 0.30},
+        "relaxation": {"q_fraction": 0.7},
+        # The study: dynamic phases of at least 150,000 cycles, N_break = 30, one day.
+        "age": {"duration": 86400.0, "min_cycles": 150000, "n_break": 30},
+        "age_stage": {},
+        "record_interval": None,  # phases.csv rows: the C++ default (1000 steps)
+        "output": {"interval": 20000, "progress_seconds": 60},
+    }
+    if quick:
+        s["sample"] = {"count": 500, "void_ratio": 0.75, "seed": 3, "stress": 100e3,
+                       "grading": NE34}
+        # Faster loading and shearing: the inertial number stays below 1e-3 (about 8.6e-4 and
+        # 7e-4, reported in summary.json); shear to 15 % only (q still rises slowly there).
+        s["oedometric"]["strain_rate"] = 25.0
+        s["triaxial"].update(strain_rate=100.0, axial_strain=0.15)
+        s["age"].update(min_cycles=10000, n_break=3)
+        # A phase must be long enough for the lateral servo to restore sigma_3 after the grains
+        # of a jump break; the quick sample needs a few tenths of a percent of lateral strain.
+        # At the default limit (10 /s) a 10,000-cycle phase (dt about 6.6e-9 s) allows 0.07 %
+        # (the study's 150,000 cycles about 1 %); with 3,000 cycles even 100 /s left the walls at
+        # their limit for the whole phase and sigma_3 16 % low. Hence 10,000 cycles and 100 /s
+        # (inertial number below 4e-4), in the age stage only.
+        s["age_stage"] = {"max_strain_rate": 100.0}
+        s["record_interval"] = 500
+        s["output"] = {"interval": 1000, "progress_seconds": 0}
+    return s
+
+
+# ----------------------------------------------------------------------------------------------
+# Analysis: pure functions on arrays (tested on synthetic data).
+
+
+def value_at(t: np.ndarray, y: np.ndarray, t_target: float) -> Tuple[float, str]:
+    """y at ageing time ``t_target`` from one value per dynamic phase, and how it was found.
+
+    Between two phases with t > 0 the value is interpolated linearly in log t (the curves are
+    near straight there). Before the first phase with t > 0 log t has no left end, so the value
+    is interpolated linearly in t from the t = 0 phase. Beyond the last phase it is NaN (the
+    curve is not extrapolated).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    keep = np.isfinite(t) & np.isfinite(y)
+    t, y = t[keep], y[keep]
+    if t.size == 0 or not (math.isfinite(t_target) and t_target > 0):
+        return math.nan, "no data"
+    order = np.argsort(t, kind="stable")
+    t, y = t[order], y[order]
+    exact = np.flatnonzero(t == t_target)
+    if exact.size:
+        return float(y[exact[0]]), "exact"
+    if t_target > t[-1]:
+        return math.nan, f"beyond the last phase (t = {t[-1]:.6g} s)"
+    pos = np.flatnonzero(t > 0)
+    if pos.size and t_target > t[pos[0]]:
+        j = int(np.searchsorted(t, t_target))  # t[j-1] < t_target < t[j], both > 0
+        lt0, lt1 = math.log(t[j - 1]), math.log(t[j])
+        w = (math.log(t_target) - lt0) / (lt1 - lt0)
+        return float(y[j - 1] + w * (y[j] - y[j - 1])), (
+            f"linear in log t between phases at t = {t[j - 1]:.6g} s and {t[j]:.6g} s")
+    zero = np.flatnonzero(t <= 0)
+    if not zero.size or not pos.size:
+        return math.nan, "no phase at t = 0 before the first phase with t > 0"
+    i0, i1 = int(zero[-1]), int(pos[0])
+    w = (t_target - t[i0]) / (t[i1] - t[i0])
+    return float(y[i0] + w * (y[i1] - y[i0])), (
+        f"linear in t between the t = 0 phase and the first later phase at t = {t[i1]:.6g} s "
+        f"(> {t_target:g} s)")
+
+
+def fit_log_t(t: np.ndarray, y: np.ndarray) -> Dict[str, float]:
+    """Least-squares line y = intercept + slope log10(t) over the points with t > 0.
+
+    ``slope`` is the change of y per log cycle (per factor 10 of ageing time); ``r2`` the
+    coefficient of determination (NaN with fewer than 3 points: two always fit exactly).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    keep = np.isfinite(t) & np.isfinite(y) & (t > 0)
+    x, y = np.log10(t[keep]), y[keep]
+    out = {"slope": math.nan, "intercept": math.nan, "r2": math.nan, "points": int(x.size)}
+    if x.size < 2 or np.ptp(x) == 0:
+        return out
+    slope, intercept = np.polyfit(x, y, 1)
+    out["slope"], out["intercept"] = float(slope), float(intercept)
+    if x.size >= 3:
+        ss_res = float(np.sum((y - (intercept + slope * x)) ** 2))
+        ss_tot = float(np.sum((y - y.mean()) ** 2))
+        out["r2"] = 1.0 - ss_res / ss_tot if ss_tot > 0 else math.nan
+    return out
+
+
+def _age_rows(ev: Dict[str, np.ndarray]) -> np.ndarray:
+    """Row indices of the first age stage in events.csv / phases.csv, in ageing-time order."""
+    n = len(next(iter(ev.values()))) if ev else 0
+    idx = np.arange(n)
+    if _has(ev, "stage"):
+        st = ev["stage"]
+        idx = np.flatnonzero(st == np.nanmin(st))
+    if _has(ev, "ageing_time_s"):
+        idx = idx[np.isfinite(ev["ageing_time_s"][idx])]
+        idx = idx[np.argsort(ev["ageing_time_s"][idx], kind="stable")]
+    return idx
+
+
+def _col(d: Dict[str, np.ndarray], name: str, idx: np.ndarray) -> np.ndarray:
+    """A column on rows ``idx`` (NaN when the column is missing)."""
+    return d[name][idx] if name in d else np.full(idx.size, math.nan)
+
+
+def _lateral_stress(d: Dict[str, np.ndarray]) -> Optional[np.ndarray]:
+    """sigma_h: mean of the four lateral wall stresses [Pa] (whichever exist)."""
+    cols = [d[f"wall_{w}_stress_Pa"] for w in ("xmin", "xmax", "ymin", "ymax")
+            if _has(d, f"wall_{w}_stress_Pa")]
+    if not cols:
+        return None
+    with np.errstate(all="ignore"):
+        return np.nanmean(np.vstack(cols), axis=0)
+
+
+def _write_csv(path: str, comments: Sequence[str], columns: Mapping[str, Sequence[Any]]) -> None:
+    """A CSV with ``#`` comment lines first (read_timeseries skips them), then a header row."""
+    names = list(columns)
+    n = max((len(v) for v in columns.values()), default=0)
+    with open(path, "w", newline="") as f:
+        for c in comments:
+            f.write(f"# {c}\n")
+        w = csv.writer(f)
+        w.writerow(names)
+        for i in range(n):
+            row = []
+            for name in names:
+                v = columns[name][i]
+                if isinstance(v, (float, np.floating)):
+                    row.append("" if not math.isfinite(float(v)) else repr(float(v)))
+                elif isinstance(v, (int, np.integer)):
+                    row.append(str(int(v)))
+                else:
+                    row.append(str(v))
+            w.writerow(row)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str, written: List[str]) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    written.append(path)
+
+
+def _mark_times(ax, marks: Sequence[Tuple[float, str]]) -> None:
+    """Dotted vertical lines (with labels) at the given times, where inside the x range."""
+    lo, hi = ax.get_xlim()
+    for x, text in marks:
+        if lo <= x <= hi * 1.0001:
+            ax.axvline(x, color="0.35", ls=":", lw=1.2)
+            ax.text(x, 0.97, f"{text} ", transform=ax.get_xaxis_transform(), rotation=90,
+                    ha="right", va="top", fontsize=8, color="0.25",
+                    bbox=dict(facecolor="white", alpha=0.7, lw=0, pad=1))
+    ax.set_xlim(lo, hi)
+
+
+def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[str, Any]:
+    """fig1_oedometric_relaxation.{png,csv} from ``run_dir``/events.csv; returns its numbers."""
+    ev = read_events(run_dir)
+    if ev is None or not _has(ev, "ageing_time_s"):
+        raise ValueError(f"{run_dir}: no events.csv with ageing_time_s (no age stage ran?)")
+    idx = _age_rows(ev)
+    sigma_v = _vertical_stress(ev)
+    if sigma_v is None:
+        raise ValueError(f"{run_dir}/events.csv: no axial wall stress column")
+    t, s = ev["ageing_time_s"][idx], sigma_v[idx]
+    s_ref, how = value_at(t, s, T_REF_S)
+    ratio = s / s_ref if math.isfinite(s_ref) and s_ref != 0 else np.full(s.size, math.nan)
+    r_1h, how_1h = value_at(t, ratio, HOUR_S)
+    r_1d, how_1d = value_at(t, ratio, DAY_S)
+    base = os.path.join(out_dir, "fig1_oedometric_relaxation")
+    _write_csv(base + ".csv", [
+        "Oedometric stress relaxation (study Figure 1): one row per dynamic phase.",
+        "sigma_v = mean of the zmin and zmax wall stresses at the end of the phase; "
+        "sigma_v_ratio = sigma_v / sigma_v(4 s).",
+        f"sigma_v(4 s) = {s_ref!r} Pa: {how}.",
+        f"ratio at 1 h = {r_1h!r} ({how_1h}); at 1 day = {r_1d!r} ({how_1d}).",
+        f"source: {os.path.join(run_dir, 'events.csv')}",
+    ], {
+        "dynamic_phase": _col(ev, "dynamic_phase", idx).astype(np.int64)
+        if _has(ev, "dynamic_phase") else np.arange(idx.size),
+        "ageing_time_s": t,
+        "sigma_v_Pa": s,
+        "sigma_v_ratio": ratio,
+        "sigma_v_over_first_phase": s / s[0] if s.size and s[0] else np.full(s.size, math.nan),
+        "breakages_instant": _col(ev, "breakages_instant", idx),
+        "breakages_crack": _col(ev, "breakages_crack", idx),
+        "n_particles": _col(ev, "n_particles", idx),
+    })
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.8))
+    pos = t > 0
+    ax.semilogx(t[pos], ratio[pos], "-", color="0.3", lw=1.2, zorder=1, label="DEM")
+    ax.semilogx(t[pos], ratio[pos], "o", color="red", ms=5, zorder=2,
+                label="dynamic phases (end)")
+    if math.isfinite(s_ref):
+        ax.plot([T_REF_S], [1.0], "s", mfc="none", mec="k", ms=7,
+                label=f"$\\sigma_v$(4 s) = {s_ref * MPA:.3g} MPa")
+    ax.errorbar([DAY_S], [0.835], yerr=[[0.135], [0.135]], fmt="none", ecolor="tab:blue",
+                capsize=4, lw=1.5, label="plausible band at 1 day (model-notes 4.4)")
+    ax.axhline(1.0, color="0.6", lw=0.8)
+    ax.set_xlabel("ageing time $t$ [s] (log scale)")
+    ax.set_ylabel("$\\sigma_v(t) / \\sigma_v(4\\,\\mathrm{s})$ [-]")
+    ax.set_title("Oedometric stress relaxation from $\\sigma_v$ = "
+                 f"{s[0] * MPA:.3g} MPa" if s.size else "Oedometric stress relaxation")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, loc="lower left")
+    _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+    _save(fig, base + ".png", written)
+    plt.close(fig)
+    return {"sigma_v_start_Pa": float(s[0]) if s.size else math.nan,
+            "sigma_v_4s_Pa": s_ref, "sigma_v_4s_method": how,
+            "sigma_v_ratio_1h": r_1h, "sigma_v_ratio_1h_method": how_1h,
+            "sigma_v_ratio_1day": r_1d, "sigma_v_ratio_1day_method": how_1d,
+            "sigma_v_ratio_end": float(ratio[-1]) if ratio.size else math.nan}
+
+
+def read_phases(run_dir: str) -> Optional[Dict[str, np.ndarray]]:
+    """DIR/phases.csv (rows within the dynamic phases of age stages), or None when missing."""
+    path = os.path.join(run_dir, "phases.csv")
+    if not os.path.isfile(path):
+        return None
+    return read_timeseries(path)
+
+
+def figure_dynamic_phase(run_dir: str, out_dir: str, written: List[str],
+                         phase: int = FIG2_PHASE) -> Dict[str, Any]:
+    """fig2_dynamic_phase4.{png,csv} from ``run_dir``/phases.csv.
+
+    Returns {"skipped": reason} when there is nothing to draw (no phases.csv, or the phase is
+    missing): the other figures do not depend on it.
+    """
+    ph = read_phases(run_dir)
+    if ph is None:
+        return {"skipped": f"{os.path.join(run_dir, 'phases.csv')} does not exist (this build "
+                           "of crushdem does not write it)"}
+    need = ("dynamic_phase", "cycle", "confining_fluctuation", "volumetric_strain_phase")
+    missing = [c for c in need if c not in ph]
+    if missing:
+        return {"skipped": f"{run_dir}/phases.csv lacks the columns {', '.join(missing)}"}
+    rows = np.arange(len(ph["cycle"]))
+    if _has(ph, "stage"):
+        rows = np.flatnonzero(ph["stage"] == np.nanmin(ph["stage"]))
+    rows = rows[ph["dynamic_phase"][rows] == phase]
+    if not rows.size:
+        n = int(np.nanmax(ph["dynamic_phase"])) + 1 if _has(ph, "dynamic_phase") else 0
+        return {"skipped": f"{run_dir}/phases.csv has no dynamic phase {phase + 1} "
+                           f"(dynamic_phase == {phase}); the run had {n} phase(s)"}
+    rows = rows[np.argsort(ph["cycle"][rows], kind="stable")]
+    cyc = ph["cycle"][rows]
+    fluct = ph["confining_fluctuation"][rows]
+    vol = ph["volumetric_strain_phase"][rows]
+    t_age = float(_col(ph, "ageing_time_s", rows)[0])
+    base = os.path.join(out_dir, "fig2_dynamic_phase4")
+    _write_csv(base + ".csv", [
+        f"Dynamic phase {phase + 1} (dynamic_phase == {phase}) of the triaxial relaxation "
+        "(study Figure 2), from cycle 0 (just after the ageing jump).",
+        "confining_fluctuation = lateral stress / reference - 1 (reference: the lateral servo "
+        "target, or the lateral stress at cycle 0 without lateral servo); "
+        "volumetric_strain_phase = 1 - V / V(cycle 0), compression positive.",
+        f"ageing time of the phase: {t_age!r} s; source: {os.path.join(run_dir, 'phases.csv')}",
+    ], {
+        "cycle": cyc.astype(np.int64),
+        "ageing_time_s": _col(ph, "ageing_time_s", rows),
+        "time_s": _col(ph, "time_s", rows),
+        "confining_fluctuation": fluct,
+        "volumetric_strain_phase": vol,
+        "lateral_stress_Pa": _col(ph, "lateral_stress_Pa", rows),
+        "axial_stress_Pa": _col(ph, "axial_stress_Pa", rows),
+        "deviator_stress_Pa": _col(ph, "deviator_stress_Pa", rows),
+        "breakages_instant": _col(ph, "breakages_instant", rows),
+        "breakages_crack": _col(ph, "breakages_crack", rows),
+        "n_particles": _col(ph, "n_particles", rows),
+    })
+    plt = _pyplot()
+    fig, (ax_a, ax_b) = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
+    ax_a.plot(cyc, fluct * 100.0, "-", color="tab:blue", marker="o", ms=2.5)
+    ax_a.axhline(0.0, color="0.5", lw=0.8)
+    ax_a.set_ylabel("confining pressure fluctuation [%]")
+    ax_a.set_title(f"(a) dynamic phase {phase + 1} of the triaxial relaxation "
+                   f"(ageing time {t_age:.4g} s)")
+    ax_a.grid(True, alpha=0.3)
+    ax_b.plot(cyc, vol * 100.0, "-", color="tab:green", marker="o", ms=2.5)
+    ax_b.axhline(0.0, color="0.5", lw=0.8)
+    ax_b.set_ylabel("volumetric strain generated [%]")
+    ax_b.set_xlabel("cycles within the dynamic phase")
+    ax_b.set_title("(b) volumetric strain since cycle 0 (compression +)")
+    ax_b.grid(True, alpha=0.3)
+    _save(fig, base + ".png", written)
+    plt.close(fig)
+    return {"phase": phase + 1, "ageing_time_s": t_age, "cycles": float(np.nanmax(cyc)),
+            "max_abs_confining_fluctuation": float(np.nanmax(np.abs(fluct))),
+            "volumetric_strain_end": float(vol[-1])}
+
+
+def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
+                    q_max: float = math.nan) -> Dict[str, Any]:
+    """fig3_triaxial_relaxation.{png,csv}: q against log t with its straight-line fit."""
+    ev = read_events(run_dir)
+    if ev is None or not _has(ev, "ageing_time_s", "deviator_stress_Pa"):
+        raise ValueError(f"{run_dir}: no events.csv with ageing_time_s and deviator_stress_Pa")
+    idx = _age_rows(ev)
+    t, q = ev["ageing_time_s"][idx], ev["deviator_stress_Pa"][idx]
+    fit = fit_log_t(t, q)
+    q0 = float(q[0]) if q.size else math.nan
+    q_fit = np.where(t > 0, fit["intercept"] + fit["slope"] * np.log10(np.where(t > 0, t, 1.0)),
+                     math.nan)
+    lateral = _lateral_stress(ev)
+    base = os.path.join(out_dir, "fig3_triaxial_relaxation")
+    _write_csv(base + ".csv", [
+        "Triaxial stress relaxation (study Figure 3): one row per dynamic phase; q = axial - "
+        "lateral wall stress at the end of the phase.",
+        f"fit over the {fit['points']} phases with t > 0: q = {fit['intercept']!r} + "
+        f"{fit['slope']!r} log10(t / 1 s) [Pa]; slope per log10 cycle = {fit['slope']!r} Pa; "
+        f"R^2 = {fit['r2']!r}",
+        f"q at the first phase (t = 0) = {q0!r} Pa; q_max of the shear = {q_max!r} Pa",
+        f"source: {os.path.join(run_dir, 'events.csv')}",
+    ], {
+        "dynamic_phase": _col(ev, "dynamic_phase", idx).astype(np.int64)
+        if _has(ev, "dynamic_phase") else np.arange(idx.size),
+        "ageing_time_s": t,
+        "deviator_stress_Pa": q,
+        "q_fit_Pa": q_fit,
+        "q_over_q_max": q / q_max if math.isfinite(q_max) and q_max else np.full(q.size,
+                                                                                 math.nan),
+        "lateral_stress_Pa": lateral[idx] if lateral is not None else np.full(q.size, math.nan),
+        "axial_strain": _col(ev, "axial_strain", idx),
+        "volumetric_strain": _col(ev, "volumetric_strain", idx),
+        "breakages_instant": _col(ev, "breakages_instant", idx),
+        "breakages_crack": _col(ev, "breakages_crack", idx),
+        "n_particles": _col(ev, "n_particles", idx),
+    })
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.8))
+    pos = t > 0
+    ax.semilogx(t[pos], q[pos] * MPA, "o-", color="tab:red", ms=5, label="dynamic phases (end)")
+    if math.isfinite(q0):  # t = 0 has no place on the log axis: drawn as a level
+        ax.axhline(q0 * MPA, color="tab:red", ls=":", lw=1.0,
+                   label=f"q at t = 0: {q0 * MPA:.3g} MPa")
+    if math.isfinite(fit["slope"]):
+        tt = np.geomspace(np.min(t[pos]), np.max(t[pos]), 50)
+        ax.semilogx(tt, (fit["intercept"] + fit["slope"] * np.log10(tt)) * MPA, "--", color="k",
+                    lw=1.2, label=f"fit: {fit['slope'] * MPA:+.3g} MPa per log cycle, "
+                                  f"$R^2$ = {fit['r2']:.3f}")
+    ax.set_xlabel("ageing time $t$ [s] (log scale)")
+    ax.set_ylabel("deviator stress $q$ [MPa]")
+    ax.set_title(f"Triaxial stress relaxation from q = {q0 * MPA:.3g} MPa" +
+                 (f" ($q_{{max}}$ = {q_max * MPA:.3g} MPa)" if math.isfinite(q_max) else ""))
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=9, loc="best")
+    _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+    _save(fig, base + ".png", written)
+    plt.close(fig)
+    return {"q_start_Pa": q0, "q_end_Pa": float(q[-1]) if q.size else math.nan,
+            "slope_Pa_per_log10_t": fit["slope"], "intercept_Pa": fit["intercept"],
+            "r2": fit["r2"], "fit_points": fit["points"],
+            "slope_per_log10_t_over_q_start": fit["slope"] / q0 if q0 else math.nan}
+
+
+def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
+                  written: List[str]) -> Dict[str, Any]:
+    """fig4_force_statistics.{png,csv}: std of |F_n| and |F_t| against log t for each
+    (label, run directory) that has them; returns {label: {first/last values}}."""
+    cols = ("mean_Fn_N", "std_Fn_N", "mean_Ft_N", "std_Ft_N")
+    data = []
+    for label, run_dir in runs:
+        ev = read_events(run_dir)
+        if ev is None or not _has(ev, "ageing_time_s", "std_Fn_N"):
+            continue
+        idx = _age_rows(ev)
+        data.append((label, ev["ageing_time_s"][idx], {c: _col(ev, c, idx) for c in cols},
+                     _col(ev, "dynamic_phase", idx)))
+    if not data:
+        raise ValueError("no events.csv with std_Fn_N")
+    base = os.path.join(out_dir, "fig4_force_statistics")
+    table: Dict[str, List[Any]] = {"test": [], "dynamic_phase": [], "ageing_time_s": []}
+    for c in cols:
+        table[c] = []
+    table["std_Fn_over_first_phase"], table["std_Ft_over_first_phase"] = [], []
+    numbers: Dict[str, Any] = {}
+    for label, t, v, phase in data:
+        for i in range(t.size):
+            table["test"].append(label)
+            table["dynamic_phase"].append(int(phase[i]) if math.isfinite(phase[i]) else i)
+            table["ageing_time_s"].append(float(t[i]))
+            for c in cols:
+                table[c].append(float(v[c][i]))
+            table["std_Fn_over_first_phase"].append(float(v["std_Fn_N"][i] / v["std_Fn_N"][0]))
+            table["std_Ft_over_first_phase"].append(float(v["std_Ft_N"][i] / v["std_Ft_N"][0]))
+        numbers[label] = {f"{c}_{when}": float(v[c][k]) for c in ("std_Fn_N", "std_Ft_N")
+                          for when, k in (("first", 0), ("last", -1))}
+    _write_csv(base + ".csv", [
+        "Contact force statistics during the relaxations (study Figure 4): mean and standard "
+        "deviation of |F_n| and |F_t| over grain-grain contacts at the end of each dynamic phase.",
+        "The figure draws the phases with t > 0 (log axis); the t = 0 values are in the legend.",
+    ], table)
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(7, 7.5), sharex=True)
+    colors = {"triaxial relaxation": "tab:red", "oedometric relaxation": "tab:blue"}
+    markers = ("o", "s", "^")
+    for k, (label, t, v, _phase) in enumerate(data):
+        pos = t > 0
+        for ax, c, sym in ((axes[0], "std_Fn_N", "F_n"), (axes[1], "std_Ft_N", "F_t")):
+            ax.semilogx(t[pos], v[c][pos], marker=markers[k % 3], ls="-", ms=4,
+                        color=colors.get(label, f"C{k}"),
+                        label=f"{label} (t = 0: {v[c][0]:.3g} N)")
+    axes[0].set_ylabel("std. dev. of $|F_n|$ [N]")
+    axes[0].set_title("(a) normal contact forces")
+    axes[1].set_ylabel("std. dev. of $|F_t|$ [N]")
+    axes[1].set_title("(b) tangential contact forces")
+    axes[1].set_xlabel("ageing time $t$ [s] (log scale)")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+        _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+    _save(fig, base + ".png", written)
+    plt.close(fig)
+    return numbers
+
+
+# ----------------------------------------------------------------------------------------------
+# Running.
+
+
+def set_threads(n: int) -> Optional[int]:
+    """Sets the OpenMP thread count of the runtime ``_core`` uses; returns the count in force
+    (None when no OpenMP runtime is loaded: a build without OpenMP runs on one thread).
+
+    OMP_NUM_THREADS alone is too late here (read when the runtime loads, at ``import
+    crushdem``); it is still set, for anything started later. RTLD_NOLOAD finds only a runtime
+    already in the process, so a second, different one is never loaded.
+    """
+    os.environ["OMP_NUM_THREADS"] = str(n)
+    mode = getattr(os, "RTLD_NOLOAD", 0) | getattr(os, "RTLD_LAZY", 0)
+    for name in ("libgomp.so.1", "libomp.so", "libomp.so.5", "libiomp5.so", "libgomp.1.dylib",
+                 "libomp.dylib"):
+        try:
+            lib = ctypes.CDLL(name, mode=mode)
+        except OSError:
+            continue
+        lib.omp_set_num_threads(ctypes.c_int(n))
+        return int(lib.omp_get_max_threads())
+    return None
+
+
+def _finished(run_dir: str) -> bool:
+    return os.path.isfile(os.path.join(run_dir, "summary.json"))
+
+
+def _timing(run_dir: str) -> Dict[str, Any]:
+    """The run's timing.json (its own wall-clock time, threads); {} when unreadable."""
+    try:
+        with open(os.path.join(run_dir, "timing.json")) as f:
+            t = json.load(f)
+    except (OSError, ValueError):
+        return {}
+    return t if isinstance(t, dict) else {}
+
+
+def _core_resume() -> Optional[Callable[[str, bool], Any]]:
+    """``_core.resume(DIR, progress)`` when this build has it (checkpoint and resume), else None."""
+    from . import _core
+
+    return getattr(_core, "resume", None)
+
+
+def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[str], None],
+              record: Dict[str, Any],
+              resume: Optional[Callable[[str, bool], Any]] = None) -> None:
+    """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing.
+
+    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given:
+    builds with checkpoints) instead of being started over; if that fails (e.g. the checkpoint
+    belongs to another build), the run starts over.
+    """
+    if _finished(run_dir):
+        log(f"{name}: {run_dir} has finished (summary.json): not run again")
+        timing = _timing(run_dir)
+        record[name] = {"skipped": True, "wall_s": _num(timing.get("wall_seconds")),
+                        "threads": timing.get("threads")}
+        return
+    t0 = time.perf_counter()
+    resumed = False
+    if resume is not None and os.path.isfile(os.path.join(run_dir, "checkpoint.bin")):
+        log(f"{name}: resuming the interrupted run in {run_dir} from checkpoint.bin")
+        try:
+            resume(run_dir, False)
+            resumed = True
+        except (ValueError, RuntimeError) as e:
+            log(f"{name}: cannot resume ({e}): starting over")
+    if not resumed:
+        log(f"{name}: running into {run_dir}")
+        start()
+    wall = time.perf_counter() - t0
+    record[name] = {"skipped": False, "resumed": resumed, "wall_s": wall,
+                    "threads": _timing(run_dir).get("threads")}
+    log(f"{name}: done in {wall:.1f} s")
+
+
+def _record_interval_supported(sample_file: str) -> bool:
+    """Whether this build knows the age-stage key ``record_interval`` (phases.csv): a minimal
+    age configuration must validate with it (and does without it)."""
+    from . import _core
+
+    def valid(extra: Dict[str, Any]) -> bool:
+        stage = {"type": "age", "name": "probe", "duration": 1.0, **extra}
+        cfg = {"particles": {"file": sample_file}, "crushing": {"crack_growth": True},
+               "stage": [stage]}
+        try:
+            _core.resolved_run_config(cfg, ".")
+        except ValueError:
+            return False
+        return True
+
+    return valid({"record_interval": 100}) or not valid({})
+
+
+def _age_counts(run_dir: str) -> Dict[str, Any]:
+    """Phases, breakages (total and during the age stage) and grains at the end of a run."""
+    summary = read_summary(run_dir)
+    crushing = summary.get("crushing") or {}
+    out: Dict[str, Any] = {
+        "grains_end": summary.get("particles"),
+        "breakages_instant": crushing.get("breakages_instant"),
+        "breakages_crack": crushing.get("breakages_crack"),
+        "relative_breakage_Br": crushing.get("relative_breakage_Br"),
+    }
+    for st in summary.get("stages") or []:
+        if isinstance(st, dict) and st.get("type") == "age":
+            out["dynamic_phases"] = st.get("dynamic_phases")
+            out["ageing_time_s"] = st.get("ageing_time_s")
+            out["age_steps"] = st.get("steps")
+            out["age_warning"] = st.get("warning", "")
+            break
+    ev = read_events(run_dir)
+    if ev is not None and _has(ev, "n_particles"):
+        idx = _age_rows(ev)
+        out["grains_first_phase"] = float(ev["n_particles"][idx[0]])
+    return out
+
+
+def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
+              sample: Optional[str] = None, log: Callable[[str], None] = print) -> Dict[str, Any]:
+    """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json."""
+    from . import lab
+
+    cfg = settings(quick)
+    if sample is not None:
+        if not os.path.isfile(sample):
+            raise ValueError(f"--sample {sample}: no such file")
+        cfg["sample"] = {"file": os.path.abspath(sample)}
+    os.makedirs(out, exist_ok=True)
+    settings_path = os.path.join(out, "settings.json")
+    if os.path.isfile(settings_path):
+        with open(settings_path) as f:
+            before = json.load(f)
+        if before != json.loads(json.dumps(cfg)):
+            raise ValueError(f"{out} holds results made with other settings ({settings_path}: "
+                             f"mode {before.get('mode')!r}, this call {cfg['mode']!r}); use "
+                             "another --out, or delete that directory")
+    else:
+        with open(settings_path, "w") as f:
+            json.dump(cfg, f, indent=2)
+            f.write("\n")
+    used_threads = set_threads(threads) if threads else None
+    if threads and used_threads is None:
+        log("no OpenMP runtime found in this process: --threads ignored")
+
+    t_start = time.perf_counter()
+    resume = _core_resume()
+    runs: Dict[str, Any] = {}
+    dirs = {name: os.path.join(out, name) for name in RUNS}
+    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"]}
+
+    # 1. The sample (or a given sample file), prepared once and read by every test.
+    if sample is not None:
+        sample_file = os.path.abspath(sample)
+        runs["sample"] = {"skipped": True, "wall_s": 0.0, "file": sample_file}
+    else:
+        s = dict(cfg["sample"])
+        _run_step("sample", dirs["sample"],
+                  lambda: lab.prepare_sample(dirs["sample"], material=cfg["material"],
+                                             contact=cfg["contact"], output=cfg["output"], **s),
+                  log, runs, resume)
+        sample_file = os.path.join(dirs["sample"], "sample.txt")
+        info = read_summary(dirs["sample"]).get("sample") or {}
+        runs["sample"].update(grains=info.get("grains"), void_ratio=info.get("void_ratio"))
+
+    crushing = dict(cfg["crushing"])
+    age = dict(cfg["age"])
+    age_stage = dict(cfg["age_stage"])
+    if cfg["record_interval"]:
+        if _record_interval_supported(sample_file):
+            age_stage["record_interval"] = cfg["record_interval"]
+        else:
+            log("this build has no age-stage record_interval (phases.csv): "
+                "Figure 2 will be left out")
+
+    # 2. Oedometric relaxation.
+    oe = cfg["oedometric"]
+    _run_step("oedometric_relaxation", dirs["oedometric_relaxation"],
+              lambda: lab.oedometric_relaxation(
+                  dirs["oedometric_relaxation"], sample_file, stress=oe["stress"],
+                  strain_rate=oe["strain_rate"], crushing=crushing, age_stage=age_stage, **age,
+                  **common),
+              log, runs, resume)
+    runs["oedometric_relaxation"].update(_age_counts(dirs["oedometric_relaxation"]))
+
+    # 3. Triaxial shear to find q_max.
+    tx = cfg["triaxial"]
+    _run_step("triaxial_shear", dirs["triaxial_shear"],
+              lambda: lab.triaxial_test(dirs["triaxial_shear"], sample_file,
+                                        sigma_3=tx["sigma_3"], strain_rate=tx["strain_rate"],
+                                        axial_strain=tx["axial_strain"], crushing=crushing,
+                                        **common),
+              log, runs, resume)
+    shear = next((st for st in read_summary(dirs["triaxial_shear"]).get("stages") or []
+                  if isinstance(st, dict) and st.get("type") == "triaxial"), {})
+    q_max = float(shear.get("q_max_Pa", math.nan))
+    if not (math.isfinite(q_max) and q_max > 0):
+        raise ValueError(f"{dirs['triaxial_shear']}/summary.json: no positive q_max_Pa")
+    stop_q = cfg["relaxation"]["q_fraction"] * q_max
+    runs["triaxial_shear"].update(q_max_Pa=q_max,
+                                  axial_strain_at_q_max=shear.get("axial_strain_at_q_max"),
+                                  max_inertial_number=shear.get("max_inertial_number"),
+                                  grains_end=read_summary(dirs["triaxial_shear"]).get(
+                                      "particles"))
+
+    # 4. Triaxial relaxation at 0.7 q_max (the same shear, stopped there).
+    _run_step("triaxial_relaxation", dirs["triaxial_relaxation"],
+              lambda: lab.triaxial_relaxation(
+                  dirs["triaxial_relaxation"], sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
+                  strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
+                  crushing=crushing, age_stage=age_stage, **age, **common),
+              log, runs, resume)
+    runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
+
+    # Figures.
+    written: List[str] = []
+    result: Dict[str, Any] = {"mode": cfg["mode"], "threads": used_threads,
+                              "settings": "settings.json", "runs": runs}
+    result["oedometric_relaxation"] = figure_oedometric(dirs["oedometric_relaxation"], out,
+                                                        written)
+    result["dynamic_phase"] = figure_dynamic_phase(dirs["triaxial_relaxation"], out, written)
+    if "skipped" in result["dynamic_phase"]:
+        log(f"Figure 2 left out: {result['dynamic_phase']['skipped']}")
+    tri = figure_triaxial(dirs["triaxial_relaxation"], out, written, q_max)
+    tri.update(q_max_Pa=q_max, stop_q_Pa=stop_q,
+               q_fraction=cfg["relaxation"]["q_fraction"])
+    result["triaxial_relaxation"] = tri
+    result["force_statistics"] = figure_forces(
+        [("triaxial relaxation", dirs["triaxial_relaxation"]),
+         ("oedometric relaxation", dirs["oedometric_relaxation"])], out, written)
+    result["figures"] = [os.path.basename(p) for p in written]
+    result["wall_s_total"] = time.perf_counter() - t_start
+    with open(os.path.join(out, "reproduce.json"), "w") as f:
+        json.dump(_json_safe(result), f, indent=2)
+        f.write("\n")
+    return result
+
+
+def _json_safe(x: Any) -> Any:
+    """NaN and infinities become null (strict JSON); NumPy scalars become Python numbers."""
+    if isinstance(x, dict):
+        return {str(k): _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def format_table(result: Mapping[str, Any]) -> str:
+    """The key numbers of reproduce.json as a short plain-text table."""
+
+    def num(v: Any, scale: float = 1.0, fmt: str = ".4g") -> str:
+        try:
+            f = float(v) * scale
+        except (TypeError, ValueError):
+            return "-"
+        return format(f, fmt) if math.isfinite(f) else "-"
+
+    oe = result.get("oedometric_relaxation") or {}
+    tri = result.get("triaxial_relaxation") or {}
+    dyn = result.get("dynamic_phase") or {}
+    runs = result.get("runs") or {}
+    lines = [f"crushdem reproduce ({result.get('mode')}): study section 3",
+             f"  {'sigma_v(4 s) [MPa]':<40}{num(oe.get('sigma_v_4s_Pa'), MPA)}",
+             f"  {'sigma_v(1 h) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1h'))}",
+             f"  {'sigma_v(1 day) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1day'))}"
+             "   (plausible: 0.70-0.97)",
+             f"  {'q_max [MPa]':<40}{num(tri.get('q_max_Pa'), MPA)}   (study: 22.6)",
+             f"  {'0.7 q_max [MPa]':<40}{num(tri.get('stop_q_Pa'), MPA)}",
+             f"  {'q at t = 0 / at the end [MPa]':<40}{num(tri.get('q_start_Pa'), MPA)}"
+             f" / {num(tri.get('q_end_Pa'), MPA)}",
+             f"  {'q slope [MPa per log10 cycle]':<40}{num(tri.get('slope_Pa_per_log10_t'), MPA)}",
+             f"  {'q fit R^2':<40}{num(tri.get('r2'), fmt='.3f')}"]
+    if "skipped" in dyn:
+        lines.append(f"  {'Figure 2':<40}left out: {dyn['skipped']}")
+    else:
+        lines.append(f"  {'phase 4: max |confining fluct.| [%]':<40}"
+                     f"{num(dyn.get('max_abs_confining_fluctuation'), 100.0)}")
+        lines.append(f"  {'phase 4: volumetric strain [%]':<40}"
+                     f"{num(dyn.get('volumetric_strain_end'), 100.0)}")
+    lines.append(f"  {'run':<24}{'wall [s]':>10}{'phases':>8}{'instant':>9}{'crack':>7}"
+                 f"{'grains':>8}")
+    for name in RUNS:
+        r = runs.get(name) or {}
+        wall = num(r.get("wall_s"), fmt=".1f") + ("*" if r.get("skipped") else " ")
+        grains = r.get("grains_end", r.get("grains"))
+        lines.append(f"  {name:<24}{wall:>10}{num(r.get('dynamic_phases'), fmt='.0f'):>8}"
+                     f"{num(r.get('breakages_instant'), fmt='.0f'):>9}"
+                     f"{num(r.get('breakages_crack'), fmt='.0f'):>7}"
+                     f"{num(grains, fmt='.0f'):>8}")
+    lines.append(f"  total {num(result.get('wall_s_total'), fmt='.1f')} s"
+                 "   (* finished by an earlier call: wall-clock from its timing.json)")
+    return "\n".join(lines)
+
+
+_DESCRIPTION = """\
+Run the reference study's section 3 (oedometric and triaxial stress relaxation of crushable
+quartz sand, one day of ageing each) and draw its four figures into DIR:
+fig1_oedometric_relaxation, fig2_dynamic_phase4, fig3_triaxial_relaxation and
+fig4_force_statistics (PNG, with the CSV of what each draws), plus DIR/reproduce.json with the key
+numbers. Each run is a run directory of its own (DIR/sample, DIR/oedometric_relaxation,
+DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem plot` can draw."""
+
+_EPILOG = """\
+Restarting: a run whose directory already has summary.json (written when it finishes) is NOT
+run again; its results are read back. So after an interruption the same command goes on with
+the first unfinished run: from its checkpoint.bin when it left one (builds with checkpoints),
+otherwise from its beginning. To redo a run, delete its directory. DIR/settings.json records
+the settings; a call with other settings (--quick or not, --sample) into the same DIR stops
+with an error instead of mixing results.
+
+Study scale (default): the 4 mm REV of examples/sample_rev.toml (about 11,400 grains,
+e = 0.65), Table 1 crushing with crack growth (density scaling of small fragments), dynamic
+phases of 150,000 cycles, N_break = 30, triaxial shear at 50 /s to 30 %: many hours to days
+on a 2-core workstation.
+--quick: 500 grains at e = 0.75, 10,000-cycle phases, N_break = 3, shear at 100 /s to 15 %:
+a few minutes on one core, to check the pipeline (its numbers are not the study's)."""
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem reproduce --out DIR [--quick] [--threads N] [--sample FILE]``."""
+    parser = argparse.ArgumentParser(prog="crushdem reproduce", description=_DESCRIPTION,
+                                     epilog=_EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True, metavar="DIR", help="directory for everything")
+    parser.add_argument("--quick", action="store_true",
+                        help="small sample and short phases (minutes), to check the pipeline")
+    parser.add_argument("--threads", type=int, default=None, metavar="N",
+                        help="OpenMP threads for the runs (default: the OpenMP default, "
+                             "usually every core); results do not depend on it")
+    parser.add_argument("--sample", default=None, metavar="FILE",
+                        help="use this prepared sample.txt (e.g. runs/sample_rev/sample.txt) "
+                             "instead of preparing one in DIR/sample")
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    if args.threads is not None and args.threads < 1:
+        parser.error("--threads must be >= 1")
+
+    def log(msg: str) -> None:
+        print(f"crushdem reproduce: {msg}", flush=True)
+
+    try:
+        result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
+                           log=log)
+    except (OSError, ValueError, RuntimeError) as e:
+        print(f"crushdem reproduce: error: {e}", file=sys.stderr)
+        return 2
+    for name in result.get("figures", []):
+        print(os.path.join(args.out, name))
+    print(os.path.join(args.out, "reproduce.json"))
+    print(format_table(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,319 @@
+"""Tests of ``crushdem reproduce`` (python/crushdem/reproduce.py).
+
+The figure and CSV code is tested on synthetic events.csv / phases.csv files with known answers
+(the 4 s normalisation, the log-t fit); it needs only NumPy and Matplotlib, and is loaded from
+python/crushdem when this file sits in the source tree (so the tests follow the checkout without
+a rebuild), otherwise from the installed package. One end-to-end ``crushdem reproduce --quick``
+runs the real pipeline (about two minutes on one core).
+"""
+
+import csv
+import importlib
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import types
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+_SOURCE_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir,
+                           "python", "crushdem")
+
+
+def _load_reproduce():
+    """reproduce.py from the source tree as a module of a stand-in package (so that its relative
+    import of .plot resolves there too, without the package __init__ and its compiled _core)."""
+    if not os.path.isfile(os.path.join(_SOURCE_DIR, "reproduce.py")):
+        from crushdem import reproduce
+
+        return reproduce
+    name = "crushdem_src_under_test"
+    if name not in sys.modules:
+        pkg = types.ModuleType(name)
+        pkg.__path__ = [os.path.abspath(_SOURCE_DIR)]
+        sys.modules[name] = pkg
+    return importlib.import_module(f"{name}.reproduce")
+
+
+rp = _load_reproduce()
+
+WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+
+
+def _write(path, rows):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(list(rows[0].keys()))
+        for r in rows:
+            w.writerow(list(r.values()))
+
+
+def _event(t, phase, stage, sig_ax, sig_lat, std_fn, std_ft):
+    r = {"ageing_time_s": t, "stage": stage, "dynamic_phase": phase, "time_s": 1e-3 + 1e-5 * phase,
+         "step": 100000 + 1000 * phase, "n_particles": 1000 + 14 * phase}
+    for w in WALLS:
+        r[f"wall_{w}_stress_Pa"] = sig_ax if w.startswith("z") else sig_lat
+    r["deviator_stress_Pa"] = sig_ax - sig_lat
+    r["axial_strain"] = 0.05
+    r["volumetric_strain"] = 0.02 + 1e-4 * phase
+    r["mean_Fn_N"], r["std_Fn_N"] = 0.2, std_fn
+    r["mean_Ft_N"], r["std_Ft_N"] = 0.03, std_ft
+    r["breakages_instant"], r["breakages_crack"] = 10, 3 * phase
+    return r
+
+
+T_AGE = [0.0, 0.5, 2.0, 10.0, 100.0, 1000.0, 5000.0, 86400.0]
+
+
+def _sigma_v(t):
+    """sigma_v falling linearly in log t (exact for linear-in-log interpolation)."""
+    return 7.0e6 - 0.3e6 * math.log10(t) if t > 0 else 7.5e6
+
+
+def _q(t):
+    return 5.0e6 - 0.25e6 * math.log10(t) if t > 0 else 5.2e6
+
+
+def _oedometric_run(tmp_path, times=T_AGE):
+    d = tmp_path / "oedometric_relaxation"
+    rows = [_event(t, k, 1, _sigma_v(t), 0.6 * _sigma_v(t), 0.2 - 0.005 * k, 0.03 - 0.001 * k)
+            for k, t in enumerate(times)]
+    _write(str(d / "events.csv"), rows)
+    return str(d)
+
+
+def _triaxial_run(tmp_path):
+    d = tmp_path / "triaxial_relaxation"
+    rows = [_event(t, k, 2, 10e6 + _q(t), 10e6, 0.3 - 0.01 * k, 0.05 - 0.002 * k)
+            for k, t in enumerate(T_AGE)]
+    _write(str(d / "events.csv"), rows)
+    return str(d)
+
+
+def _read_csv(path):
+    with open(path) as f:
+        lines = f.read().splitlines()
+    comments = [ln for ln in lines if ln.startswith("#")]
+    body = [ln for ln in lines if not ln.startswith("#")]
+    return comments, list(csv.DictReader(body))
+
+
+def test_value_at_interpolates_in_log_t_or_linear_t_before_the_first_phase():
+    t = np.array([0.0, 1.0, 10.0, 100.0])
+    y = np.array([9.0, 5.0, 4.0, 3.0])
+    v, how = rp.value_at(t, y, 4.0)
+    assert v == pytest.approx(5.0 - math.log10(4.0))
+    assert "log t" in how
+    assert rp.value_at(t, y, 10.0) == (4.0, "exact")
+    # The first phase after t = 0 is later than 4 s: linear in t from the t = 0 phase.
+    v, how = rp.value_at(np.array([0.0, 100.0, 1000.0]), np.array([8.0, 6.0, 5.0]), 4.0)
+    assert v == pytest.approx(8.0 + 0.04 * (6.0 - 8.0))
+    assert "linear in t" in how
+    v, how = rp.value_at(t, y, 1000.0)
+    assert math.isnan(v) and "beyond" in how
+
+
+def test_fit_log_t_slope_and_r2():
+    t = np.array([0.0, 1.0, 10.0, 100.0, 1000.0])
+    q = np.array([99.0, 10.0, 8.0, 6.0, 4.0])  # the t = 0 point is left out of the fit
+    fit = rp.fit_log_t(t, q)
+    assert fit["slope"] == pytest.approx(-2.0)
+    assert fit["intercept"] == pytest.approx(10.0)
+    assert fit["r2"] == pytest.approx(1.0)
+    assert fit["points"] == 4
+    noisy = np.array([0.0, 10.0, 8.5, 5.5, 4.0])
+    fit = rp.fit_log_t(t, noisy)
+    x, y = np.log10(t[1:]), noisy[1:]
+    b, a = np.polyfit(x, y, 1)
+    r2 = 1.0 - np.sum((y - a - b * x) ** 2) / np.sum((y - y.mean()) ** 2)
+    assert fit["slope"] == pytest.approx(b) and fit["r2"] == pytest.approx(r2)
+    assert fit["r2"] < 1.0
+
+
+def test_figure_oedometric_normalises_at_4_s(tmp_path):
+    run = _oedometric_run(tmp_path)
+    written = []
+    res = rp.figure_oedometric(run, str(tmp_path), written)
+    s4 = _sigma_v(4.0)
+    assert res["sigma_v_4s_Pa"] == pytest.approx(s4)
+    assert res["sigma_v_ratio_1h"] == pytest.approx(_sigma_v(3600.0) / s4)
+    assert res["sigma_v_ratio_1day"] == pytest.approx(_sigma_v(86400.0) / s4)
+    assert os.path.isfile(tmp_path / "fig1_oedometric_relaxation.png")
+    comments, rows = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    assert any("sigma_v(4 s)" in c and "log t" in c for c in comments)
+    assert len(rows) == len(T_AGE)
+    for r, t in zip(rows, T_AGE):
+        assert float(r["ageing_time_s"]) == t
+        assert float(r["sigma_v_ratio"]) == pytest.approx(_sigma_v(t) / s4)
+
+
+def test_figure_oedometric_first_phase_after_4_s(tmp_path):
+    run = _oedometric_run(tmp_path, times=[0.0, 50.0, 3000.0, 86400.0])
+    res = rp.figure_oedometric(run, str(tmp_path), [])
+    expect = 7.5e6 + 4.0 / 50.0 * (_sigma_v(50.0) - 7.5e6)
+    assert res["sigma_v_4s_Pa"] == pytest.approx(expect)
+    assert "linear in t" in res["sigma_v_4s_method"]
+    comments, _ = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    assert any("linear in t" in c for c in comments)
+
+
+def test_figure_triaxial_fit(tmp_path):
+    run = _triaxial_run(tmp_path)
+    res = rp.figure_triaxial(run, str(tmp_path), [], q_max=7.5e6)
+    assert res["slope_Pa_per_log10_t"] == pytest.approx(-0.25e6)
+    assert res["r2"] == pytest.approx(1.0)
+    assert res["fit_points"] == len(T_AGE) - 1
+    assert res["q_start_Pa"] == pytest.approx(5.2e6)
+    comments, rows = _read_csv(str(tmp_path / "fig3_triaxial_relaxation.csv"))
+    assert any("R^2" in c for c in comments)
+    assert rows[0]["q_fit_Pa"] == ""  # no fit value at t = 0
+    assert float(rows[3]["q_fit_Pa"]) == pytest.approx(_q(T_AGE[3]))
+    assert float(rows[1]["lateral_stress_Pa"]) == pytest.approx(10e6)
+    assert os.path.isfile(tmp_path / "fig3_triaxial_relaxation.png")
+
+
+def test_figure_forces(tmp_path):
+    tri, oed = _triaxial_run(tmp_path), _oedometric_run(tmp_path)
+    res = rp.figure_forces([("triaxial relaxation", tri), ("oedometric relaxation", oed)],
+                           str(tmp_path), [])
+    assert res["triaxial relaxation"]["std_Fn_N_first"] == pytest.approx(0.3)
+    assert res["oedometric relaxation"]["std_Ft_N_last"] == pytest.approx(0.03 - 0.007)
+    _, rows = _read_csv(str(tmp_path / "fig4_force_statistics.csv"))
+    assert len(rows) == 2 * len(T_AGE)
+    assert {r["test"] for r in rows} == {"triaxial relaxation", "oedometric relaxation"}
+    assert os.path.isfile(tmp_path / "fig4_force_statistics.png")
+
+
+def _phases(run, n_phases, cycles=3000, interval=250):
+    rows = []
+    for k in range(n_phases):
+        for c in range(0, cycles + 1, interval):
+            rows.append({"stage": 2, "dynamic_phase": k, "cycle": c, "ageing_time_s": 10.0 * k,
+                         "time_s": 1e-3 + 1e-8 * c, "axial_stress_Pa": 15e6,
+                         "lateral_stress_Pa": 10e6 * (1 + 0.01 * k * math.exp(-c / 500.0)),
+                         "deviator_stress_Pa": 5e6,
+                         "confining_fluctuation": 0.01 * k * math.exp(-c / 500.0),
+                         "volumetric_strain_phase": 1e-5 * k * c / cycles,
+                         "breakages_instant": 0, "breakages_crack": 3 * k + (3 if c else 0),
+                         "n_particles": 1000 + 39 * k})
+    _write(os.path.join(run, "phases.csv"), rows)
+
+
+def test_figure_dynamic_phase(tmp_path):
+    run = _triaxial_run(tmp_path)
+    res = rp.figure_dynamic_phase(run, str(tmp_path), [])
+    assert "skipped" in res and "phases.csv" in res["skipped"]  # missing: skipped, no crash
+    assert not os.path.exists(tmp_path / "fig2_dynamic_phase4.png")
+    _phases(run, 3)
+    res = rp.figure_dynamic_phase(run, str(tmp_path), [])
+    assert "skipped" in res and "3 phase" in res["skipped"]
+    _phases(run, 6)
+    written = []
+    res = rp.figure_dynamic_phase(run, str(tmp_path), written)
+    assert res["phase"] == 4 and res["ageing_time_s"] == pytest.approx(30.0)
+    assert res["max_abs_confining_fluctuation"] == pytest.approx(0.03)
+    assert res["volumetric_strain_end"] == pytest.approx(3e-5)
+    assert os.path.isfile(tmp_path / "fig2_dynamic_phase4.png")
+    _, rows = _read_csv(str(tmp_path / "fig2_dynamic_phase4.csv"))
+    assert [int(r["cycle"]) for r in rows] == list(range(0, 3001, 250))
+    assert float(rows[0]["confining_fluctuation"]) == pytest.approx(0.03)
+
+
+def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
+    calls, log = [], []
+    record = {}
+    run = tmp_path / "run"
+    run.mkdir()
+
+    def start():
+        calls.append("start")
+
+    def resume(d, progress):
+        calls.append(("resume", d, progress))
+
+    def failing_resume(d, progress):
+        raise RuntimeError("checkpoint of another build")
+
+    rp._run_step("r", str(run), start, log.append, record, resume)  # nothing there: runs
+    assert calls == ["start"] and record["r"]["skipped"] is False
+    (run / "checkpoint.bin").write_bytes(b"x")
+    rp._run_step("r", str(run), start, log.append, record, resume)
+    assert calls[-1] == ("resume", str(run), False) and record["r"]["resumed"] is True
+    rp._run_step("r", str(run), start, log.append, record, failing_resume)
+    assert calls[-1] == "start" and record["r"]["resumed"] is False
+    assert any("starting over" in m for m in log)
+    rp._run_step("r", str(run), start, log.append, record, None)  # no resume in this build
+    assert calls[-1] == "start"
+    (run / "summary.json").write_text("{}")
+    (run / "timing.json").write_text('{"wall_seconds": 12.5}')
+    n = len(calls)
+    rp._run_step("r", str(run), start, log.append, record, resume)
+    assert len(calls) == n and record["r"]["skipped"] and record["r"]["wall_s"] == 12.5
+
+
+def test_format_table_handles_missing_numbers():
+    text = rp.format_table({"mode": "quick", "dynamic_phase": {"skipped": "no phases.csv"}})
+    assert "left out" in text and "q_max" in text
+
+
+def _finite(x):
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def test_reproduce_quick_end_to_end(tmp_path):
+    """The whole pipeline on the quick settings (about two minutes on one core)."""
+    pytest.importorskip("crushdem._core")
+    if importlib.util.find_spec("crushdem.reproduce") is None:
+        pytest.skip("the installed crushdem predates `reproduce` (pip install . first)")
+    out = tmp_path / "rq"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+                          str(out), "--threads", "1"], capture_output=True, text=True,
+                         timeout=900)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert "q_max" in res.stdout
+    for run in rp.RUNS:
+        assert os.path.isfile(out / run / "summary.json"), run
+    phases_written = os.path.isfile(out / "triaxial_relaxation" / "phases.csv")
+    figures = ["fig1_oedometric_relaxation", "fig3_triaxial_relaxation", "fig4_force_statistics"]
+    if phases_written:
+        figures.append("fig2_dynamic_phase4")
+    else:
+        assert not os.path.exists(out / "fig2_dynamic_phase4.png")
+    for name in figures:
+        assert os.path.getsize(out / f"{name}.png") > 1000, name
+        assert os.path.getsize(out / f"{name}.csv") > 100, name
+    with open(out / "reproduce.json") as f:
+        rj = json.load(f)
+    oe, tri = rj["oedometric_relaxation"], rj["triaxial_relaxation"]
+    for v in (oe["sigma_v_4s_Pa"], oe["sigma_v_ratio_1h"], oe["sigma_v_ratio_1day"],
+              tri["q_max_Pa"], tri["stop_q_Pa"], tri["slope_Pa_per_log10_t"], tri["r2"]):
+        assert _finite(v)
+    assert tri["stop_q_Pa"] == pytest.approx(0.7 * tri["q_max_Pa"])
+    assert oe["sigma_v_ratio_1day"] > 0
+    for name in ("oedometric_relaxation", "triaxial_relaxation"):
+        r = rj["runs"][name]
+        assert r["dynamic_phases"] >= 2 and r["grains_end"] > 0 and _finite(r["wall_s"])
+        assert r["breakages_crack"] >= 0 and r["threads"] == 1
+    if phases_written:
+        assert "skipped" not in rj["dynamic_phase"], rj["dynamic_phase"]
+        assert _finite(rj["dynamic_phase"]["max_abs_confining_fluctuation"])
+    # A second call finds every run finished: nothing is run again.
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+                          str(out), "--threads", "1"], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert res.stdout.count("not run again") == len(rp.RUNS), res.stdout
+    with open(out / "reproduce.json") as f:
+        again = json.load(f)
+    assert again["triaxial_relaxation"]["q_max_Pa"] == rj["triaxial_relaxation"]["q_max_Pa"]
+    # Other settings into the same directory: refused.
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", str(out)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "other settings" in res.stderr
