@@ -61,6 +61,14 @@ def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: st
     return Result(os.fspath(out))
 
 
+def resume(out: Union[str, os.PathLike], *, progress: bool = False) -> Result:
+    """Continues an interrupted run from ``out/checkpoint.bin`` (written at every ageing event,
+    between stages and every ``output.checkpoint_seconds``); the files come out as those of an
+    uninterrupted run. Raises ValueError if ``out`` has no checkpoint (e.g. it has finished)."""
+    _core.resume(os.fspath(out), progress)
+    return Result(os.fspath(out))
+
+
 def _base(sample: SampleSpec, sections: Mapping[str, Any]) -> Dict[str, Any]:
     cfg: Dict[str, Any] = {k: dict(v) for k, v in sections.items() if v is not None}
     if isinstance(sample, Mapping):

@@ -127,7 +127,7 @@ def test_sigkill_mid_phase_then_resume_gives_identical_files(tmp_path):
         assert len(list(csv.DictReader(f))) >= 5
 
 
-def test_sigint_saves_and_stops_with_a_resume_hint(tmp_path):
+def test_sigint_saves_and_stops_with_a_resume_hint_then_python_resumes(tmp_path):
     cfg = tmp_path / "creep.toml"
     cfg.write_text(CONFIG)
     out = tmp_path / "run"
@@ -140,3 +140,12 @@ def test_sigint_saves_and_stops_with_a_resume_hint(tmp_path):
     assert p.returncode == 128 + signal.SIGINT, err
     assert "crushdem resume" in err
     assert (out / "checkpoint.bin").exists()
+
+    # Resumed from Python this time.
+    from crushdem import lab
+
+    res = lab.resume(out)
+    assert res.summary["stages"][-1]["end"] == "target ageing time"
+    assert not (out / "checkpoint.bin").exists()
+    with pytest.raises(ValueError, match="finished"):
+        lab.resume(out)
