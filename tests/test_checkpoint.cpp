@@ -8,9 +8,7 @@
 #include <csignal>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <memory>
-#include <sstream>
 #include <thread>
 
 #include "crushdem/fracture/crushing.hpp"
@@ -18,18 +16,14 @@
 #include "crushdem/io/runner.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/particles/generate.hpp"
+#include "helpers.hpp"
 
 namespace crushdem {
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+using crushdem::testing::read_file;
 
 // 300 grains squeezed by servo walls, weak enough to break, with crack growth: then a creep
 // stage (servo walls during dynamic phases) with off-DEM ageing jumps.
@@ -168,12 +162,12 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
     if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
     const fs::path other = base / "stopped" / fs::relative(e.path(), base / "whole");
     EXPECT_TRUE(fs::exists(other)) << other;
-    EXPECT_EQ(slurp(e.path()), slurp(other)) << "differs: " << fs::relative(e.path(), base);
+    EXPECT_EQ(read_file(e.path()), read_file(other)) << "differs: " << fs::relative(e.path(), base);
     ++compared;
   }
   // config, timeseries, summary, breakage, grading, events, phases and the snapshots.
   EXPECT_GE(compared, 9u);
-  const std::string events = slurp(base / "whole" / "events.csv");
+  const std::string events = read_file(base / "whole" / "events.csv");
   EXPECT_GE(std::count(events.begin(), events.end(), '\n'), 3) << "too few dynamic phases";
   fs::remove_all(base);
 }

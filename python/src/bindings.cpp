@@ -213,6 +213,16 @@ int run_cli(const std::vector<std::string>& args) {
   return rc;
 }
 
+/// What run() and resume() return to Python.
+nb::dict summary_dict(const RunSummary& s) {
+  nb::dict d;
+  d["steps"] = s.steps;
+  d["time"] = s.time;
+  d["wall_seconds"] = s.wall_seconds;
+  d["particles"] = s.particles;
+  return d;
+}
+
 }  // namespace
 }  // namespace crushdem::python
 
@@ -474,12 +484,7 @@ NB_MODULE(_core, m) {
           nb::gil_scoped_release release;  // a long run must not block other Python threads
           s = run_to_directory(cfg, opt);
         }
-        nb::dict d;
-        d["steps"] = s.steps;
-        d["time"] = s.time;
-        d["wall_seconds"] = s.wall_seconds;
-        d["particles"] = s.particles;
-        return d;
+        return summary_dict(s);
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true,
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
@@ -494,12 +499,7 @@ NB_MODULE(_core, m) {
           nb::gil_scoped_release release;
           s = resume_directory(out, opt);
         }
-        nb::dict d;
-        d["steps"] = s.steps;
-        d["time"] = s.time;
-        d["wall_seconds"] = s.wall_seconds;
-        d["particles"] = s.particles;
-        return d;
+        return summary_dict(s);
       },
       "out"_a, "progress"_a = true,
       "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
