@@ -3,6 +3,7 @@
 #include <csignal>
 #include <cstdio>
 #include <functional>
+#include <optional>
 
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
@@ -43,9 +44,12 @@ class StopOnSignals {
 };
 
 /// Runs (or resumes) with the stop handlers installed; an interrupted run says how to go on.
-int run_or_resume(const std::function<RunSummary()>& go, const std::string& out) {
+int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
+                  bool checkpoints = true) {
   try {
-    const StopOnSignals handlers;
+    // Without checkpoints (the GPU backend) Ctrl-C keeps its usual meaning.
+    std::optional<StopOnSignals> handlers;
+    if (checkpoints) handlers.emplace();
     const RunSummary s = go();
     std::printf(
         "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
@@ -101,7 +105,7 @@ int run_main(const std::vector<std::string>& args) {
     };
   }
 #endif
-  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, out);
+  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, out, backend == "cpu");
 }
 
 int resume_main(const std::vector<std::string>& args) {

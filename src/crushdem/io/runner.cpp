@@ -524,14 +524,20 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     write_checkpoint_file(dir, out.bytes());
     driver.checkpoint_written();
   };
-  driver.checkpoint = [&](const Controller& c, std::uint64_t to_check) {
-    save_checkpoint(&c, to_check);
-  };
+  // Another backend (the GPU stepper) keeps its state on the device: no checkpoints there.
+  const bool checkpoints = !opt.advance;
+  if (checkpoints) {
+    driver.checkpoint = [&](const Controller& c, std::uint64_t to_check) {
+      save_checkpoint(&c, to_check);
+    };
+  }
   // Between two parts: a checkpoint, then stop here if asked to.
   auto boundary = [&](std::uint32_t part) {
     st.part = part;
-    save_checkpoint(nullptr, 0);
-    if (driver.stop_requested()) throw Interrupted(static_cast<int>(g_stop_signal));
+    if (checkpoints) save_checkpoint(nullptr, 0);
+    if (checkpoints && driver.stop_requested()) {
+      throw Interrupted(static_cast<int>(g_stop_signal));
+    }
   };
   // The controller of the part the checkpoint was taken in continues where it was.
   auto resume_here = [&](std::uint32_t part) { return resumed && st.begun && st.part == part; };
