@@ -14,8 +14,8 @@ Each run is an ordinary run directory under DIR (``sample/``, ``oedometric_relax
 ``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem.lab`, so
 ``crushdem plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
 (written last, when a run finishes) is not run again: a re-invocation after an interruption goes
-on where it stopped (an interrupted run continues from its ``checkpoint.bin`` when this build
-has ``_core.resume``, otherwise it starts over). ``DIR/settings.json`` records the settings of
+on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one that left none starts
+over). ``DIR/settings.json`` records the settings of
 the first invocation; a later one with other settings (``--quick`` against the study scale,
 another ``--sample``) stops rather than mixing results.
 
@@ -566,21 +566,14 @@ def _timing(run_dir: str) -> Dict[str, Any]:
     return t if isinstance(t, dict) else {}
 
 
-def _core_resume() -> Optional[Callable[[str, bool], Any]]:
-    """``_core.resume(DIR, progress)`` when this build has it (checkpoint and resume), else None."""
-    from . import _core
-
-    return getattr(_core, "resume", None)
-
-
 def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[str], None],
               record: Dict[str, Any],
               resume: Optional[Callable[[str, bool], Any]] = None) -> None:
     """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing.
 
-    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given:
-    builds with checkpoints) instead of being started over; if that fails (e.g. the checkpoint
-    belongs to another build), the run starts over.
+    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
+    instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
+    the run starts over.
     """
     if _finished(run_dir):
         log(f"{name}: {run_dir} has finished (summary.json): not run again")
@@ -604,24 +597,6 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
     record[name] = {"skipped": False, "resumed": resumed, "wall_s": wall,
                     "threads": _timing(run_dir).get("threads")}
     log(f"{name}: done in {wall:.1f} s")
-
-
-def _record_interval_supported(sample_file: str) -> bool:
-    """Whether this build knows the age-stage key ``record_interval`` (phases.csv): a minimal
-    age configuration must validate with it (and does without it)."""
-    from . import _core
-
-    def valid(extra: Dict[str, Any]) -> bool:
-        stage = {"type": "age", "name": "probe", "duration": 1.0, **extra}
-        cfg = {"particles": {"file": sample_file}, "crushing": {"crack_growth": True},
-               "stage": [stage]}
-        try:
-            _core.resolved_run_config(cfg, ".")
-        except ValueError:
-            return False
-        return True
-
-    return valid({"record_interval": 100}) or not valid({})
 
 
 def _age_counts(run_dir: str) -> Dict[str, Any]:
@@ -676,7 +651,9 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         log("no OpenMP runtime found in this process: --threads ignored")
 
     t_start = time.perf_counter()
-    resume = _core_resume()
+    from . import _core
+
+    resume = _core.resume
     runs: Dict[str, Any] = {}
     dirs = {name: os.path.join(out, name) for name in RUNS}
     common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"]}
@@ -699,11 +676,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     age = dict(cfg["age"])
     age_stage = dict(cfg["age_stage"])
     if cfg["record_interval"]:
-        if _record_interval_supported(sample_file):
-            age_stage["record_interval"] = cfg["record_interval"]
-        else:
-            log("this build has no age-stage record_interval (phases.csv): "
-                "Figure 2 will be left out")
+        age_stage["record_interval"] = cfg["record_interval"]
 
     # 2. Oedometric relaxation.
     oe = cfg["oedometric"]
@@ -840,7 +813,7 @@ DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem plot` can draw."""
 _EPILOG = """\
 Restarting: a run whose directory already has summary.json (written when it finishes) is NOT
 run again; its results are read back. So after an interruption the same command goes on with
-the first unfinished run: from its checkpoint.bin when it left one (builds with checkpoints),
+the first unfinished run: from its checkpoint.bin when it left one,
 otherwise from its beginning. To redo a run, delete its directory. DIR/settings.json records
 the settings; a call with other settings (--quick or not, --sample) into the same DIR stops
 with an error instead of mixing results.

@@ -31,7 +31,6 @@ class CsvWriter {
   /// Continues a file written by an interrupted run: cuts it back to `size` bytes (what the
   /// checkpoint saw) and appends from there; size < 0 removes it (it had no row yet).
   void resume(long long size, const std::vector<std::string>& columns);
-  const std::string& path() const { return path_; }
 
  private:
   std::string path_;
