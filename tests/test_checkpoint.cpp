@@ -5,12 +5,16 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <string_view>
 #include <thread>
 
+#include "crushdem/core/part_clock.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/runner.hpp"
@@ -68,6 +72,13 @@ vtk_interval = 6000
 progress_seconds = 0
 checkpoint_seconds = 0
 )";
+
+// The number after "key": in a JSON text (enough for timing.json); NaN when absent.
+double json_number(const std::string& text, const std::string& key) {
+  const std::size_t k = text.find("\"" + key + "\":");
+  if (k == std::string::npos) return std::nan("");
+  return std::strtod(text.c_str() + k + key.size() + 3, nullptr);
+}
 
 RunConfig config(const fs::path& base) {
   return run_config_from_toml(toml::parse(kConfig, "test"), "test", base.string());
@@ -169,7 +180,43 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
   EXPECT_GE(compared, 9u);
   const std::string events = read_file(base / "whole" / "events.csv");
   EXPECT_GE(std::count(events.begin(), events.end(), '\n'), 3) << "too few dynamic phases";
+
+  // timing.json: every second of both processes belongs to one part of the step.
+  const std::string timing = read_file(base / "stopped" / "timing.json");
+  double parts = 0.0;
+  for (const std::string_view name : kPartNames) {
+    const double s = json_number(timing, std::string(name));
+    EXPECT_GE(s, 0.0) << name;
+    parts += s;
+  }
+  const double wall = json_number(timing, "wall_seconds");
+  EXPECT_NEAR(parts, wall, 0.05 * wall + 0.05) << timing;
+  EXPECT_GT(json_number(timing, "contact_forces"), 0.0);
+  EXPECT_GT(json_number(timing, "crushing"), 0.0);
+  EXPECT_GT(json_number(timing, "ageing_jump"), 0.0);
+  EXPECT_NE(timing.find("\"dominant_part\""), std::string::npos);
   fs::remove_all(base);
+}
+
+TEST(Checkpoint, PartClockChargesEachSecondToOnePart) {
+  PartClock c;
+  {
+    const PartScope outer(c, Part::Crushing);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    {
+      const PartScope inner(c, Part::NeighborSearch);
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  const auto s = c.seconds();
+  const auto at = [&](Part p) { return s[static_cast<std::size_t>(p)]; };
+  EXPECT_GE(at(Part::Crushing), 0.019);
+  EXPECT_GE(at(Part::NeighborSearch), 0.019);
+  // The nested rebuild is not charged to crushing as well.
+  EXPECT_LT(at(Part::Crushing), at(Part::Crushing) + at(Part::NeighborSearch) - 0.015);
+  EXPECT_EQ(at(Part::ContactForces), 0.0);
+  c.add(s);
+  EXPECT_GE(c.seconds()[static_cast<std::size_t>(Part::Crushing)], 2 * 0.019);
 }
 
 TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {

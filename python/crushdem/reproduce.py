@@ -579,7 +579,8 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
         log(f"{name}: {run_dir} has finished (summary.json): not run again")
         timing = _timing(run_dir)
         record[name] = {"skipped": True, "wall_s": _num(timing.get("wall_seconds")),
-                        "threads": timing.get("threads")}
+                        "threads": timing.get("threads"),
+                        "dominant_part": timing.get("dominant_part")}
         return
     t0 = time.perf_counter()
     resumed = False
@@ -594,8 +595,10 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
         log(f"{name}: running into {run_dir}")
         start()
     wall = time.perf_counter() - t0
+    timing = _timing(run_dir)
     record[name] = {"skipped": False, "resumed": resumed, "wall_s": wall,
-                    "threads": _timing(run_dir).get("threads")}
+                    "threads": timing.get("threads"),
+                    "dominant_part": timing.get("dominant_part")}
     log(f"{name}: done in {wall:.1f} s")
 
 
@@ -788,7 +791,7 @@ def format_table(result: Mapping[str, Any]) -> str:
         lines.append(f"  {'phase 4: volumetric strain [%]':<40}"
                      f"{num(dyn.get('volumetric_strain_end'), 100.0)}")
     lines.append(f"  {'run':<24}{'wall [s]':>10}{'phases':>8}{'instant':>9}{'crack':>7}"
-                 f"{'grains':>8}")
+                 f"{'grains':>8}  most time in")
     for name in RUNS:
         r = runs.get(name) or {}
         wall = num(r.get("wall_s"), fmt=".1f") + ("*" if r.get("skipped") else " ")
@@ -796,7 +799,7 @@ def format_table(result: Mapping[str, Any]) -> str:
         lines.append(f"  {name:<24}{wall:>10}{num(r.get('dynamic_phases'), fmt='.0f'):>8}"
                      f"{num(r.get('breakages_instant'), fmt='.0f'):>9}"
                      f"{num(r.get('breakages_crack'), fmt='.0f'):>7}"
-                     f"{num(grains, fmt='.0f'):>8}")
+                     f"{num(grains, fmt='.0f'):>8}  {r.get('dominant_part') or '-'}")
     lines.append(f"  total {num(result.get('wall_s_total'), fmt='.1f')} s"
                  "   (* finished by an earlier call: wall-clock from its timing.json)")
     return "\n".join(lines)

@@ -52,8 +52,10 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
     if (checkpoints) handlers.emplace();
     const RunSummary s = go();
     std::printf(
-        "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock; results in %s\n",
-        static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds, out.c_str());
+        "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock (%.0f %% %s); "
+        "results in %s\n",
+        static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds,
+        100.0 * s.dominant_fraction, s.dominant_part.c_str(), out.c_str());
     return 0;
   } catch (const Interrupted& e) {
     std::fprintf(stderr,

@@ -116,6 +116,7 @@ double Crusher::crack_velocity(const Simulation& sim, std::size_t i) const {
 }
 
 Crusher::Jump Crusher::ageing_jump(Simulation& sim, std::size_t n_break, double max_dt) {
+  const PartScope timed(sim.part_clock(), Part::Ageing);
   sim.compute_forces();
   ParticleStore& p = sim.particles();
   std::vector<double>& a = p.field(crack_field_);
@@ -157,6 +158,7 @@ double Crusher::fragment_density(double d) const {
 }
 
 std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
+  const PartScope timed(sim.part_clock(), Part::Crushing);
   sim.compute_forces();  // no-op when the forces (and loads) are current
   ParticleStore& p = sim.particles();
   const Simulation::ContactLoad& load = sim.contact_load();

@@ -141,6 +141,7 @@ void Simulation::invalidate() {
 }
 
 void Simulation::rebuild_neighbors() {
+  const PartScope timed(part_clock_, Part::NeighborSearch);
   capture_history();
   const std::size_t N = p_.size();
   if (skin_ <= 0.0 && N > 0) {
@@ -516,6 +517,7 @@ void Simulation::compute_forces() {
 }
 
 void Simulation::evaluate_forces(double increment_dt, bool kick) {
+  const PartScope timed(part_clock_, Part::ContactForces);
   if (cfg_.contact.law == NormalLaw::Hertz) {
     pair_forces(HertzLaw{cp_.E_star}, increment_dt);
     wall_forces(HertzLaw{cp_.E_star}, increment_dt);
@@ -665,6 +667,8 @@ double Simulation::kick_drift() {
 }
 
 void Simulation::step(std::uint64_t n) {
+  // Integration unless a rebuild or the force evaluation (their own parts) is running.
+  const PartScope timed(part_clock_, Part::Integration);
   for (std::uint64_t s = 0; s < n; ++s) {
     dt();
     if (!forces_valid_ || !nl_valid_) compute_forces();

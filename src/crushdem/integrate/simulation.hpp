@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "crushdem/contact/contact_config.hpp"
+#include "crushdem/core/part_clock.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
 #include "crushdem/walls/walls.hpp"
@@ -135,6 +136,10 @@ class Simulation {
   /// nothing if they are already up to date (each evaluation advances tangential history).
   void compute_forces();
 
+  /// Wall-clock time by part of the step (integration, neighbour search, contact forces here;
+  /// the crusher and the run driver charge theirs to the same clock). Not part of the state.
+  PartClock& part_clock() { return part_clock_; }
+
   /// Time-step estimates (exposed for tests and reporting).
   double rayleigh_dt() const;
   double stiffness_dt() const;
@@ -190,6 +195,7 @@ class Simulation {
   std::uint64_t steps_ = 0;
   double load_factor_ = 0.0;
   ContactLoad load_;
+  PartClock part_clock_;
 };
 
 }  // namespace crushdem

@@ -173,6 +173,7 @@ class Driver {
   }
 
   void snapshot() {
+    const PartScope timed(sim_.part_clock(), Part::Output);
     const std::string k = stamp(snapshots_++);
     write_vtk_particles((dir_ / "vtk" / ("particles_" + k + ".vtk")).string(), sim_.particles(),
                         sim_.resultant_force(0), sim_.resultant_force(1), sim_.resultant_force(2));
@@ -242,7 +243,11 @@ class Driver {
         finished = c.update(sim_);
         if (!finished) to_check = c.steps_to_check(sim_);
       }
-      if (s % interval == 0 || finished) csv.write(row());
+      if (s % interval == 0 || finished) {
+        const Measurement m = row();
+        const PartScope timed(sim_.part_clock(), Part::Output);
+        csv.write(m);
+      }
       if (vtk > 0 && s % vtk == 0 && !finished) snapshot();  // the final one follows the run
       progress(label, fraction);
       if (!finished && checkpoint) {
@@ -358,17 +363,20 @@ JsonObject stage_json(const StageResult& r) {
   return o;
 }
 
-constexpr const char* kCheckpointTag = "crushdem-checkpoint-1";
+// Version 2 adds the wall-clock seconds by part; version 1 checkpoints still resume.
+constexpr const char* kCheckpointTag = "crushdem-checkpoint-2";
+constexpr const char* kCheckpointTagV1 = "crushdem-checkpoint-1";
 constexpr std::uint32_t kPartPreparation = 0, kPartRun = 1, kPartFirstStage = 2;
 
 /// Where a run stands between steps, beyond the simulation and the controllers: which part
 /// (preparation, plain run, stage k) it is in, and what earlier parts produced for summary.json.
 struct Progress {
   std::uint32_t part = 0;
-  bool begun = false;            // the part's controller has begun (its state is saved too)
-  std::uint64_t to_check = 0;    // steps to the controller's next check
-  double wall_seconds = 0.0;     // wall-clock time of the run before this process
-  bool has_sample_json = false;  // preparation finished
+  bool begun = false;          // the part's controller has begun (its state is saved too)
+  std::uint64_t to_check = 0;  // steps to the controller's next check
+  double wall_seconds = 0.0;   // wall-clock time of the run before this process
+  std::array<double, PartClock::kParts> part_seconds{};  // the same, by part of the step
+  bool has_sample_json = false;                          // preparation finished
   JsonObject sample_json;
   std::vector<JsonObject> stage_results;
   std::vector<std::string> warnings;
@@ -382,6 +390,7 @@ struct Progress {
     out.put(begun);
     out.put(to_check);
     out.put(wall_seconds);
+    out.put(part_seconds);
     out.put(has_sample_json);
     put_json(out, sample_json);
     out.put(static_cast<std::uint64_t>(stage_results.size()));
@@ -392,12 +401,13 @@ struct Progress {
     out.put(d50);
     out.put(has_crusher);
   }
-  void load(StateReader& in) {
+  void load(StateReader& in, int version) {
     in.tag("progress");
     in.get(part);
     in.get(begun);
     in.get(to_check);
     in.get(wall_seconds);
+    if (version >= 2) in.get(part_seconds);
     in.get(has_sample_json);
     sample_json = get_json(in);
     const auto n = in.value<std::uint64_t>();
@@ -462,14 +472,20 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                         (fs::exists(dir / "summary.json") ? " (the run has finished)" : ""));
     }
     in = std::make_unique<StateReader>(read_binary(path), path);
-    in->tag(kCheckpointTag);
+    std::string format;
+    in->get(format);
+    if (format != kCheckpointTag && format != kCheckpointTagV1) {
+      throw ConfigError("crushdem resume: '" + path + "' is not a crushdem checkpoint (format '" +
+                        format.substr(0, 40) + "', expected '" + kCheckpointTag + "')");
+    }
+    const int version = format == kCheckpointTag ? 2 : 1;
     std::string saved_config;
     in->get(saved_config);
     if (saved_config != config_text) {
       throw ConfigError("crushdem resume: " + (dir / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
-    st.load(*in);
+    st.load(*in, version);
   }
   const bool resumed = opt.resume;
 
@@ -507,16 +523,21 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   // The whole state at this point of the run: the part, the files, the simulation, the crusher
   // and the running controller (none between two parts).
   auto save_checkpoint = [&](const Controller* running, std::uint64_t to_check) {
+    const PartScope timed(sim.part_clock(), Part::Output);
     st.begun = running != nullptr;
     st.to_check = to_check;
     st.has_crusher = crusher != nullptr;
     const double wall_before = st.wall_seconds;
+    const auto parts_before = st.part_seconds;
     st.wall_seconds += driver.seconds();
+    const auto parts_now = sim.part_clock().seconds();
+    for (std::size_t k = 0; k < PartClock::kParts; ++k) st.part_seconds[k] += parts_now[k];
     StateWriter out;
     out.tag(kCheckpointTag);
     out.put(config_text);
     st.save(out);
     st.wall_seconds = wall_before;
+    st.part_seconds = parts_before;
     driver.save_state(out);
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
@@ -733,6 +754,17 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                                                        static_cast<double>(sim.step_count()) / secs
                                                  : 0.0);
   timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
+  // Where the time went (this process plus, when resumed, the processes before it).
+  std::array<double, PartClock::kParts> parts = sim.part_clock().seconds();
+  for (std::size_t k = 0; k < PartClock::kParts; ++k) parts[k] += st.part_seconds[k];
+  JsonObject by_part;
+  std::size_t dominant = 0;
+  for (std::size_t k = 0; k < PartClock::kParts; ++k) {
+    by_part.number(std::string(kPartNames[k]), parts[k]);
+    if (parts[k] > parts[dominant]) dominant = k;
+  }
+  timing.object("seconds_by_part", by_part);
+  timing.string("dominant_part", std::string(kPartNames[dominant]));
   write_text_file((dir / "timing.json").string(), timing.dump() + "\n");
   // The run is complete: its checkpoint is no longer needed.
   fs::remove(dir / "checkpoint.bin", ec);
@@ -742,6 +774,8 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   r.time = sim.time();
   r.wall_seconds = secs;
   r.particles = sim.particles().size();
+  r.dominant_part = std::string(kPartNames[dominant]);
+  r.dominant_fraction = secs > 0.0 ? parts[dominant] / secs : 0.0;
   return r;
 }
 

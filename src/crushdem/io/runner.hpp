@@ -50,6 +50,8 @@ struct RunSummary {
   double time = 0.0;
   double wall_seconds = 0.0;
   std::size_t particles = 0;
+  std::string dominant_part;       // the part of the step that took most wall-clock time
+  double dominant_fraction = 0.0;  // its share of the wall-clock time
 };
 
 /// Adds the rows of a particle file to a simulation (ids kept, the configured density).
