@@ -165,6 +165,8 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
   ASSERT_TRUE(interrupted) << "the run ended before the stop request: make it longer";
   ASSERT_TRUE(fs::exists(base / "stopped" / "checkpoint.bin"));
   ASSERT_FALSE(fs::exists(base / "stopped" / "summary.json"));
+  // An interrupted run already says where its time went.
+  EXPECT_EQ(json_number(read_file(base / "stopped" / "timing.json"), "finished"), 0.0);
   resume_directory((base / "stopped").string(), opt);
   EXPECT_FALSE(fs::exists(base / "stopped" / "checkpoint.bin")) << "kept after the run ended";
 
@@ -189,6 +191,7 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
     EXPECT_GE(s, 0.0) << name;
     parts += s;
   }
+  EXPECT_EQ(json_number(timing, "finished"), 1.0);
   const double wall = json_number(timing, "wall_seconds");
   EXPECT_NEAR(parts, wall, 0.05 * wall + 0.05) << timing;
   EXPECT_GT(json_number(timing, "contact_forces"), 0.0);

@@ -230,6 +230,7 @@ class Driver {
         sim_.step(n);
       }
       if (opt_.sync) opt_.sync(sim_);
+      particle_steps_ += static_cast<double>(n) * static_cast<double>(sim_.particles().size());
       to_check -= n;
       const std::uint64_t s = sim_.step_count();
       if (crusher_ && s % crusher_->config().interval == 0) {
@@ -267,6 +268,8 @@ class Driver {
   bool stop_requested() const { return g_stop_signal != 0; }
 
   double seconds() const { return std::chrono::duration<double>(clock::now() - t0_).count(); }
+  /// Particles times steps stepped by this process (the count is fixed within a chunk).
+  double particle_steps() const { return particle_steps_; }
   std::size_t snapshots() const { return snapshots_; }
 
   void save_state(StateWriter& out) const {
@@ -340,6 +343,7 @@ class Driver {
   std::filesystem::path dir_;
   std::size_t snapshots_ = 0;
   bool checkpoint_requested_ = false;
+  double particle_steps_ = 0.0;
   clock::time_point t0_, last_, last_checkpoint_;
 };
 
@@ -376,7 +380,8 @@ struct Progress {
   std::uint64_t to_check = 0;  // steps to the controller's next check
   double wall_seconds = 0.0;   // wall-clock time of the run before this process
   std::array<double, PartClock::kParts> part_seconds{};  // the same, by part of the step
-  bool has_sample_json = false;                          // preparation finished
+  double particle_steps = 0.0;   // particles times steps before this process
+  bool has_sample_json = false;  // preparation finished
   JsonObject sample_json;
   std::vector<JsonObject> stage_results;
   std::vector<std::string> warnings;
@@ -391,6 +396,7 @@ struct Progress {
     out.put(to_check);
     out.put(wall_seconds);
     out.put(part_seconds);
+    out.put(particle_steps);
     out.put(has_sample_json);
     put_json(out, sample_json);
     out.put(static_cast<std::uint64_t>(stage_results.size()));
@@ -407,7 +413,10 @@ struct Progress {
     in.get(begun);
     in.get(to_check);
     in.get(wall_seconds);
-    if (version >= 2) in.get(part_seconds);
+    if (version >= 2) {
+      in.get(part_seconds);
+      in.get(particle_steps);
+    }
     in.get(has_sample_json);
     sample_json = get_json(in);
     const auto n = in.value<std::uint64_t>();
@@ -520,6 +529,38 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                    static_cast<unsigned long long>(sim.step_count()), sim.time());
     }
   }
+  // timing.json: this process plus, when resumed, the processes before it; rewritten at every
+  // checkpoint (finished = false) so that a long or interrupted run shows where its time goes.
+  // Returns the part that took the most time.
+  auto write_timing = [&](double secs, bool finished) {
+    JsonObject timing;
+    timing.string("backend", opt.backend);
+    timing.integer("finished", finished ? 1 : 0);
+    timing.number("wall_seconds", secs);
+    timing.integer("resumed", resumed ? 1 : 0);
+#ifdef CRUSHDEM_HAVE_OPENMP
+    timing.integer("threads", omp_get_max_threads());
+#else
+    timing.integer("threads", 1);
+#endif
+    timing.integer("steps", static_cast<long long>(sim.step_count()));
+    // Particles times steps summed over the steps (the count changes as grains break).
+    const double particle_steps = st.particle_steps + driver.particle_steps();
+    timing.number("particle_steps_per_second", secs > 0 ? particle_steps / secs : 0.0);
+    timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
+    std::array<double, PartClock::kParts> parts = sim.part_clock().seconds();
+    for (std::size_t k = 0; k < PartClock::kParts; ++k) parts[k] += st.part_seconds[k];
+    JsonObject by_part;
+    std::size_t dominant = 0;
+    for (std::size_t k = 0; k < PartClock::kParts; ++k) {
+      by_part.number(std::string(kPartNames[k]), parts[k]);
+      if (parts[k] > parts[dominant]) dominant = k;
+    }
+    timing.object("seconds_by_part", by_part);
+    timing.string("dominant_part", std::string(kPartNames[dominant]));
+    write_text_file((dir / "timing.json").string(), timing.dump() + "\n");
+    return std::pair<std::size_t, double>{dominant, secs > 0.0 ? parts[dominant] / secs : 0.0};
+  };
   // The whole state at this point of the run: the part, the files, the simulation, the crusher
   // and the running controller (none between two parts).
   auto save_checkpoint = [&](const Controller* running, std::uint64_t to_check) {
@@ -530,19 +571,23 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     const double wall_before = st.wall_seconds;
     const auto parts_before = st.part_seconds;
     st.wall_seconds += driver.seconds();
+    const double particle_steps_before = st.particle_steps;
     const auto parts_now = sim.part_clock().seconds();
     for (std::size_t k = 0; k < PartClock::kParts; ++k) st.part_seconds[k] += parts_now[k];
+    st.particle_steps += driver.particle_steps();
     StateWriter out;
     out.tag(kCheckpointTag);
     out.put(config_text);
     st.save(out);
     st.wall_seconds = wall_before;
     st.part_seconds = parts_before;
+    st.particle_steps = particle_steps_before;
     driver.save_state(out);
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
     if (running) running->save_state(out);
     write_checkpoint_file(dir, out.bytes());
+    write_timing(st.wall_seconds + driver.seconds(), false);
     driver.checkpoint_written();
   };
   // Another backend (the GPU stepper) keeps its state on the device: no checkpoints there.
@@ -740,32 +785,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   summary.object("final", final_state);
   write_text_file((dir / "summary.json").string(), summary.dump() + "\n");
 
-  JsonObject timing;
-  timing.string("backend", opt.backend);
-  timing.number("wall_seconds", secs);
-  timing.integer("resumed", resumed ? 1 : 0);
-#ifdef CRUSHDEM_HAVE_OPENMP
-  timing.integer("threads", omp_get_max_threads());
-#else
-  timing.integer("threads", 1);
-#endif
-  timing.number("particle_steps_per_second", secs > 0
-                                                 ? static_cast<double>(sim.particles().size()) *
-                                                       static_cast<double>(sim.step_count()) / secs
-                                                 : 0.0);
-  timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
-  // Where the time went (this process plus, when resumed, the processes before it).
-  std::array<double, PartClock::kParts> parts = sim.part_clock().seconds();
-  for (std::size_t k = 0; k < PartClock::kParts; ++k) parts[k] += st.part_seconds[k];
-  JsonObject by_part;
-  std::size_t dominant = 0;
-  for (std::size_t k = 0; k < PartClock::kParts; ++k) {
-    by_part.number(std::string(kPartNames[k]), parts[k]);
-    if (parts[k] > parts[dominant]) dominant = k;
-  }
-  timing.object("seconds_by_part", by_part);
-  timing.string("dominant_part", std::string(kPartNames[dominant]));
-  write_text_file((dir / "timing.json").string(), timing.dump() + "\n");
+  const auto [dominant, dominant_fraction] = write_timing(secs, true);
   // The run is complete: its checkpoint is no longer needed.
   fs::remove(dir / "checkpoint.bin", ec);
 
@@ -775,7 +795,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   r.wall_seconds = secs;
   r.particles = sim.particles().size();
   r.dominant_part = std::string(kPartNames[dominant]);
-  r.dominant_fraction = secs > 0.0 ? parts[dominant] / secs : 0.0;
+  r.dominant_fraction = dominant_fraction;
   return r;
 }
 
