@@ -42,6 +42,14 @@ class Result:
         return read_timeseries(os.path.join(self.directory, "timeseries.csv"))
 
     @property
+    def timing(self) -> Dict[str, Any]:
+        """``timing.json``: wall-clock seconds, threads, particle-steps per second, and
+        ``seconds_by_part`` (integration, neighbor_search, contact_forces, crushing,
+        ageing_jump, output, other) with the ``dominant_part``."""
+        with open(os.path.join(self.directory, "timing.json")) as f:
+            return json.load(f)
+
+    @property
     def stages(self) -> List[Dict[str, Any]]:
         return list(self.summary.get("stages", []))
 
