@@ -120,6 +120,32 @@ def test_value_at_interpolates_in_log_t_or_linear_t_before_the_first_phase():
     assert math.isnan(v) and "beyond" in how
 
 
+def test_compare_relaxation_reads_both_curves_at_common_log_times():
+    # Two samplings of one curve that is straight in log t: no difference, whatever the phases.
+    def line(t):
+        return 7.0 * (1.0 - 0.05 * np.log10(t / 0.01))
+
+    t_a = np.array([0.0, 0.1, 100.0, 1e4, 86400.0])
+    t_b = np.array([0.0, 0.02, 3.0, 700.0, 5e4, 86400.0])
+    y_a = np.concatenate([[7.0], line(t_a[1:])])
+    y_b = np.concatenate([[7.0], line(t_b[1:])])
+    same = rp.compare_relaxation(t_a, y_a, t_b, y_b)
+    assert same["max_abs_difference"] == pytest.approx(0.0, abs=1e-12)
+    assert same["t_from_s"] == 0.1 and same["t_to_s"] == 86400.0
+    # Normalised by the t = 0 value: a curve 0.02 lower (of 7) everywhere after t = 0.
+    lower = rp.compare_relaxation(t_a, y_a, t_b, y_b - np.array([0.0] + [0.14] * 5))
+    assert lower["max_abs_difference"] == pytest.approx(0.02)
+    assert lower["end_a"] - lower["end_b"] == pytest.approx(0.02)
+    # A kink between the phases of the other run shows up where it is.
+    y_kink = y_b.copy()
+    y_kink[3] -= 0.35  # t = 700 s: 0.05 of sigma(0)
+    kink = rp.compare_relaxation(t_a, y_a, t_b, y_kink)
+    assert kink["max_abs_difference"] == pytest.approx(0.05, rel=0.02)
+    assert 300.0 < kink["at_t_s"] < 1500.0
+    with pytest.raises(ValueError, match="t = 0"):
+        rp.compare_relaxation(t_a[1:], y_a[1:], t_b, y_b)
+
+
 def test_fit_log_t_slope_and_r2():
     t = np.array([0.0, 1.0, 10.0, 100.0, 1000.0])
     q = np.array([99.0, 10.0, 8.0, 6.0, 4.0])  # the t = 0 point is left out of the fit
