@@ -531,7 +531,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   }
   // timing.json: this process plus, when resumed, the processes before it; rewritten at every
   // checkpoint (finished = false) so that a long or interrupted run shows where its time goes.
-  // Returns the part that took the most time.
+  // Returns the part that took the most time and its share of the wall-clock time.
   auto write_timing = [&](double secs, bool finished) {
     JsonObject timing;
     timing.string("backend", opt.backend);
