@@ -14,10 +14,10 @@ Each run is an ordinary run directory under DIR (``sample/``, ``oedometric_relax
 ``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem.lab`, so
 ``crushdem plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
 (written last, when a run finishes) is not run again: a re-invocation after an interruption goes
-on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one that left none starts
-over). ``DIR/settings.json`` records the settings of
-the first invocation; a later one with other settings (``--quick`` against the study scale,
-another ``--sample``) stops rather than mixing results.
+on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one that left
+none starts over). ``DIR/settings.json`` records the settings of the first invocation; a later
+one with other settings (``--quick`` against the study scale, another ``--sample``) stops rather
+than mixing results.
 
 Figures (PNG, with the CSV of what each draws; ``#`` lines at the top of a CSV say how it was
 computed), all against the ageing time t (the relaxation clock, off-DEM jumps only) on a log axis,
@@ -615,12 +615,14 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
     instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
     the run starts over.
     """
+    def from_timing() -> Dict[str, Any]:
+        timing = _timing(run_dir)
+        return {"wall_s": _num(timing.get("wall_seconds")), "threads": timing.get("threads"),
+                "dominant_part": timing.get("dominant_part")}
+
     if _finished(run_dir):
         log(f"{name}: {run_dir} has finished (summary.json): not run again")
-        timing = _timing(run_dir)
-        record[name] = {"skipped": True, "wall_s": _num(timing.get("wall_seconds")),
-                        "threads": timing.get("threads"),
-                        "dominant_part": timing.get("dominant_part")}
+        record[name] = {"skipped": True, **from_timing()}
         return
     t0 = time.perf_counter()
     resumed = False
@@ -635,11 +637,46 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
         log(f"{name}: running into {run_dir}")
         start()
     wall = time.perf_counter() - t0
-    timing = _timing(run_dir)
-    record[name] = {"skipped": False, "resumed": resumed, "wall_s": wall,
-                    "threads": timing.get("threads"),
-                    "dominant_part": timing.get("dominant_part")}
+    record[name] = {**from_timing(), "skipped": False, "resumed": resumed, "wall_s": wall}
     log(f"{name}: done in {wall:.1f} s")
+
+
+def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
+               record: Dict[str, Any]) -> str:
+    """The sample of the settings ``cfg`` prepared into ``run_dir`` as a ``_run_step``; returns
+    its particle file."""
+    from . import _core, lab
+
+    _run_step("sample", run_dir,
+              lambda: lab.prepare_sample(run_dir, material=cfg["material"],
+                                         contact=cfg["contact"], output=cfg["output"],
+                                         **cfg["sample"]),
+              log, record, _core.resume)
+    return os.path.join(run_dir, "sample.txt")
+
+
+def _age_stage(cfg: Mapping[str, Any]) -> Dict[str, Any]:
+    """Keys for the age stage only: the settings' ``age_stage`` plus ``record_interval``."""
+    age_stage = dict(cfg["age_stage"])
+    if cfg["record_interval"]:
+        age_stage["record_interval"] = cfg["record_interval"]
+    return age_stage
+
+
+def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file: str,
+                              log: Callable[[str], None], record: Dict[str, Any],
+                              name: str = "oedometric_relaxation") -> None:
+    """The study's oedometric relaxation with the settings ``cfg`` (see ``settings``) into
+    ``run_dir``, as a ``_run_step`` (skipped when finished, resumed when interrupted)."""
+    from . import _core, lab
+
+    oe = cfg["oedometric"]
+    _run_step(name, run_dir,
+              lambda: lab.oedometric_relaxation(
+                  run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
+                  crushing=dict(cfg["crushing"]), age_stage=_age_stage(cfg), **cfg["age"],
+                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"]),
+              log, record, _core.resume)
 
 
 def _age_counts(run_dir: str) -> Dict[str, Any]:
@@ -706,29 +743,16 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         sample_file = os.path.abspath(sample)
         runs["sample"] = {"skipped": True, "wall_s": 0.0, "file": sample_file}
     else:
-        s = dict(cfg["sample"])
-        _run_step("sample", dirs["sample"],
-                  lambda: lab.prepare_sample(dirs["sample"], material=cfg["material"],
-                                             contact=cfg["contact"], output=cfg["output"], **s),
-                  log, runs, resume)
-        sample_file = os.path.join(dirs["sample"], "sample.txt")
+        sample_file = run_sample(cfg, dirs["sample"], log, runs)
         info = read_summary(dirs["sample"]).get("sample") or {}
         runs["sample"].update(grains=info.get("grains"), void_ratio=info.get("void_ratio"))
 
     crushing = dict(cfg["crushing"])
     age = dict(cfg["age"])
-    age_stage = dict(cfg["age_stage"])
-    if cfg["record_interval"]:
-        age_stage["record_interval"] = cfg["record_interval"]
+    age_stage = _age_stage(cfg)
 
     # 2. Oedometric relaxation.
-    oe = cfg["oedometric"]
-    _run_step("oedometric_relaxation", dirs["oedometric_relaxation"],
-              lambda: lab.oedometric_relaxation(
-                  dirs["oedometric_relaxation"], sample_file, stress=oe["stress"],
-                  strain_rate=oe["strain_rate"], crushing=crushing, age_stage=age_stage, **age,
-                  **common),
-              log, runs, resume)
+    run_oedometric_relaxation(cfg, dirs["oedometric_relaxation"], sample_file, log, runs)
     runs["oedometric_relaxation"].update(_age_counts(dirs["oedometric_relaxation"]))
 
     # 3. Triaxial shear to find q_max.

@@ -17,43 +17,27 @@ DIR = os.environ.get("CRUSHDEM_VALIDATION_DIR")
 pytestmark = pytest.mark.skipif(not DIR, reason="opt-in: set CRUSHDEM_VALIDATION_DIR")
 
 
-def _sample(rp, lab):
+def _sample(rp):
     given = os.environ.get("CRUSHDEM_VALIDATION_SAMPLE")
     if given:
         return os.path.abspath(given)
-    cfg = rp.settings(quick=False)
-    out = os.path.join(DIR, "sample")
-    if not os.path.isfile(os.path.join(out, "summary.json")):
-        lab.prepare_sample(out, material=cfg["material"], contact=cfg["contact"],
-                           output=cfg["output"], **cfg["sample"])
-    return os.path.join(out, "sample.txt")
-
-
-def _oedometric_relaxation(rp, lab, core, sample, n_break):
-    """The study's oedometric relaxation (reproduce settings) with this N_break."""
-    cfg = rp.settings(quick=False)
-    out = os.path.join(DIR, f"oedometric_relaxation_nbreak{n_break}")
-    age = dict(cfg["age"], n_break=n_break)
-    rp._run_step(f"n_break {n_break}", out,
-                 lambda: lab.oedometric_relaxation(
-                     out, sample, stress=cfg["oedometric"]["stress"],
-                     strain_rate=cfg["oedometric"]["strain_rate"], crushing=cfg["crushing"],
-                     material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
-                     **age),
-                 print, {}, core.resume)
-    return out
+    return rp.run_sample(rp.settings(quick=False), os.path.join(DIR, "sample"), print, {})
 
 
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
-    from crushdem import _core, lab
     from crushdem import reproduce as rp
     from crushdem.plot import _vertical_stress, read_events
 
     os.makedirs(DIR, exist_ok=True)
-    sample = _sample(rp, lab)
+    sample = _sample(rp)
     curves = {}
     for n_break in (30, 10):
-        ev = read_events(_oedometric_relaxation(rp, lab, _core, sample, n_break))
+        # The reproduce settings with this N_break.
+        cfg = rp.settings(quick=False)
+        cfg["age"]["n_break"] = n_break
+        out = os.path.join(DIR, f"oedometric_relaxation_nbreak{n_break}")
+        rp.run_oedometric_relaxation(cfg, out, sample, print, {}, name=f"n_break {n_break}")
+        ev = read_events(out)
         idx = rp._age_rows(ev)
         curves[n_break] = (ev["ageing_time_s"][idx], _vertical_stress(ev)[idx])
     # Identical up to the first jump: the same state at t = 0.

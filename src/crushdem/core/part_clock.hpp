@@ -1,6 +1,6 @@
 // Where a run's wall-clock time goes, by part of the step (timing.json: seconds_by_part).
-// Every second between start() and the last reading belongs to exactly one part: entering a
-// part pauses the one it was entered from (a neighbour rebuild inside a split counts as
+// Every second from the clock's construction to the last reading belongs to exactly one part:
+// entering a part pauses the one it was entered from (a neighbour rebuild inside a split counts as
 // neighbour search, not twice). Read from the host thread only, outside parallel regions; it
 // never influences the results.
 #pragma once

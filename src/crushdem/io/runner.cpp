@@ -268,8 +268,10 @@ class Driver {
   bool stop_requested() const { return g_stop_signal != 0; }
 
   double seconds() const { return std::chrono::duration<double>(clock::now() - t0_).count(); }
-  /// Particles times steps stepped by this process (the count is fixed within a chunk).
+  /// Particles times steps over the run (the count is fixed within a chunk); a resumed run
+  /// starts from the total its checkpoint holds.
   double particle_steps() const { return particle_steps_; }
+  void add_particle_steps(double earlier) { particle_steps_ += earlier; }
   std::size_t snapshots() const { return snapshots_; }
 
   void save_state(StateWriter& out) const {
@@ -379,9 +381,9 @@ struct Progress {
   bool begun = false;          // the part's controller has begun (its state is saved too)
   std::uint64_t to_check = 0;  // steps to the controller's next check
   double wall_seconds = 0.0;   // wall-clock time of the run before this process
-  std::array<double, PartClock::kParts> part_seconds{};  // the same, by part of the step
-  double particle_steps = 0.0;   // particles times steps before this process
-  bool has_sample_json = false;  // preparation finished
+  std::array<double, PartClock::kParts> part_seconds{};  // the run's seconds by part so far
+  double particle_steps = 0.0;                           // the run's particles times steps so far
+  bool has_sample_json = false;                          // preparation finished
   JsonObject sample_json;
   std::vector<JsonObject> stage_results;
   std::vector<std::string> warnings;
@@ -524,6 +526,9 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
       crusher->load_state(*in);
       driver.attach_crusher(crusher.get(), true);
     }
+    // Timing totals go on from the checkpoint's.
+    sim.part_clock().add(st.part_seconds);
+    driver.add_particle_steps(st.particle_steps);
     if (opt.progress) {
       std::fprintf(stderr, "[crushdem] resuming at step %llu, t = %.6e s\n",
                    static_cast<unsigned long long>(sim.step_count()), sim.time());
@@ -545,11 +550,9 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 #endif
     timing.integer("steps", static_cast<long long>(sim.step_count()));
     // Particles times steps summed over the steps (the count changes as grains break).
-    const double particle_steps = st.particle_steps + driver.particle_steps();
-    timing.number("particle_steps_per_second", secs > 0 ? particle_steps / secs : 0.0);
+    timing.number("particle_steps_per_second", secs > 0 ? driver.particle_steps() / secs : 0.0);
     timing.integer("neighbor_builds", static_cast<long long>(sim.neighbors().builds()));
-    std::array<double, PartClock::kParts> parts = sim.part_clock().seconds();
-    for (std::size_t k = 0; k < PartClock::kParts; ++k) parts[k] += st.part_seconds[k];
+    const std::array<double, PartClock::kParts> parts = sim.part_clock().seconds();
     JsonObject by_part;
     std::size_t dominant = 0;
     for (std::size_t k = 0; k < PartClock::kParts; ++k) {
@@ -568,20 +571,15 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     st.begun = running != nullptr;
     st.to_check = to_check;
     st.has_crusher = crusher != nullptr;
+    st.part_seconds = sim.part_clock().seconds();
+    st.particle_steps = driver.particle_steps();
     const double wall_before = st.wall_seconds;
-    const auto parts_before = st.part_seconds;
     st.wall_seconds += driver.seconds();
-    const double particle_steps_before = st.particle_steps;
-    const auto parts_now = sim.part_clock().seconds();
-    for (std::size_t k = 0; k < PartClock::kParts; ++k) st.part_seconds[k] += parts_now[k];
-    st.particle_steps += driver.particle_steps();
     StateWriter out;
     out.tag(kCheckpointTag);
     out.put(config_text);
     st.save(out);
     st.wall_seconds = wall_before;
-    st.part_seconds = parts_before;
-    st.particle_steps = particle_steps_before;
     driver.save_state(out);
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
