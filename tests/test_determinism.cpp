@@ -128,5 +128,20 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithCrushing) {
 #endif
 }
 
+TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithRollingResistance) {
+#ifndef CRUSHDEM_HAVE_OPENMP
+  GTEST_SKIP() << "built without OpenMP";
+#else
+  // The rolling moment of a pair is written to both grains from one column (as the forces).
+  std::string config(kConfig);
+  const std::string law = "law = \"rough\"\n";
+  config.replace(config.find(law), law.size(), law + "rolling_friction = 0.3\n");
+  const fs::path base = fs::temp_directory_path() / "crushdem_determinism_rolling";
+  EXPECT_GE(compare_thread_counts(config, base), 7u);
+  EXPECT_NE(slurp(base / "t1" / "config.toml").find("rolling_friction = 0.3"), std::string::npos);
+  fs::remove_all(base);
+#endif
+}
+
 }  // namespace
 }  // namespace crushdem

@@ -89,7 +89,8 @@ class Simulation:
         ``friction`` grain-grain mu [-].
     ``contact``
         ``law`` ("hertz" or "rough"), ``roughness_Sq`` [m], ``k1``, ``k2`` [-],
-        ``wall_friction`` [-], ``restitution`` [-].
+        ``wall_friction`` [-], ``restitution`` [-], ``rolling_friction`` mu_r [-] (grain-grain
+        rolling resistance, 0 = off).
     ``damping``
         ``local_alpha`` [-] (0 turns local damping off).
     ``timestep``
@@ -246,7 +247,9 @@ class Simulation:
         Returns a dict of arrays of equal length: ``id_i``, ``id_j`` (uint64; for a wall
         contact ``id_j`` is the wall index 0..5, see WALL_NAMES), ``is_wall`` (bool),
         ``overlap`` [m], ``normal_force`` [N] (elastic), ``normal`` (n, 3) unit vector from i
-        towards j (or into the wall), ``tangential_force`` (n, 3) [N] on grain i.
+        towards j (or into the wall), ``tangential_force`` (n, 3) [N] on grain i,
+        ``rolling_moment`` (n, 3) [N m] on grain i (zero without rolling resistance and at
+        walls).
         """
         return self._sim.contacts()
 

@@ -364,7 +364,7 @@ NB_MODULE(_core, m) {
             const std::size_t n = cs.size();
             std::uint64_t *ii, *jj;
             bool* wall;
-            double *delta, *fn, *normal, *ft;
+            double *delta, *fn, *normal, *ft, *mr;
             nb::dict out;
             out["id_i"] = new_array<std::uint64_t>({n}, &ii);
             out["id_j"] = new_array<std::uint64_t>({n}, &jj);
@@ -373,6 +373,7 @@ NB_MODULE(_core, m) {
             out["normal_force"] = new_array<double>({n}, &fn);
             out["normal"] = new_array<double>({n, 3}, &normal);
             out["tangential_force"] = new_array<double>({n, 3}, &ft);
+            out["rolling_moment"] = new_array<double>({n, 3}, &mr);
             for (std::size_t c = 0; c < n; ++c) {
               const ContactRecord& r = cs[c];
               ii[c] = r.id_i;
@@ -386,12 +387,16 @@ NB_MODULE(_core, m) {
               ft[3 * c] = r.F_t.x;
               ft[3 * c + 1] = r.F_t.y;
               ft[3 * c + 2] = r.F_t.z;
+              mr[3 * c] = r.M_r.x;
+              mr[3 * c + 1] = r.M_r.y;
+              mr[3 * c + 2] = r.M_r.z;
             }
             return out;
           },
           "Touching contacts: dict of arrays id_i, id_j (uint64; wall index 0..5 when is_wall), "
           "is_wall (bool), overlap [m], normal_force [N], normal (N,3) unit vector from i to j "
-          "(or into the wall), tangential_force (N,3) [N] on i.")
+          "(or into the wall), tangential_force (N,3) [N] on i, rolling_moment (N,3) [N m] on i "
+          "(zero without rolling resistance and at walls).")
       .def("num_contacts", &Simulation::num_contacts, "Grain-grain contacts with positive overlap.")
 
       .def(

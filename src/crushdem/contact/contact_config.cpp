@@ -34,6 +34,8 @@ void ContactConfig::validate() const {
           wall_friction, "a friction coefficient >= 0");
   require(restitution > 0.0 && restitution <= 1.0, "contact.restitution", restitution,
           "a coefficient of restitution in (0, 1] (1 = no viscous damping)");
+  require(rolling_friction >= 0.0 && std::isfinite(rolling_friction), "contact.rolling_friction",
+          rolling_friction, "a rolling friction coefficient >= 0 (0 = no rolling resistance)");
 }
 
 const char* to_string(NormalLaw law) {
@@ -52,6 +54,7 @@ ContactParams make_contact_params(const MaterialConfig& m, const ContactConfig& 
   p.tangential_ratio = mindlin_stiffness_ratio(m.poisson_ratio);
   p.mu = m.friction;
   p.mu_wall = c.wall_friction;
+  p.mu_r = c.rolling_friction;
   if (c.restitution < 1.0) p.viscous.alpha_n = std::sqrt(2.0) * tsuji_alpha(c.restitution);
   const double Sq = c.law == NormalLaw::Rough ? c.roughness_Sq : 0.0;
   p.rough_pp = make_rough_hertz(std::sqrt(2.0) * Sq, c.k1, c.k2);

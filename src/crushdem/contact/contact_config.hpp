@@ -5,6 +5,7 @@
 
 #include "crushdem/contact/damping.hpp"
 #include "crushdem/contact/hertz.hpp"
+#include "crushdem/contact/rolling.hpp"
 #include "crushdem/contact/rough_hertz.hpp"
 #include "crushdem/contact/tangential.hpp"
 
@@ -27,6 +28,7 @@ struct ContactConfig {
   double k1 = 0.05, k2 = 5.0;        // rough-law transition constants (CHOICE: Table 1 n1, n2)
   double wall_friction = 0.0;        // mu against walls (CHOICE)
   double restitution = 1.0;          // < 1 adds Tsuji viscous damping (off by default)
+  double rolling_friction = 0.0;     // mu_r of grain-grain rolling resistance (CHOICE; 0 = off)
   void validate() const;             // throws ConfigError naming "contact.<key>"
 };
 
@@ -38,6 +40,7 @@ struct ContactParams {
   double E_star = 0.0;
   double tangential_ratio = 0.0;  // k_t / k_n
   double mu = 0.0, mu_wall = 0.0;
+  double mu_r = 0.0;  // rolling friction, grain-grain (0 = no rolling resistance)
   ViscousDamping viscous;
   RoughHertzParams rough_pp, rough_pw;  // grain-grain (s = sqrt2 S_q) and grain-wall (s = S_q)
 };

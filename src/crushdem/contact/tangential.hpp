@@ -18,28 +18,34 @@ CD_HD inline double mindlin_stiffness_ratio(double nu) {
   return 2.0 * (1.0 - nu) / (2.0 - nu);
 }
 
+/// One step of an incremental elastic-perfectly-plastic spring that lives in the contact plane
+/// (shared by the tangential force and the rolling moment): the stored value h is turned onto
+/// the plane normal to n keeping its length, loaded by -k du, and capped at |h| <= h_max.
+CD_HD inline Vec3 contact_plane_spring(Vec3 h, Vec3 n, Vec3 du, double k, double h_max) {
+  // Rotate the stored value onto the current tangent plane, keeping its magnitude.
+  const double len2 = dot(h, h);
+  if (len2 > 0.0) {
+    const double h_n = dot(h, n);
+    h -= h_n * n;
+    // Restoring the length multiplies by sqrt(len2 / (len2 - h_n^2)) = 1 + h_n^2 / (2 len2):
+    // below 1e-17 relative that factor rounds to 1 in double precision, so the sqrt and the
+    // division are skipped (the common case: the contact plane turns very little per step).
+    if (h_n * h_n > 1e-17 * len2) {
+      const double p2 = dot(h, h);
+      h = p2 > 0.0 ? std::sqrt(len2 / p2) * h : Vec3{};
+    }
+  }
+  h -= k * du;
+  const double h2 = dot(h, h);
+  if (h2 > h_max * h_max) h = (h2 > 0.0 ? h_max / std::sqrt(h2) : 0.0) * h;
+  return h;
+}
+
 /// Returns the new tangential force; du_t is the tangential relative displacement of the first
 /// body with respect to the second over the step, n the unit contact normal.
 CD_HD inline Vec3 mindlin_tangential(Vec3 F_t, Vec3 n, Vec3 du_t, double k_t, double mu,
                                      double F_n) {
-  // Rotate the stored force onto the current tangent plane, keeping its magnitude.
-  const double len2 = dot(F_t, F_t);
-  if (len2 > 0.0) {
-    const double f_n = dot(F_t, n);
-    F_t -= f_n * n;
-    // Restoring the length multiplies by sqrt(len2 / (len2 - f_n^2)) = 1 + f_n^2 / (2 len2):
-    // below 1e-17 relative that factor rounds to 1 in double precision, so the sqrt and the
-    // division are skipped (the common case: the contact plane turns very little per step).
-    if (f_n * f_n > 1e-17 * len2) {
-      const double p2 = dot(F_t, F_t);
-      F_t = p2 > 0.0 ? std::sqrt(len2 / p2) * F_t : Vec3{};
-    }
-  }
-  F_t -= k_t * du_t;
-  const double cap = mu * F_n;
-  const double ft2 = dot(F_t, F_t);
-  if (ft2 > cap * cap) F_t = (ft2 > 0.0 ? cap / std::sqrt(ft2) : 0.0) * F_t;
-  return F_t;
+  return contact_plane_spring(F_t, n, du_t, k_t, mu * F_n);
 }
 
 }  // namespace crushdem

@@ -16,6 +16,10 @@
 
 namespace crushdem {
 
+/// The current checkpoint format: 1 the first; 2 adds the wall-clock seconds by part; 3 the
+/// rolling-resistance history of the contacts.
+constexpr int kStateVersion = 3;
+
 class StateWriter {
  public:
   template <class T>
@@ -111,6 +115,10 @@ class StateReader {
     if (s != name) fail(std::string("section '") + name + "'");
   }
   bool at_end() const { return pos_ == buf_.size(); }
+  /// The checkpoint format version being read (kStateVersion unless the file is older): lets a
+  /// module skip what older files do not hold.
+  int version() const { return version_; }
+  void set_version(int v) { version_ = v; }
 
  private:
   void need(std::uint64_t n) const {
@@ -123,6 +131,7 @@ class StateReader {
   std::string buf_;
   std::string source_;
   std::size_t pos_ = 0;
+  int version_ = kStateVersion;
 };
 
 }  // namespace crushdem

@@ -409,6 +409,11 @@ struct GpuStepper::Impl {
   bool graph_stale = true;
 
   Impl(Simulation& s, Mode mode) : sim(s), emulate(mode == Mode::HostEmulation) {
+    if (sim.cp_.mu_r > 0.0) {
+      throw ConfigError(bad_value("contact.rolling_friction", show_number(sim.cp_.mu_r),
+                                  "0 with the GPU backend (rolling resistance runs on the CPU "
+                                  "backend only, for now)"));
+    }
     if (!emulate) {
       if (!GpuStepper::available()) throw RuntimeFailure("GpuStepper: no CUDA device");
       CD_CUDA(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));

@@ -8,6 +8,7 @@
 
 #include "crushdem/contact/contact_kernel.hpp"
 #include "crushdem/contact/contact_stress.hpp"
+#include "crushdem/contact/rolling.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 
@@ -99,7 +100,23 @@ ParticleId Simulation::add_particle(Vec3 position, double radius, Vec3 velocity,
 void Simulation::capture_history() {
   if (history_saved_ || !nl_valid_) return;
   saved_pairs_.clear();
+  saved_rolling_.clear();
   saved_walls_.clear();
+  if (!mr_x_.empty()) {
+    for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
+      if (mr_x_[e] == 0.0 && mr_y_[e] == 0.0 && mr_z_[e] == 0.0) continue;
+      const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
+      if (ia < ib) {
+        saved_rolling_.push_back({ia, ib, mr_x_[e], mr_y_[e], mr_z_[e]});
+      } else {
+        saved_rolling_.push_back({ib, ia, -mr_x_[e], -mr_y_[e], -mr_z_[e]});
+      }
+    }
+    std::sort(saved_rolling_.begin(), saved_rolling_.end(),
+              [](const RollingHistory& u, const RollingHistory& v) {
+                return std::tie(u.a, u.b) < std::tie(v.a, v.b);
+              });
+  }
   for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
     if (ft_x_[e] == 0.0 && ft_y_[e] == 0.0 && ft_z_[e] == 0.0) continue;
     const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
@@ -171,6 +188,7 @@ void Simulation::rebuild_neighbors() {
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   const std::size_t M = nl_.neighbors.size();
   for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
+  for (auto* a : {&mr_x_, &mr_y_, &mr_z_}) a->assign(rolling() ? M : 0, 0.0);
   entry_R_star_.resize(M);
   entry_m_eff_.resize(M);
   entry_sqrt_R_star_.resize(M);
@@ -226,6 +244,26 @@ void Simulation::rebuild_neighbors() {
         }
       }
     }
+    if (!saved_rolling_.empty() && rolling()) {
+#pragma omp parallel for schedule(static) if (worth_threading(M))
+      for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
+        const auto e = static_cast<std::size_t>(ee);
+        const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
+        const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
+        auto it = std::lower_bound(saved_rolling_.begin(), saved_rolling_.end(),
+                                   RollingHistory{a, b, 0, 0, 0},
+                                   [](const RollingHistory& u, const RollingHistory& v) {
+                                     return std::tie(u.a, u.b) < std::tie(v.a, v.b);
+                                   });
+        if (it != saved_rolling_.end() && it->a == a && it->b == b) {
+          const double s = ia == a ? 1.0 : -1.0;
+          mr_x_[e] = s * it->x;
+          mr_y_[e] = s * it->y;
+          mr_z_[e] = s * it->z;
+          touching_[e] = 1;
+        }
+      }
+    }
     for (std::size_t e = 0; e < wc_.size(); ++e) {
       const WallHistory key{p_.id[wc_.particle[e]], wc_.wall[e], 0, 0, 0};
       auto it = std::lower_bound(saved_walls_.begin(), saved_walls_.end(), key,
@@ -239,6 +277,7 @@ void Simulation::rebuild_neighbors() {
       }
     }
     saved_pairs_.clear();
+    saved_rolling_.clear();
     saved_walls_.clear();
     history_saved_ = false;
   }
@@ -262,12 +301,13 @@ struct PairLoop {
   const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ, *RS, *ME, *SRS;
   double *ftx, *fty, *ftz, *FX, *FY, *FZ, *TX, *TY, *TZ;
   std::uint8_t* touch;
+  double *mrx = nullptr, *mry = nullptr, *mrz = nullptr;  // rolling moment (Rolling only)
   // Contact load (crushing), null when not tracked: max sigma_c, max F_n and its normal.
   double *LS = nullptr, *LF = nullptr, *LNX = nullptr, *LNY = nullptr, *LNZ = nullptr;
   double inv_pi_k = 0.0;  // 1 / (pi r'/R*)
 };
 
-template <class Law>
+template <class Law, bool Rolling>
 void pair_column(const PairLoop<Law> L, Idx col) {
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
     const std::size_t i = L.col_mem[k];
@@ -285,6 +325,7 @@ void pair_column(const PairLoop<Law> L, Idx col) {
         if (L.touch[e]) {
           L.touch[e] = 0;
           L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
+          if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
         }
         continue;
       }
@@ -307,6 +348,17 @@ void pair_column(const PairLoop<Law> L, Idx col) {
       L.TX[j] += a_j * tn.x;
       L.TY[j] += a_j * tn.y;
       L.TZ[j] += a_j * tn.z;
+      if constexpr (Rolling) {
+        const Vec3 M_r = rolling_moment(Vec3{L.mrx[e], L.mry[e], L.mrz[e]}, pc.n, wi - wj, L.h,
+                                        L.cp.tangential_ratio * c.k_n, L.RS[e], L.cp.mu_r, c.F_n);
+        L.mrx[e] = M_r.x;
+        L.mry[e] = M_r.y;
+        L.mrz[e] = M_r.z;
+        T += M_r;
+        L.TX[j] -= M_r.x;
+        L.TY[j] -= M_r.y;
+        L.TZ[j] -= M_r.z;
+      }
       if (L.LS) {
         // j is safe to write here for the same reason as FX[j] (column colouring).
         const double sig = pc.delta > 0.0 ? c.F_n * L.inv_pi_k / (L.RS[e] * pc.delta) : 0.0;
@@ -337,7 +389,7 @@ void pair_column(const PairLoop<Law> L, Idx col) {
 
 }  // namespace
 
-template <class Law>
+template <class Law, bool Rolling>
 void Simulation::pair_forces(const Law& law, double h) {
   const std::size_t N = p_.size();
   PairLoop<Law> loop{law,
@@ -370,6 +422,11 @@ void Simulation::pair_forces(const Law& law, double h) {
                      p_.ty.data(),
                      p_.tz.data(),
                      touching_.data()};
+  if constexpr (Rolling) {
+    loop.mrx = mr_x_.data();
+    loop.mry = mr_y_.data();
+    loop.mrz = mr_z_.data();
+  }
   if (load_factor_ > 0.0) {
     for (auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) {
       a->assign(N, 0.0);
@@ -394,7 +451,7 @@ void Simulation::pair_forces(const Law& law, double h) {
 #pragma omp for schedule(dynamic, 1)
       for (Idx col = static_cast<Idx>(colors[color]); col < static_cast<Idx>(colors[color + 1]);
            ++col) {
-        pair_column(loop, col);
+        pair_column<Law, Rolling>(loop, col);
       }
     }
   }
@@ -518,11 +575,16 @@ void Simulation::compute_forces() {
 
 void Simulation::evaluate_forces(double increment_dt, bool kick) {
   const PartScope timed(part_clock_, Part::ContactForces);
+  // Rolling resistance is a template flag, so the loops without it carry none of its cost.
   if (cfg_.contact.law == NormalLaw::Hertz) {
-    pair_forces(HertzLaw{cp_.E_star}, increment_dt);
-    wall_forces(HertzLaw{cp_.E_star}, increment_dt);
+    const HertzLaw law{cp_.E_star};
+    rolling() ? pair_forces<HertzLaw, true>(law, increment_dt)
+              : pair_forces<HertzLaw, false>(law, increment_dt);
+    wall_forces(law, increment_dt);
   } else {
-    pair_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pp}, increment_dt);
+    const RoughHertzLaw law_pp{cp_.E_star, cp_.rough_pp};
+    rolling() ? pair_forces<RoughHertzLaw, true>(law_pp, increment_dt)
+              : pair_forces<RoughHertzLaw, false>(law_pp, increment_dt);
     wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw}, increment_dt);
   }
   if (load_factor_ > 0.0) {
@@ -589,6 +651,9 @@ void Simulation::save_state(StateWriter& out) const {
   for (const auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) {
     out.put(*a);
   }
+  out.tag("rolling");  // format 3
+  for (const auto* a : {&mr_x_, &mr_y_, &mr_z_}) out.put(*a);
+  out.put(saved_rolling_);
 }
 
 void Simulation::load_state(StateReader& in) {
@@ -621,6 +686,18 @@ void Simulation::load_state(StateReader& in) {
   in.get(cp_.mu);
   in.get(load_factor_);
   for (auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) in.get(*a);
+  if (in.version() >= 3) {
+    in.tag("rolling");
+    for (auto* a : {&mr_x_, &mr_y_, &mr_z_}) in.get(*a);
+    in.get(saved_rolling_);
+  } else {
+    // Older checkpoints predate rolling resistance, so their configuration has it off.
+    for (auto* a : {&mr_x_, &mr_y_, &mr_z_}) a->clear();
+    saved_rolling_.clear();
+  }
+  if (rolling() && nl_valid_ && mr_x_.size() != nl_.neighbors.size()) {
+    throw RuntimeFailure("checkpoint: rolling-resistance history and neighbour list disagree");
+  }
   if (nl_valid_ && nl_.num_particles() != p_.size()) {
     throw RuntimeFailure("checkpoint: neighbour list and particles disagree");
   }
@@ -782,8 +859,10 @@ std::size_t Simulation::memory_bytes() const {
                         &nl_.owner, &wall_offsets_}) {
     add(*v);
   }
-  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &entry_R_star_, &entry_m_eff_, &entry_sqrt_R_star_})
+  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &mr_x_, &mr_y_, &mr_z_, &entry_R_star_,
+                        &entry_m_eff_, &entry_sqrt_R_star_}) {
     add(*v);
+  }
   add(touching_);
   add(wc_.particle);
   add(wc_.wall);
@@ -812,6 +891,7 @@ ContactRecord Simulation::pair_record(std::size_t e) const {
   c.normal = (1.0 / dist) * dx;
   c.F_n = normal_force(c.delta, entry_R_star_[e], false).F_n;
   c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
+  if (!mr_x_.empty()) c.M_r = {mr_x_[e], mr_y_[e], mr_z_[e]};
   return c;
 }
 

@@ -64,6 +64,7 @@ struct ContactRecord {
   double F_n = 0.0;    // elastic normal force [N]
   Vec3 normal;         // unit normal from i towards j (or into the wall)
   Vec3 F_t;            // tangential force on i [N]
+  Vec3 M_r;            // rolling-resistance moment on i [N m] (zero when off, and at walls)
 };
 
 class Simulation {
@@ -150,6 +151,10 @@ class Simulation {
     ParticleId a, b;  // a < b
     double x, y, z;   // tangential force on a
   };
+  struct RollingHistory {
+    ParticleId a, b;  // a < b
+    double x, y, z;   // rolling moment on a
+  };
   struct WallHistory {
     ParticleId id;
     int wall;
@@ -160,7 +165,8 @@ class Simulation {
   /// The configured normal law outside the force loops (reporting, time step).
   NormalForce normal_force(double delta, double R_star, bool wall) const;
   void rebuild_neighbors();
-  template <class Law>
+  bool rolling() const { return cp_.mu_r > 0.0; }
+  template <class Law, bool Rolling>
   void pair_forces(const Law& law, double increment_dt);
   template <class Law>
   void wall_forces(const Law& law, double increment_dt);
@@ -176,12 +182,15 @@ class Simulation {
   WallContacts wc_;
   // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.
   std::vector<double> ft_x_, ft_y_, ft_z_;
+  // Per neighbour entry, only with rolling resistance on: the rolling moment on the owner.
+  std::vector<double> mr_x_, mr_y_, mr_z_;
   std::vector<std::uint8_t> touching_;
   std::vector<double> fu_x_, fu_y_, fu_z_;  // undamped resultant force per grain
   // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
   std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
+  std::vector<RollingHistory> saved_rolling_;
   std::vector<WallHistory> saved_walls_;
   bool history_saved_ = false;
   double skin_ = 0.0;

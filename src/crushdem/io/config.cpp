@@ -154,6 +154,7 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     s.number("k2", c.contact.k2);
     s.number("wall_friction", c.contact.wall_friction);
     s.number("restitution", c.contact.restitution);
+    s.number("rolling_friction", c.contact.rolling_friction);
     s.finish();
   }
   {
@@ -606,6 +607,7 @@ toml::Table to_toml(const SimulationConfig& c) {
   ct["k2"] = num(c.contact.k2);
   ct["wall_friction"] = num(c.contact.wall_friction);
   ct["restitution"] = num(c.contact.restitution);
+  ct["rolling_friction"] = num(c.contact.rolling_friction);
   t["contact"] = Value::make_table(ct);
   Table d;
   d["local_alpha"] = num(c.damping.local_alpha);

@@ -369,9 +369,18 @@ JsonObject stage_json(const StageResult& r) {
   return o;
 }
 
-// Version 2 adds the wall-clock seconds by part; version 1 checkpoints still resume.
-constexpr const char* kCheckpointTag = "crushdem-checkpoint-2";
-constexpr const char* kCheckpointTagV1 = "crushdem-checkpoint-1";
+// The format tag carries kStateVersion (core/state_io.hpp); older checkpoints still resume.
+std::string checkpoint_tag(int version) {
+  return "crushdem-checkpoint-" + std::to_string(version);
+}
+
+/// The version of a checkpoint's format tag, 0 if it is not one crushdem can read.
+int checkpoint_version(const std::string& format) {
+  for (int v = 1; v <= kStateVersion; ++v) {
+    if (format == checkpoint_tag(v)) return v;
+  }
+  return 0;
+}
 constexpr std::uint32_t kPartPreparation = 0, kPartRun = 1, kPartFirstStage = 2;
 
 /// Where a run stands between steps, beyond the simulation and the controllers: which part
@@ -432,6 +441,20 @@ struct Progress {
   }
 };
 
+/// A checkpoint stores the resolved configuration text it was taken with; a later crushdem
+/// writes keys added since (at their defaults) as well. The two texts describe the same run when
+/// the saved one, resolved again, gives the current one.
+bool same_resolved_config(const std::string& saved, const std::string& current,
+                          const std::filesystem::path& dir) {
+  try {
+    const std::string source = (dir / "checkpoint.bin").string();
+    const RunConfig again = run_config_from_toml(toml::parse(saved, source), source, dir.string());
+    return toml::serialize(to_toml(again)) == current;
+  } catch (const std::exception&) {
+    return false;  // not readable as a configuration any more: certainly not the same run
+  }
+}
+
 std::string read_binary(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw ConfigError("cannot read '" + path + "'");
@@ -485,14 +508,16 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     in = std::make_unique<StateReader>(read_binary(path), path);
     std::string format;
     in->get(format);
-    if (format != kCheckpointTag && format != kCheckpointTagV1) {
+    const int version = checkpoint_version(format);
+    if (version == 0) {
       throw ConfigError("crushdem resume: '" + path + "' is not a crushdem checkpoint (format '" +
-                        format.substr(0, 40) + "', expected '" + kCheckpointTag + "')");
+                        format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
+                        "')");
     }
-    const int version = format == kCheckpointTag ? 2 : 1;
+    in->set_version(version);
     std::string saved_config;
     in->get(saved_config);
-    if (saved_config != config_text) {
+    if (saved_config != config_text && !same_resolved_config(saved_config, config_text, dir)) {
       throw ConfigError("crushdem resume: " + (dir / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
@@ -576,7 +601,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     const double wall_before = st.wall_seconds;
     st.wall_seconds += driver.seconds();
     StateWriter out;
-    out.tag(kCheckpointTag);
+    out.tag(checkpoint_tag(kStateVersion).c_str());
     out.put(config_text);
     st.save(out);
     st.wall_seconds = wall_before;
