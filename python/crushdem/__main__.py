@@ -1,8 +1,9 @@
-"""The ``crushdem`` command: the C++ command line (run, check, bench, ...) plus ``plot`` and
-``reproduce``.
+"""The ``crushdem`` command: the C++ command line (run, check, bench, ...) plus ``plot``,
+``reproduce`` and ``sensitivity``.
 
 ``crushdem plot DIR`` draws the time series of a finished run; ``crushdem reproduce --out DIR``
-runs the reference study's section 3 and draws its figures; every other command is handed to
+runs the reference study's section 3 and draws its figures; ``crushdem sensitivity`` measures
+q_max under each uncertain choice of model-notes section 5; every other command is handed to
 the same C++ front end as the standalone executable.
 """
 
@@ -14,6 +15,8 @@ from typing import List, Optional
 _PLOT_USAGE = f"{'  plot DIR':<44}draw DIR/timeseries.csv as PNG figures\n"
 _REPRODUCE_USAGE = (f"{'  reproduce --out DIR [--quick] [--threads N]'}\n"
                     f"{'':<44}run the study's section 3, draw its figures\n")
+_SENSITIVITY_USAGE = (f"{'  sensitivity --out DIR --sample FILE [--only A,B]'}\n"
+                      f"{'':<44}q_max under each uncertain choice (model-notes 5)\n")
 
 
 def main(argv: Optional[List[str]] = None) -> None:
@@ -27,6 +30,10 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import reproduce
 
         sys.exit(reproduce.main(args[1:]))
+    if args and args[0] == "sensitivity":
+        from . import sensitivity
+
+        sys.exit(sensitivity.main(args[1:]))
 
     from . import _core
 
@@ -36,7 +43,7 @@ def main(argv: Optional[List[str]] = None) -> None:
     sys.stderr.flush()
     rc = _core.cli_main(args)
     if not args or args[0] in ("-h", "--help", "help"):
-        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE + _REPRODUCE_USAGE)
+        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE + _REPRODUCE_USAGE + _SENSITIVITY_USAGE)
     sys.exit(rc)
 
 

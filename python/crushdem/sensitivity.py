@@ -1,0 +1,224 @@
+"""``crushdem sensitivity --out DIR --sample FILE``: the influence of the uncertain choices of
+model-notes section 5 on the drained triaxial strength q_max (issue 4).
+
+Each variant changes one choice of the base settings (Table 1 and the documented defaults, as
+``crushdem reproduce`` uses them for its triaxial shear: crushing on, density scaling, no crack
+growth) and runs the same test on the same prepared sample: isotropic compression to sigma_3,
+then drained shear at ``strain_rate`` to ``axial_strain`` with the lateral walls at sigma_3.
+
+Writes ``DIR/<variant>/`` (a run directory each), ``DIR/qmax_sensitivity.csv`` and
+``DIR/qmax_sensitivity.md`` (q_max, q_max / sigma_3, the axial strain at q_max, the peak friction
+angle, breakages, B_r, grains and wall-clock time per variant, and which comes closest to the
+study's 22.6 MPa) and ``DIR/sensitivity.json`` (the settings). A variant that has finished is not
+run again and an interrupted one resumes from its checkpoint, so the command can be repeated
+until every variant is done, or run on several machines with ``--only``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import csv
+import json
+import math
+import os
+import sys
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+
+from .reproduce import CONTACT, CRUSHING, MATERIAL, _run_step, set_threads
+
+STUDY_Q_MAX_PA = 22.6e6  # the study's q_max at sigma_3 = 10 MPa (section 3.2)
+
+# name: (what it changes, [contact] keys, [crushing] keys). One choice per variant, the rest as
+# in "base"; model-notes section 5 lists the choices.
+VARIANTS: Dict[str, tuple] = {
+    "base": ("Table 1 with the documented defaults (r' = R*, d0 = d50, (k1, k2) = (0.05, 5), "
+             "f normal)", {}, {}),
+    "no_crushing": ("crushing off (the strength of the unbreakable spheres)", {},
+                    {"enabled": False}),
+    "r_prime_2R_star": ("r' = 2 R* (PFC's effective radius) instead of R*", {},
+                        {"r_prime": "2R_star"}),
+    "d0_2mm": ("d0 = 2 mm instead of d50 (a d50 grain (0.21 / 2)^(-3/m) = 1.76 times stronger)",
+               {}, {"d0": 2e-3}),
+    "k1k2_1_100": ("(k1, k2) = (1, 100), the original rough-law code's, instead of (0.05, 5)",
+                   {"k1": 1.0, "k2": 100.0}, {}),
+    "f_uniform": ("f uniform on [1 - var, 1 + var] instead of normal(1, var)", {},
+                  {"distribution": "uniform"}),
+    "rolling_0.1": ("rolling resistance mu_r = 0.1 (model-notes 5, item 6; not in Table 1)",
+                    {"rolling_friction": 0.1}, {}),
+    "rolling_0.3": ("rolling resistance mu_r = 0.3 (model-notes 5, item 6; not in Table 1)",
+                    {"rolling_friction": 0.3}, {}),
+}
+
+
+def settings(sigma_3: float = 10e6, strain_rate: float = 50.0,
+             axial_strain: float = 0.30) -> Dict[str, Any]:
+    """The base settings of every variant, as one JSON-able dict."""
+    crushing = dict(CRUSHING)
+    crushing["crack_growth"] = False  # q_max is a short-term strength
+    return {"material": dict(MATERIAL), "contact": dict(CONTACT), "crushing": crushing,
+            "triaxial": {"sigma_3": sigma_3, "strain_rate": strain_rate,
+                         "axial_strain": axial_strain},
+            "output": {"interval": 20000, "progress_seconds": 60}}
+
+
+def variant_settings(base: Mapping[str, Any], name: str) -> Dict[str, Any]:
+    """``base`` with the one change of variant ``name``."""
+    if name not in VARIANTS:
+        raise ValueError(f"unknown variant '{name}': expected one of {', '.join(VARIANTS)}")
+    _, contact, crushing = VARIANTS[name]
+    s = copy.deepcopy(dict(base))
+    s["contact"].update(contact)
+    s["crushing"].update(crushing)
+    return s
+
+
+def _shear_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
+    for st in summary.get("stages") or []:
+        if isinstance(st, dict) and st.get("type") == "triaxial":
+            return st
+    return {}
+
+
+def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
+    """The figures of one finished variant run (NaN where the run has not finished)."""
+    nan = math.nan
+    row: Dict[str, Any] = {"q_max_MPa": nan, "q_max_over_sigma_3": nan,
+                           "axial_strain_at_q_max": nan, "friction_angle_peak_deg": nan,
+                           "breakages": nan, "relative_breakage_Br": nan, "grains_end": nan,
+                           "wall_s": nan, "finished": False}
+    try:
+        with open(os.path.join(run_dir, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        return row
+    shear = _shear_stage(summary)
+    q = float(shear.get("q_max_Pa", nan))
+    row.update(finished=True, q_max_MPa=q / 1e6, q_max_over_sigma_3=q / sigma_3,
+               axial_strain_at_q_max=float(shear.get("axial_strain_at_q_max", nan)),
+               friction_angle_peak_deg=float(shear.get("friction_angle_peak_deg", nan)),
+               grains_end=summary.get("particles", nan))
+    crushing = summary.get("crushing") or {}
+    if crushing:
+        row["breakages"] = (crushing.get("breakages_instant", 0) or 0) + (
+            crushing.get("breakages_crack", 0) or 0)
+        row["relative_breakage_Br"] = crushing.get("relative_breakage_Br", nan)
+    else:
+        row["breakages"], row["relative_breakage_Br"] = 0, 0.0
+    try:
+        with open(os.path.join(run_dir, "timing.json")) as f:
+            row["wall_s"] = float(json.load(f).get("wall_seconds", nan))
+    except (OSError, ValueError):
+        pass
+    return row
+
+
+COLUMNS = ("variant", "q_max_MPa", "q_max_over_sigma_3", "axial_strain_at_q_max",
+           "friction_angle_peak_deg", "breakages", "relative_breakage_Br", "grains_end",
+           "wall_s", "changes")
+
+
+def table(out: str, names: Sequence[str], sigma_3: float) -> List[Dict[str, Any]]:
+    """Reads every variant's run; writes qmax_sensitivity.csv and .md; returns the rows."""
+    rows = []
+    for name in names:
+        row = read_variant(os.path.join(out, name), sigma_3)
+        row["variant"], row["changes"] = name, VARIANTS[name][0]
+        rows.append(row)
+    with open(os.path.join(out, "qmax_sensitivity.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(COLUMNS)
+        for r in rows:
+            w.writerow([r[c] for c in COLUMNS])
+    done = [r for r in rows if r["finished"] and math.isfinite(r["q_max_MPa"])]
+    lines = [f"q_max at sigma_3 = {sigma_3 / 1e6:g} MPa, one choice varied at a time "
+             f"(study: {STUDY_Q_MAX_PA / 1e6:g} MPa)", "",
+             "| variant | q_max [MPa] | q_max / sigma_3 | eps_a at q_max | phi_peak [deg] | "
+             "breakages | B_r | grains | wall [s] |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if not r["finished"]:
+            lines.append(f"| {r['variant']} | (not finished) | | | | | | | |")
+            continue
+        lines.append(
+            f"| {r['variant']} | {r['q_max_MPa']:.2f} | {r['q_max_over_sigma_3']:.3f} | "
+            f"{100 * r['axial_strain_at_q_max']:.1f} % | {r['friction_angle_peak_deg']:.1f} | "
+            f"{r['breakages']} | {r['relative_breakage_Br']:.3f} | {r['grains_end']} | "
+            f"{r['wall_s']:.0f} |")
+    if done:
+        best = min(done, key=lambda r: abs(r["q_max_MPa"] * 1e6 - STUDY_Q_MAX_PA))
+        lines += ["", f"Closest to the study: {best['variant']} ({best['q_max_MPa']:.2f} MPa: "
+                      f"{best['changes']})."]
+    lines += ["", "Variants:"] + [f"- {r['variant']}: {r['changes']}" for r in rows]
+    with open(os.path.join(out, "qmax_sensitivity.md"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return rows
+
+
+def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None,
+                    threads: Optional[int] = None, sigma_3: float = 10e6,
+                    strain_rate: float = 50.0, axial_strain: float = 0.30,
+                    log: Callable[[str], None] = print) -> List[Dict[str, Any]]:
+    """Runs the variants ``names`` (default: all) on the prepared ``sample`` into ``out``."""
+    from . import _core, lab
+
+    names = list(names or VARIANTS)
+    for n in names:
+        variant_settings(settings(), n)  # unknown names fail before anything runs
+    if not os.path.isfile(sample):
+        raise ValueError(f"--sample '{sample}': no such file (a prepared sample.txt)")
+    os.makedirs(out, exist_ok=True)
+    base = settings(sigma_3, strain_rate, axial_strain)
+    with open(os.path.join(out, "sensitivity.json"), "w") as f:
+        json.dump({"sample": os.path.abspath(sample), "base": base,
+                   "variants": {n: {"changes": VARIANTS[n][0], "contact": VARIANTS[n][1],
+                                    "crushing": VARIANTS[n][2]} for n in names}}, f, indent=1)
+    if threads:
+        set_threads(threads)
+    record: Dict[str, Any] = {}
+    for n in names:
+        s = variant_settings(base, n)
+        run_dir = os.path.join(out, n)
+        tri = s["triaxial"]
+        _run_step(n, run_dir,
+                  lambda s=s, run_dir=run_dir, tri=tri: lab.triaxial_test(
+                      run_dir, sample, sigma_3=tri["sigma_3"], strain_rate=tri["strain_rate"],
+                      axial_strain=tri["axial_strain"], material=s["material"],
+                      contact=s["contact"], crushing=s["crushing"], output=s["output"]),
+                  log, record, _core.resume)
+        table(out, names, sigma_3)  # after every variant: finished work is never lost
+    return table(out, names, sigma_3)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem sensitivity --out DIR --sample FILE [--only A,B] [--axial-strain E]``."""
+    parser = argparse.ArgumentParser(prog="crushdem sensitivity", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True, metavar="DIR")
+    parser.add_argument("--sample", required=True, metavar="FILE",
+                        help="a prepared sample.txt (e.g. runs/sample_rev/sample.txt)")
+    parser.add_argument("--only", default=None, metavar="A,B",
+                        help=f"variants to run, comma-separated (default all: "
+                             f"{', '.join(VARIANTS)})")
+    parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E")
+    parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R")
+    parser.add_argument("--sigma-3", type=float, default=10e6, metavar="PA")
+    parser.add_argument("--threads", type=int, default=None, metavar="N")
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    names = [n.strip() for n in args.only.split(",")] if args.only else None
+
+    def log(msg: str) -> None:
+        print(f"crushdem sensitivity: {msg}", flush=True)
+
+    try:
+        run_sensitivity(args.out, args.sample, names, args.threads, args.sigma_3,
+                        args.strain_rate, args.axial_strain, log)
+    except (OSError, ValueError, RuntimeError) as e:
+        print(f"crushdem sensitivity: error: {e}", file=sys.stderr)
+        return 2
+    with open(os.path.join(args.out, "qmax_sensitivity.md")) as f:
+        print(f.read())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

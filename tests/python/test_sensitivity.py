@@ -1,0 +1,83 @@
+"""Tests of ``crushdem sensitivity`` (python/crushdem/sensitivity.py): each variant changes one
+choice only, every variant is a valid configuration, and the table reads finished runs (here
+synthetic run directories with known figures) and names the one closest to the study."""
+
+import csv
+import json
+import os
+
+import pytest
+
+from crushdem import _core, sensitivity
+
+
+def test_each_variant_changes_one_choice_only():
+    base = sensitivity.settings()
+    assert base["crushing"]["crack_growth"] is False
+    for name, (_, contact, crushing) in sensitivity.VARIANTS.items():
+        s = sensitivity.variant_settings(base, name)
+        changed = {("contact", k) for k in s["contact"] if s["contact"][k] != base["contact"].get(k)}
+        changed |= {("crushing", k) for k in s["crushing"]
+                    if s["crushing"][k] != base["crushing"].get(k)}
+        assert changed == {("contact", k) for k in contact} | {("crushing", k) for k in crushing}
+        assert len(changed) <= 2, name  # (k1, k2) is one choice of two keys
+    assert sensitivity.variant_settings(base, "base") == base
+    # The base settings are not modified by making a variant.
+    assert "rolling_friction" not in base["contact"]
+    with pytest.raises(ValueError, match="unknown variant 'nonsense'"):
+        sensitivity.variant_settings(base, "nonsense")
+
+
+def test_every_variant_is_a_valid_configuration(tmp_path):
+    sample = tmp_path / "sample.txt"
+    lines = [f"# box_{a}{m}={0.0 if m == 'min' else 1e-3}" for a in "xyz" for m in ("min", "max")]
+    lines += ["0 0.0003 0.0005 0.0005 0.0001", "1 0.0007 0.0005 0.0005 0.0001"]
+    sample.write_text("\n".join(lines) + "\n")
+    base = sensitivity.settings()
+    for name in sensitivity.VARIANTS:
+        s = sensitivity.variant_settings(base, name)
+        cfg = {"material": s["material"], "contact": s["contact"], "crushing": s["crushing"],
+               "particles": {"file": str(sample)},
+               "stage": [{"type": "triaxial", "name": "shear", "sigma_3": 10e6,
+                          "strain_rate": 50.0, "axial_strain": 0.3}]}
+        text = _core.resolved_run_config(cfg, str(tmp_path))
+        if name == "rolling_0.3":
+            assert "rolling_friction = 0.3" in text
+        if name == "r_prime_2R_star":
+            assert 'r_prime = "2R_star"' in text
+
+
+def _fake_run(directory, q_max, breakages=None):
+    os.makedirs(directory)
+    summary = {"particles": 1500 + (breakages or 0) * 13,
+               "stages": [{"type": "isotropic", "q_max_Pa": 5e4},
+                          {"type": "triaxial", "q_max_Pa": q_max, "axial_strain_at_q_max": 0.12,
+                           "friction_angle_peak_deg": 20.0}]}
+    if breakages is not None:
+        summary["crushing"] = {"breakages_instant": breakages, "breakages_crack": 0,
+                               "relative_breakage_Br": 0.1}
+    with open(os.path.join(directory, "summary.json"), "w") as f:
+        json.dump(summary, f)
+    with open(os.path.join(directory, "timing.json"), "w") as f:
+        json.dump({"wall_seconds": 123.0}, f)
+
+
+def test_table_reads_finished_runs_and_names_the_closest(tmp_path):
+    out = str(tmp_path)
+    _fake_run(os.path.join(out, "base"), 8.5e6, breakages=100)
+    _fake_run(os.path.join(out, "no_crushing"), 10.2e6)
+    _fake_run(os.path.join(out, "rolling_0.3"), 19.0e6, breakages=300)
+    names = ["base", "no_crushing", "rolling_0.3", "d0_2mm"]  # d0_2mm: not run
+    rows = sensitivity.table(out, names, 10e6)
+    by = {r["variant"]: r for r in rows}
+    assert by["base"]["q_max_MPa"] == pytest.approx(8.5)
+    assert by["rolling_0.3"]["q_max_over_sigma_3"] == pytest.approx(1.9)
+    assert by["no_crushing"]["breakages"] == 0 and by["base"]["breakages"] == 100
+    assert not by["d0_2mm"]["finished"]
+    with open(os.path.join(out, "qmax_sensitivity.csv")) as f:
+        got = list(csv.DictReader(f))
+    assert [r["variant"] for r in got] == names
+    assert float(got[2]["q_max_MPa"]) == pytest.approx(19.0)
+    md = open(os.path.join(out, "qmax_sensitivity.md")).read()
+    assert "Closest to the study: rolling_0.3 (19.00 MPa" in md
+    assert "| d0_2mm | (not finished)" in md
