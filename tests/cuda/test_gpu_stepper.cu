@@ -43,9 +43,9 @@ void check(bool ok, const std::string& name, const std::string& detail) {
   (ok ? passed : failed)++;
 }
 
-std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0) {
+std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, double d = 0.0) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, f, a, b, c);
+  std::snprintf(buf, sizeof buf, f, a, b, c, d);
   return buf;
 }
 
@@ -151,10 +151,13 @@ void test_impact(GpuStepper::Mode mode) {
 // c) Oblique grain-grain and grain-wall impacts with friction and spin, with a skin so small
 // that the list is rebuilt every few steps during the contacts: the tangential history goes
 // through many download / id-keyed rebuild / upload cycles. Each grain has at most one pair and
-// one wall contact, so the sums have the CPU's order and the runs must agree to rounding.
-void test_rebuild_history(GpuStepper::Mode mode) {
+// one wall contact, so the sums have the CPU's order and the runs must agree to rounding. With
+// rolling_friction > 0 the rolling moment and its history go through the same cycles.
+void test_rebuild_history(GpuStepper::Mode mode, double rolling_friction = 0.0) {
+  const std::string name = rolling_friction > 0.0 ? "rebuilds with rolling" : "rebuilds";
   SimulationConfig cfg = box_config(-1e-3, 1e-3, NormalLaw::Rough);
   cfg.contact.wall_friction = 0.3;
+  cfg.contact.rolling_friction = rolling_friction;
   cfg.timestep.dt = 5e-10;
   cfg.neighbor.skin = 2e-9;
   Simulation cpu(cfg);
@@ -166,7 +169,7 @@ void test_rebuild_history(GpuStepper::Mode mode) {
   Simulation gpu_sim = cpu;
   GpuStepper gpu(gpu_sim, mode);
   const std::size_t builds0 = cpu.neighbors().builds();
-  double ex = 0.0, ev = 0.0, ew = 0.0, max_ft = 0.0;
+  double ex = 0.0, ev = 0.0, ew = 0.0, max_ft = 0.0, max_mr = 0.0;
   for (int c = 0; c < 30; ++c) {  // 6000 steps: both collisions start after ~400 steps
     cpu.step(200);
     gpu.step(200);
@@ -181,17 +184,21 @@ void test_rebuild_history(GpuStepper::Mode mode) {
                      std::fabs(pa.wy[i] - pb.wy[j]) * R / v,
                      std::fabs(pa.wz[i] - pb.wz[j]) * R / v});
     }
-    for (const ContactRecord& r : gpu_sim.contacts()) max_ft = std::max(max_ft, norm(r.F_t));
+    for (const ContactRecord& r : gpu_sim.contacts()) {
+      max_ft = std::max(max_ft, norm(r.F_t));
+      max_mr = std::max(max_mr, norm(r.M_r));
+    }
   }
   const std::size_t builds = gpu_sim.neighbors().builds() - builds0;
   check(ex <= 1e-9 && ev <= 1e-9 && ew <= 1e-9,
-        "rebuilds: oblique impacts follow the CPU through the rebuilds",
+        name + ": oblique impacts follow the CPU through the rebuilds",
         fmt("max |dx|/R = %.3g, |dv|/v = %.3g, |dw| R/v = %.3g (tolerance 1e-9)", ex, ev, ew));
-  check(
-      builds >= 50 && builds == cpu.neighbors().builds() - builds0 && max_ft > 0.0,
-      "rebuilds: the list was rebuilt during frictional contacts",
-      fmt("%.0f rebuilds (CPU %.0f), largest tangential force %.3g N", static_cast<double>(builds),
-          static_cast<double>(cpu.neighbors().builds() - builds0), max_ft));
+  check(builds >= 50 && builds == cpu.neighbors().builds() - builds0 && max_ft > 0.0 &&
+            (rolling_friction > 0.0) == (max_mr > 0.0),
+        name + ": the list was rebuilt during frictional contacts",
+        fmt("%.0f rebuilds (CPU %.0f), largest tangential force %.3g N, rolling moment %.3g N m",
+            static_cast<double>(builds), static_cast<double>(cpu.neighbors().builds() - builds0),
+            max_ft, max_mr));
 }
 
 // A loose sample of 300 grains compressed by six servo walls on the CPU.
@@ -273,6 +280,7 @@ int main(int argc, char** argv) {
   try {
     test_impact(mode);
     test_rebuild_history(mode);
+    test_rebuild_history(mode, 0.2);
     const Simulation sample = compressed_sample();
     compare_runs("compressed sample", sample, 2000, mode, false);
     Simulation moving = sample;

@@ -88,12 +88,6 @@ int run_main(const std::vector<std::string>& args) {
         "now (the GPU stepper does not switch wall modes or friction, nor change particles); "
         "use --backend cpu");
   }
-  if (backend == "cuda" && cfg.simulation.contact.rolling_friction > 0.0) {
-    throw ConfigError(bad_value("contact.rolling_friction",
-                                show_number(cfg.simulation.contact.rolling_friction),
-                                "0 with --backend cuda (rolling resistance runs on the CPU only, "
-                                "for now)"));
-  }
   set_threads(threads);
   RunOptions opt;
   opt.out_dir = out;

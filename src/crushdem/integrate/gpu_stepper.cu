@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "crushdem/contact/contact_kernel.hpp"
+#include "crushdem/contact/rolling.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/gpu_stepper.hpp"
 #include "crushdem/integrate/simulation.hpp"
@@ -84,6 +85,7 @@ struct View {
   const Index *owner, *nb, *off, *roff, *rev;
   const double *RS, *SRS, *ME;
   double *ftx, *fty, *ftz;
+  double *mrx, *mry, *mrz;  // rolling moment on the owner (null without rolling resistance)
   std::uint8_t* touch;
   double *rfx, *rfy, *rfz, *rix, *riy, *riz, *rjx, *rjy, *rjz;  // reaction records per entry
   const Index *wp, *woff;
@@ -130,7 +132,7 @@ CD_HD inline void finish_drift(const View& v, double m2) {
   if (rebuild_due(d, travel, v.skin)) c.halt = 1;
 }
 
-template <class Law>
+template <class Law, bool Rolling>
 CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   const Index i = v.owner[e], j = v.nb[e];
   const Vec3 xi{v.x[i], v.y[i], v.z[i]};
@@ -142,6 +144,7 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
     if (v.touch[e]) {
       v.touch[e] = 0;
       v.ftx[e] = v.fty[e] = v.ftz[e] = 0.0;
+      if constexpr (Rolling) v.mrx[e] = v.mry[e] = v.mrz[e] = 0.0;
     }
     return;
   }
@@ -157,16 +160,25 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   v.ftz[e] = c.F_t.z;
   v.touch[e] = 1;
   const Vec3& tn = pc.tn;
-  const Vec3 ti = a_i * tn;
+  Vec3 ti = a_i * tn, tj = a_j * tn;
+  if constexpr (Rolling) {
+    const Vec3 M_r = rolling_moment(Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, pc.n, wi - wj, v.h,
+                                    v.cp.tangential_ratio * c.k_n, v.RS[e], v.cp.mu_r, c.F_n);
+    v.mrx[e] = M_r.x;
+    v.mry[e] = M_r.y;
+    v.mrz[e] = M_r.z;
+    ti += M_r;
+    tj -= M_r;
+  }
   v.rfx[e] = c.force.x;
   v.rfy[e] = c.force.y;
   v.rfz[e] = c.force.z;
   v.rix[e] = ti.x;
   v.riy[e] = ti.y;
   v.riz[e] = ti.z;
-  v.rjx[e] = a_j * tn.x;
-  v.rjy[e] = a_j * tn.y;
-  v.rjz[e] = a_j * tn.z;
+  v.rjx[e] = tj.x;
+  v.rjy[e] = tj.y;
+  v.rjz[e] = tj.z;
 }
 
 template <class Law>
@@ -333,13 +345,13 @@ __global__ void k_kick_drift(View v) {
   }
 }
 
-template <class Law>
+template <class Law, bool Rolling>
 __global__ void k_contacts(View v, Law pair_law, Law wall_law) {
   if (v.ctrl->halt) return;
   const Index t = blockIdx.x * blockDim.x + threadIdx.x;
   const Index M = v.ctrl->M;
   if (t < M) {
-    pair_item(v, pair_law, t);
+    pair_item<Law, Rolling>(v, pair_law, t);
   } else if (t - M < v.ctrl->Mw) {
     wall_item(v, wall_law, t - M);
   }
@@ -386,6 +398,7 @@ struct GpuStepper::Impl {
   bool emulate;
   double h = 0.0;
   bool rough = false;
+  bool rolling = false;
   HertzLaw hertz;
   RoughHertzLaw rough_pp, rough_pw;  // their power tables point at device copies
   Buffer<double> tables[4];
@@ -395,6 +408,7 @@ struct GpuStepper::Impl {
   Buffer<Index> owner, nb, off, roff, rev, wp, woff;
   Buffer<std::uint8_t> touch, ww;
   Buffer<double> RS, SRS, ME, ftx, fty, ftz, rfx, rfy, rfz, rix, riy, riz, rjx, rjy, rjz;
+  Buffer<double> mrx, mry, mrz;  // rolling history (allocated with rolling resistance only)
   Buffer<double> wftx, wfty, wftz, wfx, wfy, wfz, wtx, wty, wtz, wFn, wkn, wdelta;
   Buffer<Control> ctrl;
   Control* host_ctrl = nullptr;  // pinned mirror (device) or the control block itself (emulation)
@@ -409,11 +423,6 @@ struct GpuStepper::Impl {
   bool graph_stale = true;
 
   Impl(Simulation& s, Mode mode) : sim(s), emulate(mode == Mode::HostEmulation) {
-    if (sim.cp_.mu_r > 0.0) {
-      throw ConfigError(bad_value("contact.rolling_friction", show_number(sim.cp_.mu_r),
-                                  "0 with the GPU backend (rolling resistance runs on the CPU "
-                                  "backend only, for now)"));
-    }
     if (!emulate) {
       if (!GpuStepper::available()) throw RuntimeFailure("GpuStepper: no CUDA device");
       CD_CUDA(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking));
@@ -424,6 +433,7 @@ struct GpuStepper::Impl {
     if (!sim.forces_valid_ || !sim.nl_valid_) sim.compute_forces();
     const ContactParams& cp = sim.cp_;
     rough = sim.cfg_.contact.law == NormalLaw::Rough;
+    rolling = sim.rolling();
     hertz = HertzLaw{cp.E_star};
     rough_pp = RoughHertzLaw{cp.E_star, cp.rough_pp};
     rough_pw = RoughHertzLaw{cp.E_star, cp.rough_pw};
@@ -449,6 +459,7 @@ struct GpuStepper::Impl {
                     &wfx, &wfy, &wfz, &wtx, &wty, &wtz,    &wFn,  &wkn,      &wdelta}) {
       release(*b);
     }
+    for (auto* b : {&mrx, &mry, &mrz}) release(*b);
     for (auto* b : {&fux, &fuy, &fuz}) release(*b);
     for (auto* b : {&owner, &nb, &off, &roff, &rev, &wp, &woff}) release(*b);
     release(touch);
@@ -573,6 +584,11 @@ struct GpuStepper::Impl {
     put(ftx, sim.ft_x_);
     put(fty, sim.ft_y_);
     put(ftz, sim.ft_z_);
+    if (rolling) {
+      put(mrx, sim.mr_x_);
+      put(mry, sim.mr_y_);
+      put(mrz, sim.mr_z_);
+    }
     put(touch, sim.touching_);
     for (auto* b : {&rfx, &rfy, &rfz, &rix, &riy, &riz, &rjx, &rjy, &rjz}) reserve(*b, M);
 
@@ -635,6 +651,9 @@ struct GpuStepper::Impl {
     u.ftx = ftx.p;
     u.fty = fty.p;
     u.ftz = ftz.p;
+    u.mrx = rolling ? mrx.p : nullptr;
+    u.mry = rolling ? mry.p : nullptr;
+    u.mrz = rolling ? mrz.p : nullptr;
     u.touch = touch.p;
     u.rfx = rfx.p;
     u.rfy = rfy.p;
@@ -714,6 +733,11 @@ struct GpuStepper::Impl {
     get(ftx, sim.ft_x_, M);
     get(fty, sim.ft_y_, M);
     get(ftz, sim.ft_z_, M);
+    if (rolling) {
+      get(mrx, sim.mr_x_, M);
+      get(mry, sim.mr_y_, M);
+      get(mrz, sim.mr_z_, M);
+    }
     get(touch, sim.touching_, M);
     WallContacts& wc = sim.wc_;
     get(wftx, wc.ft_x, Mw);
@@ -750,10 +774,14 @@ struct GpuStepper::Impl {
       return;
     }
     const int gc = grid(RS.cap + wp.cap, kContactBlock), gp = grid(x.cap);
-    if (rough) {
-      k_contacts<RoughHertzLaw><<<gc, kContactBlock, 0, stream>>>(v, rough_pp, rough_pw);
+    if (rough && rolling) {
+      k_contacts<RoughHertzLaw, true><<<gc, kContactBlock, 0, stream>>>(v, rough_pp, rough_pw);
+    } else if (rough) {
+      k_contacts<RoughHertzLaw, false><<<gc, kContactBlock, 0, stream>>>(v, rough_pp, rough_pw);
+    } else if (rolling) {
+      k_contacts<HertzLaw, true><<<gc, kContactBlock, 0, stream>>>(v, hertz, hertz);
     } else {
-      k_contacts<HertzLaw><<<gc, kContactBlock, 0, stream>>>(v, hertz, hertz);
+      k_contacts<HertzLaw, false><<<gc, kContactBlock, 0, stream>>>(v, hertz, hertz);
     }
     k_gather<<<gp + kWalls, kBlock, 0, stream>>>(v, static_cast<unsigned>(gp));
   }
@@ -797,9 +825,10 @@ struct GpuStepper::Impl {
     if (c.halt) return;
     for (Index e = 0; e < c.M; ++e) {
       if (rough) {
-        pair_item(v, rough_pp, e);
+        rolling ? pair_item<RoughHertzLaw, true>(v, rough_pp, e)
+                : pair_item<RoughHertzLaw, false>(v, rough_pp, e);
       } else {
-        pair_item(v, hertz, e);
+        rolling ? pair_item<HertzLaw, true>(v, hertz, e) : pair_item<HertzLaw, false>(v, hertz, e);
       }
     }
     for (Index e = 0; e < c.Mw; ++e) {
