@@ -105,9 +105,9 @@ def test_array_shapes_and_dtypes():
 
     c = sim.contacts()
     assert set(c) == {"id_i", "id_j", "is_wall", "overlap", "normal_force", "normal",
-                      "tangential_force"}
+                      "tangential_force", "rolling_moment"}
     assert c["id_i"].dtype == np.uint64 and c["is_wall"].dtype == np.bool_
-    assert c["normal"].shape == (0, 3)
+    assert c["normal"].shape == (0, 3) and c["rolling_moment"].shape == (0, 3)
 
     with pytest.raises(ValueError, match="positions"):
         sim.add_particles(np.zeros((2, 2)), np.ones(2) * 1e-5)
@@ -135,6 +135,30 @@ def test_wall_contact_is_hertz():
     assert sim.forces()[0, 2] == pytest.approx(expected, rel=1e-9)
     assert sim.wall_forces()[4, 2] == pytest.approx(-expected, rel=1e-9)
     assert sim.wall_stresses()[4] == pytest.approx(expected / 1e-6, rel=1e-9)
+
+
+def test_rolling_moment_is_readable_and_capped():
+    # An oblique impact of unequal spheres with friction spins them at different rates, which
+    # loads the rolling spring; the moment stays within mu_r R* F_n.
+    mu_r = 0.2
+    sim = hertz_sim(material={"shear_modulus": G, "poisson_ratio": NU, "friction": 0.3},
+                    contact={"law": "hertz", "rolling_friction": mu_r},
+                    timestep={"dt": 5e-10})
+    r1, r2, v, dy = 1e-4, 0.5e-4, 0.2, 2.5e-5
+    dx = math.sqrt((r1 + r2 + 1e-7) ** 2 - dy**2)  # 1e-7 m apart, offset by dy
+    sim.add_particles(np.array([[3e-4, 5e-4, 5e-4], [3e-4 + dx, 5e-4 + dy, 5e-4]]),
+                      np.array([r1, r2]), np.array([[v, 0.0, 0.0], [-v, 0.0, 0.0]]))
+    largest, ratio = 0.0, 0.0
+    for _ in range(400):
+        sim.step(5)
+        c = sim.contacts()
+        for k in np.flatnonzero(~c["is_wall"]):
+            m = float(np.linalg.norm(c["rolling_moment"][k]))
+            largest = max(largest, m)
+            cap = mu_r * (r1 * r2 / (r1 + r2)) * c["normal_force"][k]
+            ratio = max(ratio, m / cap if cap > 0 else 0.0)
+    assert largest > 0.0
+    assert ratio <= 1.0 + 1e-9
 
 
 def test_bad_value_names_the_key():
