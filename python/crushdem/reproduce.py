@@ -679,6 +679,13 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
               log, record, _core.resume)
 
 
+def triaxial_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
+    """The first triaxial stage of a summary.json dict (q_max_Pa, axial_strain_at_q_max, ...);
+    {} when there is none."""
+    return next((st for st in summary.get("stages") or []
+                 if isinstance(st, dict) and st.get("type") == "triaxial"), {})
+
+
 def _age_counts(run_dir: str) -> Dict[str, Any]:
     """Phases, breakages (total and during the age stage) and grains at the end of a run."""
     summary = read_summary(run_dir)
@@ -763,8 +770,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
                                         axial_strain=tx["axial_strain"], crushing=crushing,
                                         **common),
               log, runs, resume)
-    shear = next((st for st in read_summary(dirs["triaxial_shear"]).get("stages") or []
-                  if isinstance(st, dict) and st.get("type") == "triaxial"), {})
+    shear = triaxial_stage(read_summary(dirs["triaxial_shear"]))
     q_max = float(shear.get("q_max_Pa", math.nan))
     if not (math.isfinite(q_max) and q_max > 0):
         raise ValueError(f"{dirs['triaxial_shear']}/summary.json: no positive q_max_Pa")

@@ -25,7 +25,9 @@ import os
 import sys
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
-from .reproduce import CONTACT, CRUSHING, MATERIAL, _run_step, set_threads
+from .plot import _num, read_summary
+from .reproduce import (CONTACT, CRUSHING, MATERIAL, _run_step, _timing, set_threads,
+                        triaxial_stage)
 
 STUDY_Q_MAX_PA = 22.6e6  # the study's q_max at sigma_3 = 10 MPa (section 3.2)
 
@@ -73,13 +75,6 @@ def variant_settings(base: Mapping[str, Any], name: str) -> Dict[str, Any]:
     return s
 
 
-def _shear_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
-    for st in summary.get("stages") or []:
-        if isinstance(st, dict) and st.get("type") == "triaxial":
-            return st
-    return {}
-
-
 def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
     """The figures of one finished variant run (NaN where the run has not finished)."""
     nan = math.nan
@@ -87,17 +82,16 @@ def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
                            "axial_strain_at_q_max": nan, "friction_angle_peak_deg": nan,
                            "breakages": nan, "relative_breakage_Br": nan, "grains_end": nan,
                            "wall_s": nan, "finished": False}
-    try:
-        with open(os.path.join(run_dir, "summary.json")) as f:
-            summary = json.load(f)
-    except (OSError, ValueError):
+    summary = read_summary(run_dir)
+    if not summary:
         return row
-    shear = _shear_stage(summary)
-    q = float(shear.get("q_max_Pa", nan))
+    shear = triaxial_stage(summary)
+    q = _num(shear.get("q_max_Pa"))
     row.update(finished=True, q_max_MPa=q / 1e6, q_max_over_sigma_3=q / sigma_3,
-               axial_strain_at_q_max=float(shear.get("axial_strain_at_q_max", nan)),
-               friction_angle_peak_deg=float(shear.get("friction_angle_peak_deg", nan)),
-               grains_end=summary.get("particles", nan))
+               axial_strain_at_q_max=_num(shear.get("axial_strain_at_q_max")),
+               friction_angle_peak_deg=_num(shear.get("friction_angle_peak_deg")),
+               grains_end=summary.get("particles", nan),
+               wall_s=_num(_timing(run_dir).get("wall_seconds")))
     crushing = summary.get("crushing") or {}
     if crushing:
         row["breakages"] = (crushing.get("breakages_instant", 0) or 0) + (
@@ -105,11 +99,6 @@ def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
         row["relative_breakage_Br"] = crushing.get("relative_breakage_Br", nan)
     else:
         row["breakages"], row["relative_breakage_Br"] = 0, 0.0
-    try:
-        with open(os.path.join(run_dir, "timing.json")) as f:
-            row["wall_s"] = float(json.load(f).get("wall_seconds", nan))
-    except (OSError, ValueError):
-        pass
     return row
 
 

@@ -5,7 +5,6 @@
 
 #include "crushdem/contact/damping.hpp"
 #include "crushdem/contact/hertz.hpp"
-#include "crushdem/contact/rolling.hpp"
 #include "crushdem/contact/rough_hertz.hpp"
 #include "crushdem/contact/tangential.hpp"
 

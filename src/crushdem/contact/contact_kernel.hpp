@@ -1,10 +1,11 @@
 // One contact's response, assembled from the pure parts (normal law, viscous damping, Mindlin
-// tangential with Coulomb cap), in the manner of LAMMPS `pair granular`. The same function
-// serves grain-grain and grain-wall contacts; only the geometry passed in differs.
+// tangential with Coulomb cap, rolling resistance), in the manner of LAMMPS `pair granular`. The
+// same function serves grain-grain and grain-wall contacts; only the geometry passed in differs.
 #pragma once
 
 #include "crushdem/contact/contact_config.hpp"
 #include "crushdem/contact/damping.hpp"
+#include "crushdem/contact/rolling.hpp"
 #include "crushdem/contact/tangential.hpp"
 #include "crushdem/core/types.hpp"
 
@@ -78,6 +79,15 @@ CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   out.c = contact_response(law, delta, R_star, sqrt_R_star, m_eff, n, v_rel, F_t_old, p.mu, p, dt);
   out.tn = cross(n, out.c.tangential);
   return out;
+}
+
+/// The rolling moment on grain i of a pair contact evaluated by pair_contact(), from the stored
+/// one (contact/rolling.hpp): k_t is the Mindlin tangent stiffness of that contact. j receives
+/// the opposite moment. Shared by every backend's pair loop.
+CD_HD inline Vec3 pair_rolling_moment(const PairContact& pc, Vec3 M_r_old, Vec3 w_i, Vec3 w_j,
+                                      double R_star, const ContactParams& p, double dt) {
+  return rolling_moment(M_r_old, pc.n, w_i - w_j, dt, p.tangential_ratio * pc.c.k_n, R_star, p.mu_r,
+                        pc.c.F_n);
 }
 
 /// One grain-wall contact, shared by every backend's wall loop. n: the wall's outward normal;

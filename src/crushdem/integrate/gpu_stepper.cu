@@ -34,7 +34,6 @@
 #include <vector>
 
 #include "crushdem/contact/contact_kernel.hpp"
-#include "crushdem/contact/rolling.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/gpu_stepper.hpp"
 #include "crushdem/integrate/simulation.hpp"
@@ -162,8 +161,8 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   const Vec3& tn = pc.tn;
   Vec3 ti = a_i * tn, tj = a_j * tn;
   if constexpr (Rolling) {
-    const Vec3 M_r = rolling_moment(Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, pc.n, wi - wj, v.h,
-                                    v.cp.tangential_ratio * c.k_n, v.RS[e], v.cp.mu_r, c.F_n);
+    const Vec3 M_r =
+        pair_rolling_moment(pc, Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, wi, wj, v.RS[e], v.cp, v.h);
     v.mrx[e] = M_r.x;
     v.mry[e] = M_r.y;
     v.mrz[e] = M_r.z;

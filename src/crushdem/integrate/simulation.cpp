@@ -8,7 +8,6 @@
 
 #include "crushdem/contact/contact_kernel.hpp"
 #include "crushdem/contact/contact_stress.hpp"
-#include "crushdem/contact/rolling.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 
@@ -97,39 +96,47 @@ ParticleId Simulation::add_particle(Vec3 position, double radius, Vec3 velocity,
 
 // --- contact history keyed by ids --------------------------------------------------------------
 
-void Simulation::capture_history() {
-  if (history_saved_ || !nl_valid_) return;
-  saved_pairs_.clear();
-  saved_rolling_.clear();
-  saved_walls_.clear();
-  if (!mr_x_.empty()) {
-    for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
-      if (mr_x_[e] == 0.0 && mr_y_[e] == 0.0 && mr_z_[e] == 0.0) continue;
-      const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
-      if (ia < ib) {
-        saved_rolling_.push_back({ia, ib, mr_x_[e], mr_y_[e], mr_z_[e]});
-      } else {
-        saved_rolling_.push_back({ib, ia, -mr_x_[e], -mr_y_[e], -mr_z_[e]});
-      }
-    }
-    std::sort(saved_rolling_.begin(), saved_rolling_.end(),
-              [](const RollingHistory& u, const RollingHistory& v) {
-                return std::tie(u.a, u.b) < std::tie(v.a, v.b);
-              });
-  }
-  for (std::size_t e = 0; e < nl_.neighbors.size(); ++e) {
-    if (ft_x_[e] == 0.0 && ft_y_[e] == 0.0 && ft_z_[e] == 0.0) continue;
+void Simulation::capture_pair_vectors(const std::vector<double>& x, const std::vector<double>& y,
+                                      const std::vector<double>& z,
+                                      std::vector<PairHistory>& out) const {
+  out.clear();
+  for (std::size_t e = 0; e < x.size(); ++e) {
+    if (x[e] == 0.0 && y[e] == 0.0 && z[e] == 0.0) continue;
     const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
     if (ia < ib) {
-      saved_pairs_.push_back({ia, ib, ft_x_[e], ft_y_[e], ft_z_[e]});
+      out.push_back({ia, ib, x[e], y[e], z[e]});
     } else {
-      saved_pairs_.push_back({ib, ia, -ft_x_[e], -ft_y_[e], -ft_z_[e]});
+      out.push_back({ib, ia, -x[e], -y[e], -z[e]});
     }
   }
-  std::sort(saved_pairs_.begin(), saved_pairs_.end(),
-            [](const PairHistory& u, const PairHistory& v) {
-              return std::tie(u.a, u.b) < std::tie(v.a, v.b);
-            });
+  std::sort(out.begin(), out.end());
+}
+
+void Simulation::restore_pair_vectors(const std::vector<PairHistory>& saved, std::vector<double>& x,
+                                      std::vector<double>& y, std::vector<double>& z) {
+  if (saved.empty()) return;
+  const std::size_t M = nl_.neighbors.size();
+#pragma omp parallel for schedule(static) if (worth_threading(M))
+  for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
+    const auto e = static_cast<std::size_t>(ee);
+    const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
+    const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
+    auto it = std::lower_bound(saved.begin(), saved.end(), PairHistory{a, b, 0, 0, 0});
+    if (it != saved.end() && it->a == a && it->b == b) {
+      const double s = ia == a ? 1.0 : -1.0;
+      x[e] = s * it->x;
+      y[e] = s * it->y;
+      z[e] = s * it->z;
+      touching_[e] = 1;  // makes the force pass clear it if the pair has separated
+    }
+  }
+}
+
+void Simulation::capture_history() {
+  if (history_saved_ || !nl_valid_) return;
+  capture_pair_vectors(ft_x_, ft_y_, ft_z_, saved_pairs_);
+  capture_pair_vectors(mr_x_, mr_y_, mr_z_, saved_rolling_);  // empty without rolling
+  saved_walls_.clear();
   for (std::size_t e = 0; e < wc_.size(); ++e) {
     if (wc_.ft_x[e] == 0.0 && wc_.ft_y[e] == 0.0 && wc_.ft_z[e] == 0.0) continue;
     saved_walls_.push_back(
@@ -222,48 +229,10 @@ void Simulation::rebuild_neighbors() {
   wc_.particle = std::move(wp);
   wc_.wall = std::move(ww);
 
-  // Restore tangential history by ids.
+  // Restore tangential (and rolling) history by ids.
   if (history_saved_) {
-    if (!saved_pairs_.empty()) {
-#pragma omp parallel for schedule(static) if (worth_threading(M))
-      for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
-        const auto e = static_cast<std::size_t>(ee);
-        const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
-        const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
-        auto it =
-            std::lower_bound(saved_pairs_.begin(), saved_pairs_.end(), PairHistory{a, b, 0, 0, 0},
-                             [](const PairHistory& u, const PairHistory& v) {
-                               return std::tie(u.a, u.b) < std::tie(v.a, v.b);
-                             });
-        if (it != saved_pairs_.end() && it->a == a && it->b == b) {
-          const double s = ia == a ? 1.0 : -1.0;
-          ft_x_[e] = s * it->x;
-          ft_y_[e] = s * it->y;
-          ft_z_[e] = s * it->z;
-          touching_[e] = 1;  // makes the force pass clear it if the pair has separated
-        }
-      }
-    }
-    if (!saved_rolling_.empty() && rolling()) {
-#pragma omp parallel for schedule(static) if (worth_threading(M))
-      for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
-        const auto e = static_cast<std::size_t>(ee);
-        const ParticleId ia = p_.id[nl_.owner[e]], ib = p_.id[nl_.neighbors[e]];
-        const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
-        auto it = std::lower_bound(saved_rolling_.begin(), saved_rolling_.end(),
-                                   RollingHistory{a, b, 0, 0, 0},
-                                   [](const RollingHistory& u, const RollingHistory& v) {
-                                     return std::tie(u.a, u.b) < std::tie(v.a, v.b);
-                                   });
-        if (it != saved_rolling_.end() && it->a == a && it->b == b) {
-          const double s = ia == a ? 1.0 : -1.0;
-          mr_x_[e] = s * it->x;
-          mr_y_[e] = s * it->y;
-          mr_z_[e] = s * it->z;
-          touching_[e] = 1;
-        }
-      }
-    }
+    restore_pair_vectors(saved_pairs_, ft_x_, ft_y_, ft_z_);
+    if (rolling()) restore_pair_vectors(saved_rolling_, mr_x_, mr_y_, mr_z_);
     for (std::size_t e = 0; e < wc_.size(); ++e) {
       const WallHistory key{p_.id[wc_.particle[e]], wc_.wall[e], 0, 0, 0};
       auto it = std::lower_bound(saved_walls_.begin(), saved_walls_.end(), key,
@@ -349,8 +318,8 @@ void pair_column(const PairLoop<Law> L, Idx col) {
       L.TY[j] += a_j * tn.y;
       L.TZ[j] += a_j * tn.z;
       if constexpr (Rolling) {
-        const Vec3 M_r = rolling_moment(Vec3{L.mrx[e], L.mry[e], L.mrz[e]}, pc.n, wi - wj, L.h,
-                                        L.cp.tangential_ratio * c.k_n, L.RS[e], L.cp.mu_r, c.F_n);
+        const Vec3 M_r =
+            pair_rolling_moment(pc, Vec3{L.mrx[e], L.mry[e], L.mrz[e]}, wi, wj, L.RS[e], L.cp, L.h);
         L.mrx[e] = M_r.x;
         L.mry[e] = M_r.y;
         L.mrz[e] = M_r.z;

@@ -149,11 +149,8 @@ class Simulation {
   friend class GpuStepper;
   struct PairHistory {
     ParticleId a, b;  // a < b
-    double x, y, z;   // tangential force on a
-  };
-  struct RollingHistory {
-    ParticleId a, b;  // a < b
-    double x, y, z;   // rolling moment on a
+    double x, y, z;   // the vector on a (tangential force, or rolling moment)
+    bool operator<(const PairHistory& o) const { return a < o.a || (a == o.a && b < o.b); }
   };
   struct WallHistory {
     ParticleId id;
@@ -161,6 +158,12 @@ class Simulation {
     double x, y, z;
   };
   void capture_history();
+  /// Per-entry vectors (on the owner) keyed by particle ids, sorted; zero vectors are skipped.
+  void capture_pair_vectors(const std::vector<double>& x, const std::vector<double>& y,
+                            const std::vector<double>& z, std::vector<PairHistory>& out) const;
+  /// Puts saved vectors back on the entries of the new list and marks those entries touching.
+  void restore_pair_vectors(const std::vector<PairHistory>& saved, std::vector<double>& x,
+                            std::vector<double>& y, std::vector<double>& z);
   ContactRecord pair_record(std::size_t e) const;
   /// The configured normal law outside the force loops (reporting, time step).
   NormalForce normal_force(double delta, double R_star, bool wall) const;
@@ -190,7 +193,7 @@ class Simulation {
   std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
-  std::vector<RollingHistory> saved_rolling_;
+  std::vector<PairHistory> saved_rolling_;
   std::vector<WallHistory> saved_walls_;
   bool history_saved_ = false;
   double skin_ = 0.0;

@@ -418,13 +418,13 @@ struct Progress {
     out.put(d50);
     out.put(has_crusher);
   }
-  void load(StateReader& in, int version) {
+  void load(StateReader& in) {
     in.tag("progress");
     in.get(part);
     in.get(begun);
     in.get(to_check);
     in.get(wall_seconds);
-    if (version >= 2) {
+    if (in.version() >= 2) {
       in.get(part_seconds);
       in.get(particle_steps);
     }
@@ -521,7 +521,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
       throw ConfigError("crushdem resume: " + (dir / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
-    st.load(*in, version);
+    st.load(*in);
   }
   const bool resumed = opt.resume;
 
