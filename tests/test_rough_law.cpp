@@ -78,9 +78,6 @@ TEST(RoughLaw, SofterThanHertzAtSmallOverlap) {
   EXPECT_LT(rough_hertz_normal(d, 5e-5, 3.95e10, p).F_n, hertz_normal(d, 5e-5, 3.95e10).F_n);
 }
 
-}  // namespace
-}  // namespace crushdem
-
 namespace crushdem {
 namespace {
 
@@ -114,6 +111,24 @@ TEST(RoughLaw, TabulatedPowersMatchPow) {
       prev = p.pow_c(v);
     }
   }
+}
+
+}  // namespace
+}  // namespace crushdem
+
+// The secant stiffness the laws return for viscous damping is F_n / delta, in every regime.
+TEST(RoughLaw, SecantStiffnessIsForceOverOverlap) {
+  const RoughHertzParams p = make_rough_hertz(0.6e-6 * std::sqrt(2.0), 0.05, 5.0);
+  const RoughHertzParams smooth = make_rough_hertz(0.0, 0.05, 5.0);
+  for (double delta : {0.3 * p.d_T1, 0.5 * (p.d_T1 + p.d_T2), 3.0 * p.d_T2}) {
+    for (const RoughHertzParams* q : {&p, &smooth}) {
+      const NormalForce f = rough_hertz_normal(delta, 5e-5, 3.95e10, *q);
+      EXPECT_NEAR(f.k_secant * delta / f.F_n, 1.0, 1e-14) << delta;
+    }
+    const NormalForce h = hertz_normal(delta, 5e-5, 3.95e10);
+    EXPECT_NEAR(h.k_secant * delta / h.F_n, 1.0, 1e-14) << delta;
+  }
+  EXPECT_EQ(hertz_normal(-1e-9, 5e-5, 3.95e10).k_secant, 0.0);
 }
 
 }  // namespace

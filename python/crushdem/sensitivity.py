@@ -12,6 +12,11 @@ angle, breakages, B_r, grains and wall-clock time per variant, and which comes c
 study's 22.6 MPa) and ``DIR/sensitivity.json`` (the settings). A variant that has finished is not
 run again and an interrupted one resumes from its checkpoint, so the command can be repeated
 until every variant is done, or run on several machines with ``--only``.
+
+A name joined with ``+`` (``r_prime_2R_star+d0_2mm+rolling_0.3``) is a combination: it makes
+every change of its parts at once (parts that set one key two ways are refused). The tables list
+every variant with a run directory under ``DIR``, so runs made with different ``--only`` lists
+end up in one table.
 """
 
 from __future__ import annotations
@@ -64,15 +69,59 @@ def settings(sigma_3: float = 10e6, strain_rate: float = 50.0,
             "output": {"interval": 20000, "progress_seconds": 60}}
 
 
+def variant_parts(name: str) -> List[str]:
+    """The single variants of ``name`` (one, or several joined with '+')."""
+    parts = [p.strip() for p in name.split("+")]
+    for p in parts:
+        if p not in VARIANTS:
+            raise ValueError(f"unknown variant '{p}' in '{name}': expected one of "
+                             f"{', '.join(VARIANTS)}, or several joined with '+'")
+    if len(parts) > 1 and "base" in parts:
+        raise ValueError(f"variant '{name}': 'base' changes nothing, leave it out of a "
+                         "combination")
+    if len(set(parts)) != len(parts):
+        raise ValueError(f"variant '{name}': a part appears twice")
+    return parts
+
+
+def describe(name: str) -> str:
+    """What variant ``name`` changes, in words."""
+    return "; ".join(VARIANTS[p][0] for p in variant_parts(name))
+
+
 def variant_settings(base: Mapping[str, Any], name: str) -> Dict[str, Any]:
-    """``base`` with the one change of variant ``name``."""
-    if name not in VARIANTS:
-        raise ValueError(f"unknown variant '{name}': expected one of {', '.join(VARIANTS)}")
-    _, contact, crushing = VARIANTS[name]
+    """``base`` with the changes of variant ``name`` (every part's, for a combination)."""
     s = copy.deepcopy(dict(base))
-    s["contact"].update(contact)
-    s["crushing"].update(crushing)
+    set_by: Dict[tuple, str] = {}
+    for part in variant_parts(name):
+        _, contact, crushing = VARIANTS[part]
+        for section, changes in (("contact", contact), ("crushing", crushing)):
+            for key, value in changes.items():
+                other = set_by.get((section, key))
+                if other is not None and s[section][key] != value:
+                    raise ValueError(f"variant '{name}': '{other}' and '{part}' set "
+                                     f"{section}.{key} differently")
+                set_by[(section, key)] = part
+                s[section][key] = value
     return s
+
+
+def known_runs(out: str) -> List[str]:
+    """Variant names with a run directory under ``out``: single variants in the order of
+    VARIANTS, then combinations in name order."""
+    if not os.path.isdir(out):
+        return []
+    found = []
+    for entry in sorted(os.listdir(out)):
+        if not os.path.isdir(os.path.join(out, entry)):
+            continue
+        try:
+            variant_parts(entry)
+        except ValueError:
+            continue
+        found.append(entry)
+    singles = [n for n in VARIANTS if n in found]
+    return singles + [n for n in found if n not in VARIANTS]
 
 
 def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
@@ -108,11 +157,13 @@ COLUMNS = ("variant", "q_max_MPa", "q_max_over_sigma_3", "axial_strain_at_q_max"
 
 
 def table(out: str, names: Sequence[str], sigma_3: float) -> List[Dict[str, Any]]:
-    """Reads every variant's run; writes qmax_sensitivity.csv and .md; returns the rows."""
+    """Reads the runs of ``names`` and of every other variant run under ``out``; writes
+    qmax_sensitivity.csv and .md; returns the rows."""
     rows = []
-    for name in names:
+    listed = known_runs(out)
+    for name in listed + [n for n in names if n not in listed]:
         row = read_variant(os.path.join(out, name), sigma_3)
-        row["variant"], row["changes"] = name, VARIANTS[name][0]
+        row["variant"], row["changes"] = name, describe(name)
         rows.append(row)
     with open(os.path.join(out, "qmax_sensitivity.csv"), "w", newline="") as f:
         w = csv.writer(f)
@@ -157,10 +208,27 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
         raise ValueError(f"--sample '{sample}': no such file (a prepared sample.txt)")
     os.makedirs(out, exist_ok=True)
     base = settings(sigma_3, strain_rate, axial_strain)
-    with open(os.path.join(out, "sensitivity.json"), "w") as f:
-        json.dump({"sample": os.path.abspath(sample), "base": base,
-                   "variants": {n: {"changes": VARIANTS[n][0], "contact": VARIANTS[n][1],
-                                    "crushing": VARIANTS[n][2]} for n in names}}, f, indent=1)
+    # The settings of every variant ever run here, so that runs with other --only lists keep
+    # theirs.
+    json_path = os.path.join(out, "sensitivity.json")
+    variants: Dict[str, Any] = {}
+    if os.path.isfile(json_path):
+        with open(json_path) as f:
+            before = json.load(f)
+        if before.get("sample") not in (None, os.path.abspath(sample)):
+            raise ValueError(f"--sample '{sample}': {out} holds variants run on "
+                             f"{before['sample']}; use that sample or another --out")
+        if before.get("base") not in (None, json.loads(json.dumps(base))):
+            raise ValueError(f"{out} holds variants run with other base settings (sigma_3, "
+                             "strain rate, axial strain or defaults); use another --out")
+        variants = before.get("variants", {})
+    for n in names:
+        s = variant_settings(base, n)
+        variants[n] = {"changes": describe(n), "contact": s["contact"],
+                       "crushing": s["crushing"]}
+    with open(json_path, "w") as f:
+        json.dump({"sample": os.path.abspath(sample), "base": base, "variants": variants}, f,
+                  indent=1)
     if threads:
         set_threads(threads)
     record: Dict[str, Any] = {}
@@ -187,7 +255,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="a prepared sample.txt (e.g. runs/sample_rev/sample.txt)")
     parser.add_argument("--only", default=None, metavar="A,B",
                         help=f"variants to run, comma-separated (default all: "
-                             f"{', '.join(VARIANTS)})")
+                             f"{', '.join(VARIANTS)}); join names with '+' to combine "
+                             f"their changes")
     parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E")
     parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R")
     parser.add_argument("--sigma-3", type=float, default=10e6, metavar="PA")

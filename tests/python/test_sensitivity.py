@@ -81,3 +81,42 @@ def test_table_reads_finished_runs_and_names_the_closest(tmp_path):
     md = open(os.path.join(out, "qmax_sensitivity.md")).read()
     assert "Closest to the study: rolling_0.3 (19.00 MPa" in md
     assert "| d0_2mm | (not finished)" in md
+
+
+def test_a_combination_makes_every_change_of_its_parts():
+    base = sensitivity.settings()
+    s = sensitivity.variant_settings(base, "r_prime_2R_star+d0_2mm+rolling_0.3")
+    assert s["crushing"]["r_prime"] == "2R_star" and s["crushing"]["d0"] == 2e-3
+    assert s["contact"]["rolling_friction"] == 0.3
+    assert s["contact"]["k1"] == base["contact"]["k1"]  # untouched
+    assert "d0 = 2 mm" in sensitivity.describe("r_prime_2R_star+d0_2mm")
+    with pytest.raises(ValueError, match="set contact.rolling_friction differently"):
+        sensitivity.variant_settings(base, "rolling_0.1+rolling_0.3")
+    with pytest.raises(ValueError, match="unknown variant 'nope' in 'd0_2mm\\+nope'"):
+        sensitivity.variant_settings(base, "d0_2mm+nope")
+    with pytest.raises(ValueError, match="appears twice"):
+        sensitivity.variant_settings(base, "d0_2mm+d0_2mm")
+
+
+def test_the_table_lists_every_variant_run_in_the_directory(tmp_path):
+    out = str(tmp_path)
+    _fake_run(os.path.join(out, "base"), 8.5e6, breakages=100)
+    _fake_run(os.path.join(out, "rolling_0.3+d0_2mm"), 13.0e6, breakages=200)
+    os.makedirs(os.path.join(out, "not_a_variant"))
+    # A later call that names only one other variant keeps the earlier ones in the table.
+    rows = sensitivity.table(out, ["f_uniform"], 10e6)
+    assert [r["variant"] for r in rows] == ["base", "rolling_0.3+d0_2mm", "f_uniform"]
+    assert rows[1]["q_max_MPa"] == pytest.approx(13.0)
+    assert "Closest to the study: rolling_0.3+d0_2mm (13.00 MPa" in open(
+        os.path.join(out, "qmax_sensitivity.md")).read()
+
+
+def test_a_directory_is_not_shared_between_samples(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sensitivity.json").write_text(json.dumps({"sample": "/elsewhere/sample.txt",
+                                                      "base": {}, "variants": {}}))
+    sample = tmp_path / "sample.txt"
+    sample.write_text("# box_xmin=0\n")
+    with pytest.raises(ValueError, match="holds variants run on /elsewhere/sample.txt"):
+        sensitivity.run_sensitivity(str(out), str(sample), ["base"])

@@ -7,6 +7,7 @@
 // line, else from the environment variables the peer harness sets, else from its lib.sh defaults.
 // --backend cuda runs the warm-up and the timed steps on the GPU (GpuStepper, builds with
 // -DCRUSHDEM_CUDA=ON only); the clock stops after the device has finished.
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -80,7 +81,15 @@ int bench_main(const std::vector<std::string>& args) {
                       ".gz' does: unpack it first (gunzip -k '" + packing_path + ".gz')");
   }
   const Packing pk = read_packing(packing_path);
-  const double L = pk.header_number("L_m", packing_path);
+  // The reference packing is a cube [0, L]^3 ('# L_m='); a prepared sample (`# box_xmin=` ...,
+  // as `crushdem run` writes for a [sample]) carries its six wall positions.
+  std::array<double, kNumWalls> wall_position{};
+  for (int k = 0; k < kNumWalls; ++k) {
+    const std::string key = std::string("box_") + wall_name(k);
+    wall_position[static_cast<std::size_t>(k)] =
+        pk.header.count(key) ? pk.header_number(key, packing_path)
+                             : (wall_is_low(k) ? 0.0 : pk.header_number("L_m", packing_path));
+  }
 
   SimulationConfig cfg;
   cfg.material.density = env_number("RHO", 2650.0);
@@ -94,7 +103,7 @@ int bench_main(const std::vector<std::string>& args) {
   cfg.timestep.dt = env_number("DT", 1.494169e-8);
   cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
   for (int k = 0; k < kNumWalls; ++k) {
-    cfg.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? 0.0 : L;
+    cfg.walls[static_cast<std::size_t>(k)].position = wall_position[static_cast<std::size_t>(k)];
   }
   Simulation sim(cfg);
   add_packing_particles(sim, pk);

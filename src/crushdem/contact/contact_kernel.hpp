@@ -36,7 +36,7 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
   double F_normal = nf.F_n;
   Vec3 F_damp_t{};
   if (p.viscous.alpha_n > 0.0 && delta > 0.0) {
-    const double eta_n = viscous_coefficient(p.viscous.alpha_n, m_eff, nf.F_n / delta);
+    const double eta_n = viscous_coefficient(p.viscous.alpha_n, m_eff, nf.k_secant);
     // No cohesion: damping may slow a separating pair but never pull it together.
     F_normal = F_normal + eta_n * v_n > 0.0 ? F_normal + eta_n * v_n : 0.0;
     F_damp_t = (-p.viscous.tangential_factor * eta_n) * v_t;

@@ -14,8 +14,10 @@ namespace crushdem {
 
 /// Normal force and tangent stiffness of a contact.
 struct NormalForce {
-  double F_n = 0.0;  // [N], >= 0
-  double k_n = 0.0;  // [N/m], dF_n/d delta
+  double F_n = 0.0;       // [N], >= 0
+  double k_n = 0.0;       // [N/m], dF_n/d delta
+  double k_secant = 0.0;  // [N/m], F_n / delta (viscous damping); a law that knows it in closed
+                          // form saves the division
 };
 
 /// E* for two grains of one material from the shear modulus G and Poisson's ratio nu.
@@ -26,7 +28,7 @@ CD_HD inline double effective_modulus(double G, double nu) {
 CD_HD inline NormalForce hertz_normal(double delta, double R_star, double E_star) {
   if (delta <= 0.0) return {};
   const double k_n = 2.0 * E_star * std::sqrt(R_star * delta);
-  return {k_n * delta * (2.0 / 3.0), k_n};
+  return {k_n * delta * (2.0 / 3.0), k_n, k_n * (2.0 / 3.0)};
 }
 
 /// Normal-law evaluator for smooth Hertz (template argument of the contact kernels).

@@ -73,16 +73,18 @@ CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double 
     // Hertz branch, shifted by d_ps (d_ps = 0 when smooth).
     const double d = delta - p.d_ps;
     const double k_n = 2.0 * E_star * std::sqrt(R_star * d);
-    return {k_n * d * (2.0 / 3.0), k_n};
+    const double F = k_n * d * (2.0 / 3.0);
+    return {F, k_n, p.s <= 0.0 ? k_n * (2.0 / 3.0) : F / delta};
   }
   const double X = E_star * sqrt_R_star * p.x_factor;
   if (delta > p.d_T1) {
     const double u = delta - p.d_p1;
     const double F = p.k2 * X * p.pow_b(u * p.inv_span);
-    return {F, p.b * F / u};
+    return {F, p.b * F / u, F / delta};
   }
   const double F = p.k1 * X * p.pow_c(delta * p.inv_d_T1);
-  return {F, p.c * F / delta};
+  const double k_secant = F / delta;
+  return {F, p.c * k_secant, k_secant};
 }
 
 CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double E_star,

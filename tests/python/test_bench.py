@@ -1,0 +1,63 @@
+"""`crushdem bench` on small packings: the peer format (a cube [0, L]^3 from '# L_m=') and a
+prepared sample (six wall positions from '# box_xmin=' ...) both load, and the figure is the
+last line of the output."""
+
+import subprocess
+import sys
+
+
+def _lattice(path, header, L, n=4):
+    d = L / n
+    with open(path, "w") as f:
+        f.write(header)
+        k = 0
+        for i in range(n):
+            for j in range(n):
+                for m in range(n):
+                    f.write(f"{k} {(i + 0.5) * d} {(j + 0.5) * d} {(m + 0.5) * d} {1.001 * d}\n")
+                    k += 1
+
+
+def _bench(packing, *extra):
+    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing", str(packing),
+                          "--steps", "20", "--warm", "5", "--threads", "1", *extra],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = res.stdout.strip().splitlines()
+    assert lines[-1].startswith("particle_steps_per_s=")
+    assert float(lines[-1].split("=")[1]) > 0
+    return lines
+
+
+def test_bench_loads_the_peer_format(tmp_path):
+    L = 1e-3
+    _lattice(tmp_path / "p.txt", f"# L_m={L}\n", L)
+    lines = _bench(tmp_path / "p.txt")
+    assert lines[0].startswith("N=64 ")
+    # Every grain overlaps its lattice neighbours and the walls: the walls are loaded.
+    p_wall = float(lines[2].split()[0].split("=")[1])
+    assert p_wall > 0
+
+
+def test_bench_loads_a_prepared_sample_box(tmp_path):
+    L = 1e-3
+    box = "".join(f"# box_{a}{m}={0.0 if m == 'min' else L}\n" for a in "xyz"
+                  for m in ("min", "max"))
+    _lattice(tmp_path / "s.txt", box, L)
+    _lattice(tmp_path / "p.txt", f"# L_m={L}\n", L)
+    for law in ("hertz", "rough"):
+        # Same box either way, so the same state after the same steps.
+        assert _bench(tmp_path / "s.txt", "--law", law)[2] == _bench(tmp_path / "p.txt", "--law",
+                                                                     law)[2]
+    wide = box.replace(f"# box_xmax={L}", f"# box_xmax={2 * L}")
+    _lattice(tmp_path / "w.txt", wide, L)
+    # A wider box leaves the xmax wall unloaded.
+    assert _bench(tmp_path / "w.txt")[2] != _bench(tmp_path / "s.txt")[2]
+
+
+def test_bench_without_a_box_names_the_header(tmp_path):
+    _lattice(tmp_path / "n.txt", "", 1e-3)
+    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+                          str(tmp_path / "n.txt"), "--steps", "5"], capture_output=True, text=True)
+    assert res.returncode != 0
+    assert "L_m" in res.stderr
