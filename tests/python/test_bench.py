@@ -61,3 +61,18 @@ def test_bench_without_a_box_names_the_header(tmp_path):
                           str(tmp_path / "n.txt"), "--steps", "5"], capture_output=True, text=True)
     assert res.returncode != 0
     assert "L_m" in res.stderr
+
+
+def test_bench_settles_under_its_own_law_first(tmp_path):
+    L = 1e-3
+    _lattice(tmp_path / "p.txt", f"# L_m={L}\n# p_target_Pa=1e5\n", L)
+    lines = _bench(tmp_path / "p.txt", "--law", "rough", "--settle", "200")
+    settled = dict(kv.split("=") for kv in lines[0].split()[1:])
+    assert lines[0].startswith("settled ") and settled["steps"] == "200"
+    assert float(settled["target_Pa"]) == 1e5
+    # The servo has moved the walls, so the timed state differs from the unsettled one.
+    assert lines[3] != _bench(tmp_path / "p.txt", "--law", "rough")[2]
+    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+                          str(tmp_path / "p.txt"), "--settle", "-3"], capture_output=True,
+                         text=True)
+    assert res.returncode != 0 and "--settle" in res.stderr and "-3" in res.stderr

@@ -19,6 +19,7 @@
 
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/io/runner.hpp"
@@ -69,11 +70,15 @@ int bench_main(const std::vector<std::string>& args) {
   const char* env_state_out = std::getenv("STATE_OUT");
   const std::string state_out = a.value("--state-out", env_state_out ? env_state_out : "");
   const std::string backend = a.value("--backend", "cpu");
+  const long settle = a.integer("--settle", 0);
   a.finish();
   check_backend(backend);
   if (steps <= 0)
     throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
+  if (settle < 0) {
+    throw ConfigError(bad_value("--settle", std::to_string(settle), "a count >= 0"));
+  }
   set_threads(threads);
 
   if (!std::ifstream(packing_path) && std::ifstream(packing_path + ".gz")) {
@@ -108,6 +113,36 @@ int bench_main(const std::vector<std::string>& args) {
   Simulation sim(cfg);
   add_packing_particles(sim, pk);
   const auto N = static_cast<double>(sim.particles().size());
+  if (settle > 0) {
+    // --settle N: the reference packing is at rest under smooth Hertz only. Under the rough law
+    // the same overlaps carry far less force, so the box unloads (to about 0.07 MPa) and a third
+    // of the contacts slide: that times another state, not the law. Settling first gives the
+    // law its own state at rest, contact history included (a file cannot carry it): N steps with
+    // the six walls servo-controlled to the packing's stress and local damping, then the state
+    // moved into the benchmark's simulation (no local damping) with its walls (fixed).
+    const double stress = pk.header_number("p_target_Pa", packing_path);
+    SimulationConfig sc = cfg;
+    sc.damping.local_alpha = 0.7;
+    for (auto& w : sc.walls) {
+      w.mode = WallMode::Servo;
+      w.target_stress = stress;
+    }
+    Simulation settler(sc);
+    add_packing_particles(settler, pk);
+    settler.step(static_cast<std::uint64_t>(settle));
+    StateWriter state;
+    settler.save_state(state);
+    StateReader in(state.bytes(), "the settled state");
+    sim.load_state(in);
+    double p = 0.0;
+    for (int k = 0; k < kNumWalls; ++k) {
+      sim.walls().config(k) = cfg.walls[static_cast<std::size_t>(k)];
+      sim.walls().state(k).velocity = 0.0;
+      p += sim.walls().stress(k) / kNumWalls;
+    }
+    std::printf("settled steps=%ld target_Pa=%.6e p_wall_Pa=%.6e ke_J=%.6e\n", settle, stress, p,
+                sim.kinetic_energy());
+  }
 
 #ifdef CRUSHDEM_HAVE_CUDA
   std::unique_ptr<GpuStepper> gpu;
