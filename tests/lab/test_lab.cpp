@@ -196,7 +196,10 @@ TEST(LabTests, OedometricLoadingKeepsLateralStrainZeroAndReportsK0) {
   EXPECT_GT(peak, 2e6);
   EXPECT_LT(peak, 2.3e6);
   EXPECT_NE(summary.find("\"type\": \"hold\""), std::string::npos);
-  EXPECT_LT(ts.at("axial_strain").back(), ts.at("axial_strain")[ts.at("step").size() / 2] + 1e-3);
+  // Unloading to 1 MPa gives back part of the axial strain (2.6e-3 of 11.2e-3 here); the bound
+  // is on the peak, not on a row of the loading branch, whose strain depends on the path.
+  const std::vector<double>& eps = ts.at("axial_strain");
+  EXPECT_LT(eps.back(), *std::max_element(eps.begin(), eps.end()) - 1e-3);
 }
 
 namespace {
