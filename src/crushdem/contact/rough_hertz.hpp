@@ -83,8 +83,9 @@ CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double 
     return {F, p.b * F / u, F / delta};
   }
   const double F = p.k1 * X * p.pow_c(delta * p.inv_d_T1);
-  const double k_secant = F / delta;
-  return {F, p.c * k_secant, k_secant};
+  // c F / delta, not c (F / delta): the same rounding as before k_secant existed, so runs
+  // without viscous damping are bit-for-bit unchanged.
+  return {F, p.c * F / delta, F / delta};
 }
 
 CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double E_star,
