@@ -202,12 +202,11 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
     from . import _core, lab
 
     names = list(names or VARIANTS)
-    for n in names:
-        variant_settings(settings(), n)  # unknown names fail before anything runs
+    base = settings(sigma_3, strain_rate, axial_strain)
+    chosen = {n: variant_settings(base, n) for n in names}  # bad names fail before anything runs
     if not os.path.isfile(sample):
         raise ValueError(f"--sample '{sample}': no such file (a prepared sample.txt)")
     os.makedirs(out, exist_ok=True)
-    base = settings(sigma_3, strain_rate, axial_strain)
     # The settings of every variant ever run here, so that runs with other --only lists keep
     # theirs.
     json_path = os.path.join(out, "sensitivity.json")
@@ -222,8 +221,7 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
             raise ValueError(f"{out} holds variants run with other base settings (sigma_3, "
                              "strain rate, axial strain or defaults); use another --out")
         variants = before.get("variants", {})
-    for n in names:
-        s = variant_settings(base, n)
+    for n, s in chosen.items():
         variants[n] = {"changes": describe(n), "contact": s["contact"],
                        "crushing": s["crushing"]}
     with open(json_path, "w") as f:
@@ -232,8 +230,7 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
     if threads:
         set_threads(threads)
     record: Dict[str, Any] = {}
-    for n in names:
-        s = variant_settings(base, n)
+    for n, s in chosen.items():
         run_dir = os.path.join(out, n)
         tri = s["triaxial"]
         _run_step(n, run_dir,

@@ -89,11 +89,13 @@ int bench_main(const std::vector<std::string>& args) {
   // The reference packing is a cube [0, L]^3 ('# L_m='); a prepared sample (`# box_xmin=` ...,
   // as `crushdem run` writes for a [sample]) carries its six wall positions.
   std::array<double, kNumWalls> wall_position{};
-  for (int k = 0; k < kNumWalls; ++k) {
-    const std::string key = std::string("box_") + wall_name(k);
-    wall_position[static_cast<std::size_t>(k)] =
-        pk.header.count(key) ? pk.header_number(key, packing_path)
-                             : (wall_is_low(k) ? 0.0 : pk.header_number("L_m", packing_path));
+  if (pk.has_box()) {
+    wall_position = pk.box(packing_path);
+  } else {
+    const double L = pk.header_number("L_m", packing_path);
+    for (int k = 0; k < kNumWalls; ++k) {
+      wall_position[static_cast<std::size_t>(k)] = wall_is_low(k) ? 0.0 : L;
+    }
   }
 
   SimulationConfig cfg;

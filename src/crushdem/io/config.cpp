@@ -453,14 +453,14 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
                                   "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
     }
     const Packing pk = read_packing(c.particles.file);
-    if (!pk.header.count("box_xmin")) {
+    if (!pk.has_box()) {
       throw ConfigError("missing section [box]: " + c.particles.file +
                         " has no '# box_xmin=' header (only prepared samples carry their box); "
                         "expected [box] min = [x, y, z] and max = [x, y, z]");
     }
+    const std::array<double, kNumWalls> box = pk.box(c.particles.file);
     for (int k = 0; k < kNumWalls; ++k) {
-      c.simulation.walls[static_cast<std::size_t>(k)].position =
-          pk.header_number(std::string("box_") + wall_name(k), c.particles.file);
+      c.simulation.walls[static_cast<std::size_t>(k)].position = box[static_cast<std::size_t>(k)];
     }
   }
   {

@@ -24,6 +24,14 @@ double Packing::header_number(const std::string& key, const std::string& path) c
   return v;
 }
 
+std::array<double, kNumWalls> Packing::box(const std::string& path) const {
+  std::array<double, kNumWalls> b{};
+  for (int k = 0; k < kNumWalls; ++k) {
+    b[static_cast<std::size_t>(k)] = header_number(box_header_key(k), path);
+  }
+  return b;
+}
+
 Packing read_packing(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw ConfigError("particle file '" + path + "' cannot be opened");

@@ -3,11 +3,13 @@
 // state files crushdem writes for it.
 #pragma once
 
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "crushdem/core/types.hpp"
+#include "crushdem/walls/walls.hpp"
 
 namespace crushdem {
 
@@ -22,6 +24,12 @@ struct Packing {
   std::vector<PackingRow> rows;
   /// A header value as a number; throws ConfigError naming the file and key when absent or bad.
   double header_number(const std::string& key, const std::string& path) const;
+  /// Whether the file carries a prepared sample's box ('# box_xmin=' ... '# box_zmax=').
+  bool has_box() const { return header.count(box_header_key(0)) != 0; }
+  /// The six wall positions of that box, in wall order; throws like header_number.
+  std::array<double, kNumWalls> box(const std::string& path) const;
+  /// The header key of wall k's position ("box_xmin" ... "box_zmax").
+  static std::string box_header_key(int k) { return std::string("box_") + wall_name(k); }
 };
 
 /// Reads a packing file; throws ConfigError naming the file (and line) on any problem.

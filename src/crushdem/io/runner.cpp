@@ -656,7 +656,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     // The sample file: grains and the box, reusable as particles.file by any test.
     Packing pk;
     for (int k = 0; k < kNumWalls; ++k) {
-      pk.header[std::string("box_") + wall_name(k)] = format_double(sim.walls().position(k));
+      pk.header[Packing::box_header_key(k)] = format_double(sim.walls().position(k));
     }
     pk.header["void_ratio"] = format_double(prep.void_ratio());
     pk.header["preparation_friction"] = format_double(prep.preparation_friction());
