@@ -5,10 +5,36 @@
 #include <cmath>
 
 #include "crushdem/contact/rough_hertz.hpp"
+#include "crushdem/integrate/local_damping.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
 namespace {
+
+// PFC local damping, branch-free: equal bit for bit to the branching form it replaced, for
+// both signs of force and velocity, a component at rest, signed zeros and a NaN velocity.
+TEST(LocalDamping, EqualsTheBranchingFormBitForBit) {
+  auto branching = [](double f, double v, double alpha) {
+    return v > 0.0 ? f - alpha * std::abs(f) : (v < 0.0 ? f + alpha * std::abs(f) : f);
+  };
+  const double forces[] = {1.2345e-3, -7.5e-9, 0.0, -0.0, 3.0e4, -1.0 / 3.0};
+  const double speeds[] = {2.5e-3, -1e-12, 0.0, -0.0, std::nan("")};
+  const double alphas[] = {0.7, 0.1, 0.0, 1.0};
+  for (double f : forces) {
+    for (double v : speeds) {
+      for (double a : alphas) {
+        const double want = branching(f, v, a), got = local_damping(f, v, a);
+        EXPECT_EQ(std::signbit(got), std::signbit(want)) << f << " " << v << " " << a;
+        EXPECT_EQ(got, want) << f << " " << v << " " << a;
+      }
+    }
+  }
+  // It opposes the motion: the damped force points less along v than F does.
+  EXPECT_DOUBLE_EQ(local_damping(1.0, 1.0, 0.7), 0.3);
+  EXPECT_DOUBLE_EQ(local_damping(-1.0, 1.0, 0.7), -1.7);
+  EXPECT_DOUBLE_EQ(local_damping(1.0, -1.0, 0.7), 1.7);
+  EXPECT_DOUBLE_EQ(local_damping(1.0, 0.0, 0.7), 1.0);
+}
 
 // Overlap at which the normal law carries force F (bisection on the monotone law).
 double overlap_for(double F, double R_star, const Simulation& sim, bool wall) {

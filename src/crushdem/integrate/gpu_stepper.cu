@@ -36,6 +36,7 @@
 #include "crushdem/contact/contact_kernel.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/gpu_stepper.hpp"
+#include "crushdem/integrate/local_damping.hpp"
 #include "crushdem/integrate/simulation.hpp"
 
 namespace crushdem {
@@ -274,10 +275,6 @@ CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum)
   }
 }
 
-CD_HD inline double damp(double f, double vel, double alpha) {
-  return vel > 0.0 ? f - alpha * std::fabs(f) : (vel < 0.0 ? f + alpha * std::fabs(f) : f);
-}
-
 CD_HD inline void gather_item(const View& v, Index j) {
   Vec3 F{}, T{};
   for (Index e = v.off[j]; e < v.off[j + 1]; ++e) {
@@ -299,8 +296,10 @@ CD_HD inline void gather_item(const View& v, Index j) {
   v.fuy[j] = F.y;
   v.fuz[j] = F.z;
   if (v.alpha > 0.0) {
-    F = {damp(F.x, v.vx[j], v.alpha), damp(F.y, v.vy[j], v.alpha), damp(F.z, v.vz[j], v.alpha)};
-    T = {damp(T.x, v.wx[j], v.alpha), damp(T.y, v.wy[j], v.alpha), damp(T.z, v.wz[j], v.alpha)};
+    F = {local_damping(F.x, v.vx[j], v.alpha), local_damping(F.y, v.vy[j], v.alpha),
+         local_damping(F.z, v.vz[j], v.alpha)};
+    T = {local_damping(T.x, v.wx[j], v.alpha), local_damping(T.y, v.wy[j], v.alpha),
+         local_damping(T.z, v.wz[j], v.alpha)};
   }
   v.fx[j] = F.x;
   v.fy[j] = F.y;

@@ -10,6 +10,7 @@
 #include "crushdem/contact/contact_stress.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/integrate/local_damping.hpp"
 
 namespace crushdem {
 namespace {
@@ -506,12 +507,10 @@ void Simulation::gather_and_damp(bool kick) {
     fu_y_[j] = F.y;
     fu_z_[j] = F.z;
     if (alpha > 0.0) {
-      // PFC local damping: opposes the motion with a fraction of the unbalanced force.
-      auto damp = [alpha](double f, double v) {
-        return v > 0.0 ? f - alpha * std::abs(f) : (v < 0.0 ? f + alpha * std::abs(f) : f);
-      };
-      F = {damp(F.x, p_.vx[j]), damp(F.y, p_.vy[j]), damp(F.z, p_.vz[j])};
-      T = {damp(T.x, p_.wx[j]), damp(T.y, p_.wy[j]), damp(T.z, p_.wz[j])};
+      F = {local_damping(F.x, p_.vx[j], alpha), local_damping(F.y, p_.vy[j], alpha),
+           local_damping(F.z, p_.vz[j], alpha)};
+      T = {local_damping(T.x, p_.wx[j], alpha), local_damping(T.y, p_.wy[j], alpha),
+           local_damping(T.z, p_.wz[j], alpha)};
     }
     p_.fx[j] = F.x;
     p_.fy[j] = F.y;
