@@ -8,7 +8,9 @@
 //      neighbour rebuilds, and two GPU runs give identical bits;
 //   c) neighbour rebuilds on the GPU path (download, host rebuild by ids, upload): oblique
 //      frictional impacts with a tiny skin (rebuilt every few steps, CPU to 1e-9), and the
-//      sample of b) under a wall moving at 1 m/s (within the tolerance of b).
+//      sample of b) under a wall moving at 1 m/s (within the tolerance of b);
+//   d) the contact load for crushing (largest contact stress, F_n and its normal per grain) on
+//      the sample of b), against the CPU's.
 //
 // The GPU sums each particle's forces in another order than the CPU (own entries, then reverse
 // entries, then walls; the CPU in column order), so the two differ from the first step by
@@ -266,6 +268,54 @@ void compare_runs(const char* name, const Simulation& start, std::uint64_t steps
               }());
 }
 
+// d) Contact-load tracking for crushing (Simulation::track_contact_load): after 2000 steps of the
+// sample of b) the GPU's per-grain largest contact stress, largest elastic F_n and its normal
+// equal the CPU's (to the tolerance the positions agree to, relative to the largest value); on a
+// device also bit for bit the host emulation's.
+void compare_load(const Simulation& sample, std::uint64_t steps, GpuStepper::Mode mode) {
+  Simulation start = sample;
+  start.track_contact_load(1.0);
+  Simulation cpu = start, g1 = start;
+  cpu.step(steps);
+  run_gpu(g1, steps, mode);
+  const auto oc = by_id(cpu), og = by_id(g1);
+  const Simulation::ContactLoad &Lc = cpu.contact_load(), &Lg = g1.contact_load();
+  const std::size_t N = oc.size();
+  bool sizes = Lg.sigma.size() == N && Lg.F_n_max.size() == N && Lg.nx.size() == N &&
+               Lg.ny.size() == N && Lg.nz.size() == N;
+  double s_max = 0.0, F_max = 0.0, ds = 0.0, dF = 0.0, dn = 0.0;
+  std::size_t loaded = 0;
+  if (sizes) {
+    for (std::size_t k = 0; k < N; ++k) {
+      s_max = std::max(s_max, Lc.sigma[oc[k]]);
+      F_max = std::max(F_max, Lc.F_n_max[oc[k]]);
+    }
+    for (std::size_t k = 0; k < N; ++k) {
+      const std::size_t i = oc[k], j = og[k];
+      ds = std::max(ds, std::fabs(Lc.sigma[i] - Lg.sigma[j]) / s_max);
+      dF = std::max(dF, std::fabs(Lc.F_n_max[i] - Lg.F_n_max[j]) / F_max);
+      if (Lc.F_n_max[i] > 0.0) {
+        ++loaded;
+        dn = std::max({dn, std::fabs(Lc.nx[i] - Lg.nx[j]), std::fabs(Lc.ny[i] - Lg.ny[j]),
+                       std::fabs(Lc.nz[i] - Lg.nz[j])});
+      }
+    }
+  }
+  check(sizes && s_max > 0.0 && loaded > N / 2 && ds < 1e-6 && dF < 1e-6 && dn < 1e-6,
+        "contact load: GPU maxima equal the CPU's",
+        fmt("%.0f of %.0f grains loaded; max difference sigma %.3g, F_n %.3g (of the largest), ",
+            static_cast<double>(loaded), static_cast<double>(N), ds, dF) +
+            fmt("normal %.3g (tolerance 1e-6); largest sigma_c %.4g Pa", dn, s_max));
+  if (mode == GpuStepper::Mode::Device) {
+    Simulation g3 = start;
+    run_gpu(g3, steps, GpuStepper::Mode::HostEmulation);
+    const Simulation::ContactLoad& Le = g3.contact_load();
+    check(same_bits(Lg.sigma, Le.sigma) && same_bits(Lg.F_n_max, Le.F_n_max) &&
+              same_bits(Lg.nx, Le.nx) && same_bits(Lg.ny, Le.ny) && same_bits(Lg.nz, Le.nz),
+          "contact load: device equals the host emulation bit for bit", "sigma, F_n, normal");
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -287,6 +337,7 @@ int main(int argc, char** argv) {
     moving.walls().config(3).mode = WallMode::Velocity;  // ymax pushes in at 1 m/s
     moving.walls().config(3).velocity = -1.0;
     compare_runs("moving wall", moving, 2000, mode, true);
+    compare_load(sample, 2000, mode);
   } catch (const std::exception& e) {
     check(false, "exception", e.what());
   }

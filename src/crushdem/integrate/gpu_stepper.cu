@@ -17,6 +17,11 @@
 //                 the wall entries, then a fixed tree in shared memory; thread 0 stores the
 //                 totals and sets the servo velocity (Walls::update_velocities for that wall).
 //
+// With contact-load tracking on (Simulation::track_contact_load, for crushing), the contact
+// threads also keep each entry's contact stress F_n / (pi r' delta), elastic F_n and normal, and
+// the gather takes each grain's maxima over its entries (own, partner, walls): the CPU's
+// Simulation::contact_load(), which download() fills.
+//
 // No floating-point atomics anywhere: every sum has an order fixed by the lists, so runs repeat
 // bit for bit. Batches of steps are launched as one CUDA graph; sizes live in device memory and
 // buffers keep spare capacity so that the graph survives neighbour rebuilds.
@@ -34,6 +39,7 @@
 #include <vector>
 
 #include "crushdem/contact/contact_kernel.hpp"
+#include "crushdem/contact/contact_stress.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/gpu_stepper.hpp"
 #include "crushdem/integrate/local_damping.hpp"
@@ -88,6 +94,11 @@ struct View {
   double *mrx, *mry, *mrz;  // rolling moment on the owner (null without rolling resistance)
   std::uint8_t* touch;
   double *rfx, *rfy, *rfz, *rix, *riy, *riz, *rjx, *rjy, *rjz;  // reaction records per entry
+  // Contact load (null unless tracked): per pair entry sigma_c, elastic F_n and the normal i -> j;
+  // per wall entry sigma_c and elastic F_n; per grain the maxima (Simulation::ContactLoad).
+  double *esig, *eFn, *enx, *eny, *enz, *wsig, *wFel;
+  double *LS, *LF, *LNX, *LNY, *LNZ;
+  double inv_pi_k, load_factor;  // 1 / (pi r'/R*) and r'/R*
   const Index *wp, *woff;
   const std::uint8_t* ww;
   double *wftx, *wfty, *wftz, *wfx, *wfy, *wfz, *wtx, *wty, *wtz, *wFn, *wkn, *wdelta;
@@ -179,6 +190,13 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   v.rjx[e] = tj.x;
   v.rjy[e] = tj.y;
   v.rjz[e] = tj.z;
+  if (v.esig) {  // the CPU pair loop's expression (simulation.cpp, pair_column)
+    v.esig[e] = pc.delta > 0.0 ? c.F_n * v.inv_pi_k / (v.RS[e] * pc.delta) : 0.0;
+    v.eFn[e] = c.F_n;
+    v.enx[e] = pc.n.x;
+    v.eny[e] = pc.n.y;
+    v.enz[e] = pc.n.z;
+  }
 }
 
 template <class Law>
@@ -195,6 +213,7 @@ CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
     v.wftx[e] = v.wfty[e] = v.wftz[e] = 0.0;
     v.wfx[e] = v.wfy[e] = v.wfz[e] = v.wtx[e] = v.wty[e] = v.wtz[e] = 0.0;
     v.wFn[e] = v.wkn[e] = v.wdelta[e] = 0.0;
+    if (v.wsig) v.wsig[e] = v.wFel[e] = 0.0;
     return;
   }
   Vec3 n{};  // Walls::outward_normal
@@ -219,6 +238,10 @@ CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
   v.wFn[e] = wcon.F_n_wall;
   v.wkn[e] = r.k_n;
   v.wdelta[e] = delta;
+  if (v.wsig) {  // Simulation::evaluate_forces: the elastic force, r' = k R
+    v.wFel[e] = r.F_n;
+    v.wsig[e] = contact_stress(r.F_n, v.load_factor * v.radius[i], delta);
+  }
 }
 
 // Thread t's share of wall k's totals: entries t, t + kWallThreads, ... in order.
@@ -275,6 +298,49 @@ CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum)
   }
 }
 
+// Grain j's contact load: the largest sigma_c, and the largest elastic F_n with its normal
+// (pointing from j towards the contact), over its own entries, its partner entries and its
+// walls. Maxima, so the result does not depend on the order (ties keep the first).
+CD_HD inline void load_item(const View& v, Index j) {
+  double S = 0.0, Fm = 0.0;
+  Vec3 n{};
+  for (Index e = v.off[j]; e < v.off[j + 1]; ++e) {
+    if (!v.touch[e]) continue;
+    if (v.esig[e] > S) S = v.esig[e];
+    if (v.eFn[e] > Fm) {
+      Fm = v.eFn[e];
+      n = Vec3{v.enx[e], v.eny[e], v.enz[e]};
+    }
+  }
+  for (Index q = v.roff[j]; q < v.roff[j + 1]; ++q) {
+    const Index e = v.rev[q];
+    if (!v.touch[e]) continue;
+    if (v.esig[e] > S) S = v.esig[e];
+    if (v.eFn[e] > Fm) {
+      Fm = v.eFn[e];
+      n = Vec3{-v.enx[e], -v.eny[e], -v.enz[e]};
+    }
+  }
+  for (Index e = v.woff[j]; e < v.woff[j + 1]; ++e) {
+    if (v.wdelta[e] <= 0.0) continue;
+    if (v.wsig[e] > S) S = v.wsig[e];
+    if (v.wFel[e] > Fm) {
+      Fm = v.wFel[e];
+      const int k = v.ww[e];
+      n = Vec3{};
+      const double out = k % 2 == 0 ? -1.0 : 1.0;  // Walls::outward_normal
+      if (k / 2 == 0) n.x = out;
+      if (k / 2 == 1) n.y = out;
+      if (k / 2 == 2) n.z = out;
+    }
+  }
+  v.LS[j] = S;
+  v.LF[j] = Fm;
+  v.LNX[j] = n.x;
+  v.LNY[j] = n.y;
+  v.LNZ[j] = n.z;
+}
+
 CD_HD inline void gather_item(const View& v, Index j) {
   Vec3 F{}, T{};
   for (Index e = v.off[j]; e < v.off[j + 1]; ++e) {
@@ -292,6 +358,7 @@ CD_HD inline void gather_item(const View& v, Index j) {
     F += Vec3{v.wfx[e], v.wfy[e], v.wfz[e]};
     T += Vec3{v.wtx[e], v.wty[e], v.wtz[e]};
   }
+  if (v.LS) load_item(v, j);
   v.fux[j] = F.x;
   v.fuy[j] = F.y;
   v.fuz[j] = F.z;
@@ -408,6 +475,9 @@ struct GpuStepper::Impl {
   Buffer<double> RS, SRS, ME, ftx, fty, ftz, rfx, rfy, rfz, rix, riy, riz, rjx, rjy, rjz;
   Buffer<double> mrx, mry, mrz;  // rolling history (allocated with rolling resistance only)
   Buffer<double> wftx, wfty, wftz, wfx, wfy, wfz, wtx, wty, wtz, wFn, wkn, wdelta;
+  // Contact load (allocated when the Simulation tracks it).
+  Buffer<double> esig, eFn, enx, eny, enz, wsig, wFel, LS, LF, LNX, LNY, LNZ;
+  bool track_load = false;
   Buffer<Control> ctrl;
   Control* host_ctrl = nullptr;  // pinned mirror (device) or the control block itself (emulation)
 
@@ -432,6 +502,7 @@ struct GpuStepper::Impl {
     const ContactParams& cp = sim.cp_;
     rough = sim.cfg_.contact.law == NormalLaw::Rough;
     rolling = sim.rolling();
+    track_load = sim.load_factor_ > 0.0;
     hertz = HertzLaw{cp.E_star};
     rough_pp = RoughHertzLaw{cp.E_star, cp.rough_pp};
     rough_pw = RoughHertzLaw{cp.E_star, cp.rough_pw};
@@ -458,6 +529,9 @@ struct GpuStepper::Impl {
       release(*b);
     }
     for (auto* b : {&mrx, &mry, &mrz}) release(*b);
+    for (auto* b : {&esig, &eFn, &enx, &eny, &enz, &wsig, &wFel, &LS, &LF, &LNX, &LNY, &LNZ}) {
+      release(*b);
+    }
     for (auto* b : {&fux, &fuy, &fuz}) release(*b);
     for (auto* b : {&owner, &nb, &off, &roff, &rev, &wp, &woff}) release(*b);
     release(touch);
@@ -599,6 +673,21 @@ struct GpuStepper::Impl {
     put(wfty, wc.ft_y);
     put(wftz, wc.ft_z);
     for (auto* b : {&wfx, &wfy, &wfz, &wtx, &wty, &wtz, &wFn, &wkn, &wdelta}) reserve(*b, Mw);
+    if (track_load) {
+      for (auto* b : {&esig, &eFn, &enx, &eny, &enz}) reserve(*b, M);
+      for (auto* b : {&wsig, &wFel}) reserve(*b, Mw);
+      // The host's current load (what download() returns before any step).
+      const Simulation::ContactLoad& L = sim.load_;
+      if (L.sigma.size() == N && L.F_n_max.size() == N && L.nx.size() == N) {
+        put(LS, L.sigma);
+        put(LF, L.F_n_max);
+        put(LNX, L.nx);
+        put(LNY, L.ny);
+        put(LNZ, L.nz);
+      } else {
+        for (auto* b : {&LS, &LF, &LNX, &LNY, &LNZ}) reserve(*b, N);
+      }
+    }
 
     Control c{};
     c.N = static_cast<unsigned>(N);
@@ -677,6 +766,22 @@ struct GpuStepper::Impl {
     u.wFn = wFn.p;
     u.wkn = wkn.p;
     u.wdelta = wdelta.p;
+    if (track_load) {
+      u.esig = esig.p;
+      u.eFn = eFn.p;
+      u.enx = enx.p;
+      u.eny = eny.p;
+      u.enz = enz.p;
+      u.wsig = wsig.p;
+      u.wFel = wFel.p;
+      u.LS = LS.p;
+      u.LF = LF.p;
+      u.LNX = LNX.p;
+      u.LNY = LNY.p;
+      u.LNZ = LNZ.p;
+      u.load_factor = sim.load_factor_;
+      u.inv_pi_k = 1.0 / (kPi * sim.load_factor_);
+    }
     u.ctrl = ctrl.p;
     u.h = h;
     u.hh = 0.5 * h;
@@ -750,6 +855,14 @@ struct GpuStepper::Impl {
     get(wFn, wc.F_n, Mw);
     get(wkn, wc.k_n, Mw);
     get(wdelta, wc.delta, Mw);
+    if (track_load) {
+      Simulation::ContactLoad& L = sim.load_;
+      get(LS, L.sigma, N);
+      get(LF, L.F_n_max, N);
+      get(LNX, L.nx, N);
+      get(LNY, L.ny, N);
+      get(LNZ, L.nz, N);
+    }
     for (int k = 0; k < kWalls; ++k) {
       const WallDev& d = host_ctrl->walls[k];
       WallState& s = sim.walls_.state(k);

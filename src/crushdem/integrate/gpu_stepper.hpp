@@ -13,7 +13,9 @@
 // Neighbour rebuilds (same criterion as the CPU) are done on the host by the Simulation itself,
 // which carries the tangential history by particle ids: the state is downloaded, rebuilt and
 // uploaded again. download() copies the device state back into the Simulation so that it can be
-// inspected or written; a Simulation changed from outside needs a new GpuStepper.
+// inspected or written; a Simulation changed from outside needs a new GpuStepper. When the
+// Simulation tracks the contact load (track_contact_load, for crushing), the device keeps it
+// too and download() fills contact_load().
 //
 // This header has no CUDA types and compiles without CUDA; the implementation is
 // gpu_stepper.cu, built only with -DCRUSHDEM_CUDA=ON (library crushdem_cuda).
