@@ -190,13 +190,23 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   v.rjx[e] = tj.x;
   v.rjy[e] = tj.y;
   v.rjz[e] = tj.z;
-  if (v.esig) {  // the CPU pair loop's expression (simulation.cpp, pair_column)
-    v.esig[e] = pc.delta > 0.0 ? c.F_n * v.inv_pi_k / (v.RS[e] * pc.delta) : 0.0;
+  if (v.esig) {  // as the CPU pair loop (simulation.cpp, pair_column)
+    v.esig[e] = pair_contact_stress(c.F_n, v.inv_pi_k, v.RS[e], pc.delta);
     v.eFn[e] = c.F_n;
     v.enx[e] = pc.n.x;
     v.eny[e] = pc.n.y;
     v.enz[e] = pc.n.z;
   }
+}
+
+// Walls::outward_normal on the device: wall k is on axis k / 2, the low one (k even) faces -axis.
+CD_HD inline Vec3 wall_outward_normal(int k) {
+  Vec3 n{};
+  const double s = k % 2 == 0 ? -1.0 : 1.0;
+  if (k / 2 == 0) n.x = s;
+  if (k / 2 == 1) n.y = s;
+  if (k / 2 == 2) n.z = s;
+  return n;
 }
 
 template <class Law>
@@ -216,11 +226,7 @@ CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
     if (v.wsig) v.wsig[e] = v.wFel[e] = 0.0;
     return;
   }
-  Vec3 n{};  // Walls::outward_normal
-  const double s = low ? -1.0 : 1.0;
-  if (axis == 0) n.x = s;
-  if (axis == 1) n.y = s;
-  if (axis == 2) n.z = s;
+  const Vec3 n = wall_outward_normal(k);
   const WallContact wcon =
       wall_contact(law, n, dist, delta, v.radius[i], v.mass[i], Vec3{v.vx[i], v.vy[i], v.vz[i]},
                    Vec3{v.wx[i], v.wy[i], v.wz[i]}, W.velocity * n * (low ? -1.0 : 1.0),
@@ -336,12 +342,7 @@ CD_HD inline void load_item(const View& v, Index j) {
     if (v.wsig[e] > S) S = v.wsig[e];
     if (v.wFel[e] > Fm) {
       Fm = v.wFel[e];
-      const int k = v.ww[e];
-      n = Vec3{};
-      const double out = k % 2 == 0 ? -1.0 : 1.0;  // Walls::outward_normal
-      if (k / 2 == 0) n.x = out;
-      if (k / 2 == 1) n.y = out;
-      if (k / 2 == 2) n.z = out;
+      n = wall_outward_normal(v.ww[e]);
     }
   }
   v.LS[j] = S;

@@ -331,7 +331,7 @@ void pair_column(const PairLoop<Law> L, Idx col) {
       }
       if (L.LS) {
         // j is safe to write here for the same reason as FX[j] (column colouring).
-        const double sig = pc.delta > 0.0 ? c.F_n * L.inv_pi_k / (L.RS[e] * pc.delta) : 0.0;
+        const double sig = pair_contact_stress(c.F_n, L.inv_pi_k, L.RS[e], pc.delta);
         if (sig > L.LS[i]) L.LS[i] = sig;
         if (sig > L.LS[j]) L.LS[j] = sig;
         if (c.F_n > L.LF[i]) {
