@@ -39,15 +39,16 @@ __global__ void evaluate(Law law, ContactParams cp, const Input* in, ContactResp
     }                                                                                        \
   } while (0)
 
-// Copies a power table to the device and points the view at it.
-PowerTable to_device(PowerTable t, std::vector<double*>& owned) {
+// Copies a law's two power tables (one block: pow_c's nodes follow pow_b's, as the kernel
+// expects) to the device and points the views at the copy.
+void to_device(RoughHertzParams& r, std::vector<double*>& owned) {
   double* d = nullptr;
-  const std::size_t bytes = sizeof(double) * 2 * (t.n + 1);
-  CHECK_CUDA(cudaMalloc(&d, bytes));
-  CHECK_CUDA(cudaMemcpy(d, t.nodes, bytes, cudaMemcpyHostToDevice));
+  const std::size_t one = 2 * static_cast<std::size_t>(r.pow_b.n + 1);
+  CHECK_CUDA(cudaMalloc(&d, sizeof(double) * 2 * one));
+  CHECK_CUDA(cudaMemcpy(d, r.pow_b.nodes, sizeof(double) * 2 * one, cudaMemcpyHostToDevice));
   owned.push_back(d);
-  t.nodes = d;
-  return t;
+  r.pow_b.nodes = d;
+  r.pow_c.nodes = d + one;
 }
 
 template <class Law>
@@ -118,8 +119,7 @@ int main() {
     const ContactParams cp = make_contact_params(m, cc);
     RoughHertzLaw host{cp.E_star, cp.rough_pp};
     RoughHertzLaw dev = host;
-    dev.rough.pow_b = to_device(host.rough.pow_b, owned);
-    dev.rough.pow_c = to_device(host.rough.pow_c, owned);
+    to_device(dev.rough, owned);
     (compare(k1 < 0.5 ? "rough(0.05,5)" : "rough(1,100)", host, dev, cp, in) ? passed : failed)++;
   }
   for (double* d : owned) cudaFree(d);

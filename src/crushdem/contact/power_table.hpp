@@ -10,11 +10,35 @@
 // kernel can copy it by value on the host or the device.
 #pragma once
 
+#include <array>
 #include <cmath>
 
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
+
+/// x^p from a table of 2 (n + 1) nodes (PowerTable) that starts at nodes + first, written
+/// without branches so that a vector loop can evaluate it in every lane (`first` rather than a
+/// second pointer: a vector gather has one base address and an index per lane).
+CD_HD inline double power_table_lookup(const double* nodes, int first, int n, double inv_h,
+                                       double x) {
+  const double s = x * inv_h;
+  // The interval, clamped to [0, n - 1]. s is clamped before it becomes an int (a double outside
+  // int's range, or NaN, has no int value); inside [0, n] that changes nothing.
+  const double n_d = static_cast<double>(n);
+  const double s_in = s >= 0.0 ? (s <= n_d ? s : n_d) : 0.0;
+  int k = static_cast<int>(s_in);
+  k = k >= n ? n - 1 : k;
+  const double t = s - static_cast<double>(k);
+  const int at = first + 2 * k;
+  const double f0 = nodes[at], m0 = nodes[at + 1], f1 = nodes[at + 2], m1 = nodes[at + 3];
+  const double cubic =
+      f0 + t * (m0 + t * ((3.0 * (f1 - f0) - 2.0 * m0 - m1) + t * (2.0 * (f0 - f1) + m0 + m1)));
+  // First interval: the cubic would overshoot below zero for p > 3 (x^p is so flat there);
+  // the chord is non-negative and monotone, off by less than h^p (3e-9 for p = 2.6, the
+  // smallest exponent of the two (k1, k2) pairs; 1e-19 for p = 5.7).
+  return k == 0 ? f1 * t : cubic;
+}
 
 struct PowerTable {
   const double* nodes = nullptr;  // 2 (n + 1) values: x_k^p and p x_k^(p-1) h, k = 0..n
@@ -22,23 +46,15 @@ struct PowerTable {
   double inv_h = 0.0;
   double p = 0.0;
 
-  CD_HD double operator()(double x) const {
-    const double s = x * inv_h;
-    int k = static_cast<int>(s);
-    k = k < 0 ? 0 : (k >= n ? n - 1 : k);
-    const double t = s - static_cast<double>(k);
-    const double* d = nodes + 2 * k;
-    // First interval: the cubic would overshoot below zero for p > 3 (x^p is so flat there);
-    // the chord is non-negative and monotone, off by less than h^p (3e-9 for p = 2.6, the
-    // smallest exponent of the two (k1, k2) pairs; 1e-19 for p = 5.7).
-    if (k == 0) return d[2] * t;
-    const double f0 = d[0], m0 = d[1], f1 = d[2], m1 = d[3];
-    return f0 +
-           t * (m0 + t * ((3.0 * (f1 - f0) - 2.0 * m0 - m1) + t * (2.0 * (f0 - f1) + m0 + m1)));
-  }
+  CD_HD double operator()(double x) const { return power_table_lookup(nodes, 0, n, inv_h, x); }
 };
 
 /// The shared table for exponent p (built once per exponent, kept for the process lifetime).
 PowerTable power_table(double p);
+
+/// The tables of x^p1 and x^p2 in one block, the second right after the first:
+/// second.nodes == first.nodes + 2 (n + 1), so a kernel can choose between them with an offset.
+/// Shared and kept like power_table(); a copy to another memory must keep that layout.
+std::array<PowerTable, 2> power_table_pair(double p1, double p2);
 
 }  // namespace crushdem

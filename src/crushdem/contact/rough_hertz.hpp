@@ -36,7 +36,7 @@ struct RoughHertzParams {
   double x_factor = 0.0;    // X / (E* sqrt(R*)) = s sqrt(2 s)
   double inv_span = 0.0;    // 1 / (d_T2 - d_p1)
   double inv_d_T1 = 0.0;    // 1 / d_T1
-  PowerTable pow_b, pow_c;  // x^b and x^c on [0, 1]
+  PowerTable pow_b, pow_c;  // x^b and x^c on [0, 1], one block (power_table_pair())
 };
 
 /// Derives every constant of the law from s, k1 and k2 (exact transcription of the list above).
@@ -45,7 +45,13 @@ inline RoughHertzParams make_rough_hertz(double s, double k1, double k2) {
   p.s = s;
   p.k1 = k1;
   p.k2 = k2;
-  if (s <= 0.0) return p;
+  if (s <= 0.0) {
+    // Smooth: the law is Hertz, but the branch-free kernel still reads a table entry.
+    const std::array<PowerTable, 2> tables = power_table_pair(1.0, 1.0);
+    p.pow_b = tables[0];
+    p.pow_c = tables[1];
+    return p;
+  }
   p.d_p1 = 0.82 * s;
   p.d_ps = (0.82 + 1.24) * s;
   // Evaluated with E* = 1, R* = 1: the constants do not depend on them.
@@ -60,32 +66,46 @@ inline RoughHertzParams make_rough_hertz(double s, double k1, double k2) {
   p.x_factor = X;
   p.inv_span = 1.0 / (p.d_T2 - p.d_p1);
   p.inv_d_T1 = 1.0 / p.d_T1;
-  p.pow_b = power_table(p.b);
-  p.pow_c = power_table(p.c);
+  const std::array<PowerTable, 2> tables = power_table_pair(p.b, p.c);
+  p.pow_b = tables[0];
+  p.pow_c = tables[1];
   return p;
 }
 
 /// sqrt_R_star = sqrt(R*), passed in because callers keep it per contact (saves a square root).
 CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double sqrt_R_star,
                                             double E_star, const RoughHertzParams& p) {
-  if (delta <= 0.0) return {};
-  if (p.s <= 0.0 || delta > p.d_T2) {
-    // Hertz branch, shifted by d_ps (d_ps = 0 when smooth).
-    const double d = delta - p.d_ps;
-    const double k_n = 2.0 * E_star * std::sqrt(R_star * d);
-    const double F = k_n * d * (2.0 / 3.0);
-    return {F, k_n, p.s <= 0.0 ? k_n * (2.0 / 3.0) : F / delta};
-  }
+  // Every regime is evaluated and one selected, without branches, so that the CPU pair loop can
+  // run the law in vector lanes (lanes in other regimes compute values that are thrown away,
+  // NaN included). Each selected value is the same expression as in a branching form.
+  const bool smooth = p.s <= 0.0;
+  // | and not ||: both comparisons are made in every lane (a comparison that runs only on some
+  // path "could trap" on NaN, which stops the compiler from flattening the branches).
+  const bool hertz = smooth | (delta > p.d_T2);
+  // Hertz branch, shifted by d_ps (d_ps = 0 when smooth).
+  const double d = delta - p.d_ps;
+  const double k_hertz = 2.0 * E_star * std::sqrt(R_star * d);
+  const double F_hertz = k_hertz * d * (2.0 / 3.0);
+  // Rough branches: N_T2 ((d - d_p1)/(d_T2 - d_p1))^b above d_T1, N_T1 (d/d_T1)^c below.
+  const bool upper = delta > p.d_T1;
   const double X = E_star * sqrt_R_star * p.x_factor;
-  if (delta > p.d_T1) {
-    const double u = delta - p.d_p1;
-    const double F = p.k2 * X * p.pow_b(u * p.inv_span);
-    return {F, p.b * F / u, F / delta};
-  }
-  const double F = p.k1 * X * p.pow_c(delta * p.inv_d_T1);
-  // c F / delta, not c (F / delta): the same rounding as before k_secant existed, so runs
-  // without viscous damping are bit-for-bit unchanged.
-  return {F, p.c * F / delta, F / delta};
+  const double u = delta - p.d_p1;
+  // pow_c's nodes follow pow_b's on the same grid (power_table_pair()): one base address, and
+  // an offset chosen per lane.
+  const int c_first = 2 * (p.pow_b.n + 1);
+  const double F_rough =
+      (upper ? p.k2 : p.k1) * X *
+      power_table_lookup(p.pow_b.nodes, upper ? 0 : c_first, p.pow_b.n, p.pow_b.inv_h,
+                         upper ? u * p.inv_span : delta * p.inv_d_T1);
+  // b F / u above d_T1; c F / delta below (c F / delta, not c (F / delta): the same rounding as
+  // before k_secant existed, so runs without viscous damping are bit-for-bit unchanged).
+  const double k_rough = (upper ? p.b : p.c) * F_rough / (upper ? u : delta);
+  const double F = hertz ? F_hertz : F_rough;
+  const double k_n = hertz ? k_hertz : k_rough;
+  const double k_secant =
+      hertz ? (smooth ? k_hertz * (2.0 / 3.0) : F_hertz / delta) : F_rough / delta;
+  const bool touching = delta > 0.0;
+  return {touching ? F : 0.0, touching ? k_n : 0.0, touching ? k_secant : 0.0};
 }
 
 CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double E_star,

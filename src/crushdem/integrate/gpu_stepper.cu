@@ -480,7 +480,7 @@ struct GpuStepper::Impl {
   bool rolling = false;
   HertzLaw hertz;
   RoughHertzLaw rough_pp, rough_pw;  // their power tables point at device copies
-  Buffer<double> tables[4];
+  Buffer<double> tables[2];          // one block per law: pow_b's nodes, then pow_c's
 
   Buffer<double> x, y, z, vx, vy, vz, wx, wy, wz, fx, fy, fz, tx, ty, tz, fux, fuy, fuz;
   Buffer<double> radius, mass, inv_mass, inv_inertia, x0, y0, z0;
@@ -521,12 +521,15 @@ struct GpuStepper::Impl {
     rough_pp = RoughHertzLaw{cp.E_star, cp.rough_pp};
     rough_pw = RoughHertzLaw{cp.E_star, cp.rough_pw};
     if (!emulate && rough) {
-      PowerTable* t[4] = {&rough_pp.rough.pow_b, &rough_pp.rough.pow_c, &rough_pw.rough.pow_b,
-                          &rough_pw.rough.pow_c};
-      for (int k = 0; k < 4; ++k) {
-        if (!t[k]->nodes) continue;  // smooth (s = 0): no table
-        put(tables[k], t[k]->nodes, 2 * static_cast<std::size_t>(t[k]->n + 1));
-        t[k]->nodes = tables[k].p;
+      // Each law's two tables are one block on the host (power_table_pair(): the kernel picks
+      // pow_c by an offset from pow_b's nodes) and are copied as one.
+      RoughHertzParams* laws[2] = {&rough_pp.rough, &rough_pw.rough};
+      for (int k = 0; k < 2; ++k) {
+        RoughHertzParams& r = *laws[k];
+        const std::size_t one = 2 * static_cast<std::size_t>(r.pow_b.n + 1);
+        put(tables[k], r.pow_b.nodes, 2 * one);
+        r.pow_b.nodes = tables[k].p;
+        r.pow_c.nodes = tables[k].p + one;
       }
     }
     upload();

@@ -67,6 +67,25 @@ struct ContactRecord {
   Vec3 M_r;            // rolling-resistance moment on i [N m] (zero when off, and at walls)
 };
 
+namespace detail {
+// Per grain copies for the CPU pair loop, refreshed at every force evaluation: a partner's
+// position and radius, and its velocity and spin, each in one cache line. Read from the
+// struct-of-arrays store, a partner costs ten lines (one per array); the pair loop is bound by
+// those reads, not by its arithmetic.
+struct alignas(32) PackedPosition {
+  double x, y, z, r;
+};
+struct alignas(64) PackedVelocity {
+  double vx, vy, vz, wx, wy, wz, inv_mass, pad;
+};
+// The pair loop's force and torque sums, one cache line per grain for the same reason (a
+// partner's six sums would be six lines); gather_and_damp() adds the walls and moves them to the
+// store.
+struct alignas(64) PackedForce {
+  double fx, fy, fz, tx, ty, tz, pad0, pad1;
+};
+}  // namespace detail
+
 class Simulation {
  public:
   explicit Simulation(const SimulationConfig& cfg);
@@ -189,6 +208,9 @@ class Simulation {
   std::vector<double> mr_x_, mr_y_, mr_z_;
   std::vector<std::uint8_t> touching_;
   std::vector<double> fu_x_, fu_y_, fu_z_;  // undamped resultant force per grain
+  std::vector<detail::PackedPosition> packed_pos_;
+  std::vector<detail::PackedVelocity> packed_vel_;
+  std::vector<detail::PackedForce> packed_force_;
   // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
   std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
