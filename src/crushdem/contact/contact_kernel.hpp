@@ -81,13 +81,15 @@ CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   return out;
 }
 
-/// The rolling moment on grain i of a pair contact evaluated by pair_contact(), from the stored
-/// one (contact/rolling.hpp): k_t is the Mindlin tangent stiffness of that contact. j receives
-/// the opposite moment. Shared by every backend's pair loop.
-CD_HD inline Vec3 pair_rolling_moment(const PairContact& pc, Vec3 M_r_old, Vec3 w_i, Vec3 w_j,
-                                      double R_star, const ContactParams& p, double dt) {
-  return rolling_moment(M_r_old, pc.n, w_i - w_j, dt, p.tangential_ratio * pc.c.k_n, R_star, p.mu_r,
-                        pc.c.F_n);
+/// The rolling moment on grain i of a pair contact evaluated by pair_contact() (its normal n,
+/// tangent normal stiffness k_n and elastic F_n: pc.n, pc.c.k_n, pc.c.F_n), from the stored one
+/// (contact/rolling.hpp); k_t is the Mindlin tangent stiffness of that contact. j receives the
+/// opposite moment. Shared by every backend's pair loop. Plain values, not the PairContact:
+/// a struct passed by reference inside an `omp simd` loop becomes a per-lane array in memory,
+/// and the loop no longer vectorises.
+CD_HD inline Vec3 pair_rolling_moment(Vec3 n, double k_n, double F_n, Vec3 M_r_old, Vec3 w_i,
+                                      Vec3 w_j, double R_star, const ContactParams& p, double dt) {
+  return rolling_moment(M_r_old, n, w_i - w_j, dt, p.tangential_ratio * k_n, R_star, p.mu_r, F_n);
 }
 
 /// One grain-wall contact, shared by every backend's wall loop. n: the wall's outward normal;

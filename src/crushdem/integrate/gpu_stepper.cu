@@ -173,8 +173,8 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   const Vec3& tn = pc.tn;
   Vec3 ti = a_i * tn, tj = a_j * tn;
   if constexpr (Rolling) {
-    const Vec3 M_r =
-        pair_rolling_moment(pc, Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, wi, wj, v.RS[e], v.cp, v.h);
+    const Vec3 M_r = pair_rolling_moment(
+        pc.n, pc.c.k_n, pc.c.F_n, Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, wi, wj, v.RS[e], v.cp, v.h);
     v.mrx[e] = M_r.x;
     v.mry[e] = M_r.y;
     v.mrz[e] = M_r.z;
