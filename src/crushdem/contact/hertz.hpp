@@ -20,6 +20,16 @@ struct NormalForce {
                           // form saves the division
 };
 
+/// Effective radius R* = R1 R2 / (R1 + R2) of a grain pair, and the effective mass
+/// m* = 1 / (1/m1 + 1/m2) from the inverse masses. One expression for every caller (pair loops,
+/// GPU upload, records), so that all of them get the same bits.
+CD_HD inline double pair_R_star(double r_1, double r_2) {
+  return r_1 * r_2 / (r_1 + r_2);
+}
+CD_HD inline double pair_m_eff(double inv_mass_1, double inv_mass_2) {
+  return 1.0 / (inv_mass_1 + inv_mass_2);
+}
+
 /// E* for two grains of one material from the shear modulus G and Poisson's ratio nu.
 CD_HD inline double effective_modulus(double G, double nu) {
   return G / (1.0 - nu);

@@ -667,9 +667,19 @@ struct GpuStepper::Impl {
     put(off, offsets);
     put(roff, r_off);
     put(rev, r_ent);
-    put(RS, sim.entry_R_star_);
-    put(SRS, sim.entry_sqrt_R_star_);
-    put(ME, sim.entry_m_eff_);
+    {
+      // Per entry R*, sqrt(R*) and m* (the CPU loop computes the same expressions in its lanes).
+      std::vector<double> rs(M), srs(M), me(M);
+      for (std::size_t e = 0; e < M; ++e) {
+        const std::size_t i = nl.owner[e], j = nl.neighbors[e];
+        rs[e] = pair_R_star(p.radius[i], p.radius[j]);
+        srs[e] = std::sqrt(rs[e]);
+        me[e] = pair_m_eff(p.inv_mass[i], p.inv_mass[j]);
+      }
+      put(RS, rs);
+      put(SRS, srs);
+      put(ME, me);
+    }
     put(ftx, sim.ft_x_);
     put(fty, sim.ft_y_);
     put(ftz, sim.ft_z_);

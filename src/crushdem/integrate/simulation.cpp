@@ -197,17 +197,6 @@ void Simulation::rebuild_neighbors() {
   const std::size_t M = nl_.neighbors.size();
   for (auto* a : {&ft_x_, &ft_y_, &ft_z_}) a->assign(M, 0.0);
   for (auto* a : {&mr_x_, &mr_y_, &mr_z_}) a->assign(rolling() ? M : 0, 0.0);
-  entry_R_star_.resize(M);
-  entry_m_eff_.resize(M);
-  entry_sqrt_R_star_.resize(M);
-#pragma omp parallel for schedule(static) if (worth_threading(M))
-  for (Idx ee = 0; ee < static_cast<Idx>(M); ++ee) {
-    const auto e = static_cast<std::size_t>(ee);
-    const std::size_t i = nl_.owner[e], j = nl_.neighbors[e];
-    entry_R_star_[e] = p_.radius[i] * p_.radius[j] / (p_.radius[i] + p_.radius[j]);
-    entry_m_eff_[e] = 1.0 / (p_.inv_mass[i] + p_.inv_mass[j]);
-    entry_sqrt_R_star_[e] = std::sqrt(entry_R_star_[e]);
-  }
   touching_.assign(M, 0);
 
   // Wall candidates, sorted by particle index (CSR).
@@ -268,7 +257,7 @@ struct PairLoop {
   ContactParams cp;
   double h;
   const NeighborList::Index *off, *nb, *col_off, *col_mem;
-  const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ, *RS, *ME, *SRS;
+  const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ;
   double *ftx, *fty, *ftz;
   std::uint8_t* touch;
   double *mrx = nullptr, *mry = nullptr, *mrz = nullptr;  // rolling moment (Rolling only)
@@ -367,10 +356,10 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   double* __restrict const bNZ = b.f(kNZ);
 #pragma omp simd
   for (std::size_t m = 0; m < n; ++m) {
-    // R*, its root and the effective mass, as rebuild_neighbors() caches them per entry (the
-    // same expressions, so the same bits): cheaper here, in vector lanes, than read per entry.
-    const double R_star = bRI[m] * bRJ[m] / (bRI[m] + bRJ[m]);
-    const double m_eff = 1.0 / (bIMI[m] + bIMJ[m]);
+    // R*, its root and the effective mass: cheaper here, in vector lanes, than cached per entry
+    // and read (the GPU upload computes the same expressions).
+    const double R_star = pair_R_star(bRI[m], bRJ[m]);
+    const double m_eff = pair_m_eff(bIMI[m], bIMJ[m]);
     const PairContact pc = pair_contact(
         law, Vec3{bDX[m], bDY[m], bDZ[m]}, bD2[m], bRI[m], bRJ[m], Vec3{bDVX[m], bDVY[m], bDVZ[m]},
         Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, std::sqrt(R_star),
@@ -444,7 +433,8 @@ void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
         // j is safe to write here for the same reason as FX[j] (column colouring).
         const double F_n = b.f(kFN)[m];
         const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
-        const double sig = pair_contact_stress(F_n, L.inv_pi_k, L.RS[e], b.f(kDELTA)[m]);
+        const double sig = pair_contact_stress(
+            F_n, L.inv_pi_k, pair_R_star(b.f(kRI)[m], b.f(kRJ)[m]), b.f(kDELTA)[m]);
         if (sig > L.LS[i]) L.LS[i] = sig;
         if (sig > L.LS[j]) L.LS[j] = sig;
         if (F_n > L.LF[i]) {
@@ -567,9 +557,6 @@ void Simulation::pair_forces(const Law& law, double h) {
                      p_.wx.data(),
                      p_.wy.data(),
                      p_.wz.data(),
-                     entry_R_star_.data(),
-                     entry_m_eff_.data(),
-                     entry_sqrt_R_star_.data(),
                      ft_x_.data(),
                      ft_y_.data(),
                      ft_z_.data(),
@@ -872,10 +859,11 @@ void Simulation::save_state(StateWriter& out) const {
   walls_.save_state(out);
   wc_.save_state(out);
   out.tag("entries");
-  for (const auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_, &entry_R_star_,
-                        &entry_m_eff_, &entry_sqrt_R_star_}) {
-    out.put(*a);
-  }
+  for (const auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_}) out.put(*a);
+  // Formerly the per-entry R*, m* and sqrt(R*) caches: kept empty so that the format (and old
+  // checkpoints) stay readable.
+  const std::vector<double> none;
+  for (int k = 0; k < 3; ++k) out.put(none);
   out.put(touching_);
   out.put(wall_offsets_);
   out.put(saved_pairs_);
@@ -910,10 +898,9 @@ void Simulation::load_state(StateReader& in) {
   walls_.load_state(in);
   wc_.load_state(in);
   in.tag("entries");
-  for (auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_, &entry_R_star_, &entry_m_eff_,
-                  &entry_sqrt_R_star_}) {
-    in.get(*a);
-  }
+  for (auto* a : {&ft_x_, &ft_y_, &ft_z_, &fu_x_, &fu_y_, &fu_z_}) in.get(*a);
+  std::vector<double> unused;  // R*, m* and sqrt(R*) caches of older builds (derived values)
+  for (int k = 0; k < 3; ++k) in.get(unused);
   in.get(touching_);
   in.get(wall_offsets_);
   in.get(saved_pairs_);
@@ -1038,7 +1025,8 @@ double Simulation::stiffness_dt() const {
       const double dx = p_.x[j] - p_.x[i], dy = p_.y[j] - p_.y[i], dz = p_.z[j] - p_.z[i];
       const double delta = p_.radius[i] + p_.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
       if (delta <= 0.0) continue;
-      const double k = kt_ratio * normal_force(delta, entry_R_star_[e], false).k_n;
+      const double k =
+          kt_ratio * normal_force(delta, pair_R_star(p_.radius[i], p_.radius[j]), false).k_n;
       ksum[i] += k;
       ksum[j] += k;
     }
@@ -1106,8 +1094,7 @@ std::size_t Simulation::memory_bytes() const {
                         &nl_.owner, &wall_offsets_}) {
     add(*v);
   }
-  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &mr_x_, &mr_y_, &mr_z_, &entry_R_star_,
-                        &entry_m_eff_, &entry_sqrt_R_star_}) {
+  for (const auto* v : {&ft_x_, &ft_y_, &ft_z_, &mr_x_, &mr_y_, &mr_z_}) {
     add(*v);
   }
   add(touching_);
@@ -1139,7 +1126,7 @@ ContactRecord Simulation::pair_record(std::size_t e) const {
   c.id_j = p_.id[j];
   c.delta = p_.radius[i] + p_.radius[j] - dist;
   c.normal = (1.0 / dist) * dx;
-  c.F_n = normal_force(c.delta, entry_R_star_[e], false).F_n;
+  c.F_n = normal_force(c.delta, pair_R_star(p_.radius[i], p_.radius[j]), false).F_n;
   c.F_t = {ft_x_[e], ft_y_[e], ft_z_[e]};
   if (!mr_x_.empty()) c.M_r = {mr_x_[e], mr_y_[e], mr_z_[e]};
   return c;

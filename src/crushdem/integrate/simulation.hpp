@@ -211,8 +211,6 @@ class Simulation {
   std::vector<detail::PackedPosition> packed_pos_;
   std::vector<detail::PackedVelocity> packed_vel_;
   std::vector<detail::PackedForce> packed_force_;
-  // Per entry, fixed between rebuilds: R* and the effective mass (divisions taken out of the loop).
-  std::vector<double> entry_R_star_, entry_m_eff_, entry_sqrt_R_star_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
   std::vector<PairHistory> saved_rolling_;
