@@ -42,10 +42,6 @@ PowerTable view(const double* nodes, double p) {
 
 }  // namespace
 
-PowerTable power_table(double p) {
-  return view(nodes_for(p, p), p);
-}
-
 std::array<PowerTable, 2> power_table_pair(double p1, double p2) {
   const double* nodes = nodes_for(p1, p2);
   return {view(nodes, p1), view(nodes + 2 * (kIntervals + 1), p2)};

@@ -49,12 +49,10 @@ struct PowerTable {
   CD_HD double operator()(double x) const { return power_table_lookup(nodes, 0, n, inv_h, x); }
 };
 
-/// The shared table for exponent p (built once per exponent, kept for the process lifetime).
-PowerTable power_table(double p);
-
 /// The tables of x^p1 and x^p2 in one block, the second right after the first:
 /// second.nodes == first.nodes + 2 (n + 1), so a kernel can choose between them with an offset.
-/// Shared and kept like power_table(); a copy to another memory must keep that layout.
+/// Built once per pair of exponents and kept for the process lifetime; a copy to another memory
+/// must keep that layout.
 std::array<PowerTable, 2> power_table_pair(double p1, double p2);
 
 }  // namespace crushdem

@@ -587,7 +587,8 @@ void Simulation::pair_forces(const Law& law, double h) {
   const std::vector<NeighborList::Index>& colors = nl_.color_offsets;
 #pragma omp parallel if (worth_threading(N))
   {
-    PairBatch batch;
+    // One batch per thread, kept between steps (its buffers are reused, not reallocated).
+    thread_local PairBatch batch;
     batch.reserve(PairBatch::kTarget);
 #pragma omp for schedule(static)
     for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
