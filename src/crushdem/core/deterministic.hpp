@@ -7,7 +7,28 @@
 #include <cstddef>
 #include <vector>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace crushdem {
+
+/// This thread's number and the size of its team (0 and 1 outside a parallel region or without
+/// OpenMP).
+inline int thread_index() {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+inline int team_size() {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
 
 inline constexpr std::size_t kReductionBlock = 1024;
 

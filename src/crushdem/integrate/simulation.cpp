@@ -192,6 +192,7 @@ void Simulation::rebuild_neighbors() {
     }
   }
   if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_, skin_));
+  packed_fresh_ = false;  // the packed copies follow the old order
 
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   const std::size_t M = nl_.neighbors.size();
@@ -399,16 +400,21 @@ void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
   const double *ai = b.f(kAI), *aj = b.f(kAJ);
   const double *ftx = b.f(kFTX), *fty = b.f(kFTY), *ftz = b.f(kFTZ);
   const double *mrx = b.f(kMRX), *mry = b.f(kMRY), *mrz = b.f(kMRZ);
+  // Local copies of the bookkeeping pointers: they stay in registers through the stores below.
+  const NeighborList::Index* const entry = b.entry.data();
+  const NeighborList::Index* const partner = b.partner.data();
+  const NeighborList::Index* const owner = b.owner.data();
+  const NeighborList::Index* const owner_end = b.owner_end.data();
+  const std::size_t owners = b.owner.size();
   std::size_t m = 0;
-  for (std::size_t q = 0; q < b.owner.size(); ++q) {
-    const std::size_t i = b.owner[q];
+  for (std::size_t q = 0; q < owners; ++q) {
+    const std::size_t i = owner[q];
     Vec3 F{}, T{};
-    for (; m < b.owner_end[q]; ++m) {
-      const std::size_t e = b.entry[m], j = b.partner[m];
+    for (; m < owner_end[q]; ++m) {
+      const std::size_t e = entry[m], j = partner[m];
       L.ftx[e] = ftx[m];
       L.fty[e] = fty[m];
       L.ftz[e] = ftz[m];
-      L.touch[e] = 1;
       const Vec3 force{fx[m], fy[m], fz[m]};
       const Vec3 tn{tnx[m], tny[m], tnz[m]};
       F += force;
@@ -482,6 +488,8 @@ void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
     // the branch predictor, and each mispredicted branch used to stall on the next partner's
     // position (a third of the pair loop's time).
     const std::size_t n_first = n;
+    NeighborList::Index* const slot_entry = b.entry.data();  // in registers through the stores
+    NeighborList::Index* const slot_partner = b.partner.data();
     for (auto e = L.off[i]; e < L.off[i + 1]; ++e) {
       const auto j = L.nb[e];
       const detail::PackedPosition pj = L.P[j];
@@ -491,12 +499,12 @@ void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
       const bool touching = d2 < rsum * rsum;
       if (static_cast<int>(!touching) & static_cast<int>(L.touch[e])) {
         // The pair separated (rare): forget its history.
-        L.touch[e] = 0;
         L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
         if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
       }
-      b.entry[n] = e;
-      b.partner[n] = j;
+      L.touch[e] = static_cast<std::uint8_t>(touching);
+      slot_entry[n] = e;
+      slot_partner[n] = j;
       in[kDX][n] = dx;
       in[kDY][n] = dy;
       in[kDZ][n] = dz;
@@ -506,8 +514,8 @@ void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
     }
     // The touching pairs' other inputs.
     for (std::size_t m = n_first; m < n; ++m) {
-      const std::size_t e = b.entry[m];
-      const detail::PackedVelocity& vj = L.V[b.partner[m]];
+      const std::size_t e = slot_entry[m];
+      const detail::PackedVelocity& vj = L.V[slot_partner[m]];
       in[kRI][m] = pi.r;
       in[kDVX][m] = vi.vx - vj.vx;
       in[kDVY][m] = vi.vy - vj.vy;
@@ -561,6 +569,9 @@ void Simulation::pair_forces(const Law& law, double h) {
                      ft_y_.data(),
                      ft_z_.data(),
                      touching_.data()};
+  const bool pack = !packed_fresh_ || packed_pos_.size() != N || packed_vel_.size() != N;
+  const bool zero = !packed_force_zero_ || packed_force_.size() != N;
+  packed_fresh_ = packed_force_zero_ = false;  // consumed: the next loop refreshes unless told
   packed_pos_.resize(N);
   packed_vel_.resize(N);
   loop.P = packed_pos_.data();
@@ -585,26 +596,43 @@ void Simulation::pair_forces(const Law& law, double h) {
     loop.inv_pi_k = 1.0 / (kPi * load_factor_);
   }
   const std::vector<NeighborList::Index>& colors = nl_.color_offsets;
+  const std::uint64_t* work = nl_.column_work.data();
 #pragma omp parallel if (worth_threading(N))
   {
+    const auto threads = static_cast<std::uint64_t>(team_size());
+    const auto t = static_cast<std::uint64_t>(thread_index());
     // One batch per thread, kept between steps (its buffers are reused, not reallocated).
     thread_local PairBatch batch;
     batch.reserve(PairBatch::kTarget);
+    if (pack || zero) {
 #pragma omp for schedule(static)
-    for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
-      loop.PF[ii] = {};
-      loop.P[ii] = {loop.X[ii], loop.Y[ii], loop.Z[ii], loop.R[ii]};
-      loop.V[ii] = {loop.VX[ii], loop.VY[ii], loop.VZ[ii], loop.WX[ii],
-                    loop.WY[ii], loop.WZ[ii], loop.IM[ii], 0.0};
+      for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+        if (zero) loop.PF[ii] = {};
+        if (pack) {
+          loop.P[ii] = {loop.X[ii], loop.Y[ii], loop.Z[ii], loop.R[ii]};
+          loop.V[ii] = {loop.VX[ii], loop.VY[ii], loop.VZ[ii], loop.WX[ii],
+                        loop.WY[ii], loop.WZ[ii], loop.IM[ii], 0.0};
+        }
+      }
     }
-    // Colours one after another (implicit barrier after each loop); within a colour, columns
-    // never write to the same particle, so both members of a pair are updated directly.
+    // Colours one after another, with a barrier after each; within a colour, columns never
+    // write to the same particle, so both members of a pair are updated directly. Each thread
+    // takes a contiguous share of the colour's columns, balanced by their work: columns are in
+    // z order and particles in cell order, so a thread keeps to the same slab of the sample in
+    // every colour and in the integration loops, and its share of the data stays in its cache.
+    // (Which thread runs a column does not change any result.)
     for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
-#pragma omp for schedule(dynamic, 1)
-      for (Idx col = static_cast<Idx>(colors[color]); col < static_cast<Idx>(colors[color + 1]);
-           ++col) {
+      const std::uint64_t* first = work + colors[color];
+      const std::uint64_t* last = work + colors[color + 1];
+      const auto share_start = [&](std::uint64_t k) {
+        if (k == threads) return last;
+        return std::lower_bound(first, last, *first + (*last - *first) * k / threads);
+      };
+      const auto col_end = static_cast<Idx>(share_start(t + 1) - work);
+      for (auto col = static_cast<Idx>(share_start(t) - work); col < col_end; ++col) {
         pair_column<Law, Rolling>(loop, col, batch);
       }
+#pragma omp barrier
     }
   }
 }
@@ -760,12 +788,13 @@ void Simulation::gather_and_damp(bool kick) {
   fu_z_.resize(N);
   const double alpha = cfg_.damping.local_alpha;
   const double hh = 0.5 * dt_;
-#pragma omp parallel for schedule(static, 256) if (worth_threading(N))
+#pragma omp parallel for schedule(static) if (worth_threading(N))
   for (Idx jj = 0; jj < static_cast<Idx>(N); ++jj) {
     const auto j = static_cast<std::size_t>(jj);
-    const detail::PackedForce& pair_sum = packed_force_[j];
+    detail::PackedForce& pair_sum = packed_force_[j];
     Vec3 F{pair_sum.fx, pair_sum.fy, pair_sum.fz};
     Vec3 T{pair_sum.tx, pair_sum.ty, pair_sum.tz};
+    pair_sum = {};  // ready for the next pair loop (the line is in cache now)
     for (auto e = wall_offsets_[j]; e < wall_offsets_[j + 1]; ++e) {
       F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
       T += Vec3{wc_.tx[e], wc_.ty[e], wc_.tz[e]};
@@ -795,6 +824,7 @@ void Simulation::gather_and_damp(bool kick) {
       p_.wz[j] += b * T.z;
     }
   }
+  packed_force_zero_ = true;
 }
 
 void Simulation::compute_forces() {
@@ -956,25 +986,43 @@ double Simulation::kick_drift() {
   const double* x0 = nl_.x_ref().data();
   const double* y0 = nl_.y_ref().data();
   const double* z0 = nl_.z_ref().data();
+  // The pair loop's packed copies are written here, from values already in registers.
+  packed_pos_.resize(N);
+  packed_vel_.resize(N);
+  detail::PackedPosition* P = packed_pos_.data();
+  detail::PackedVelocity* V = packed_vel_.data();
   double m2 = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : m2) if (worth_threading(N))
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
-    const double a = hh * p_.inv_mass[i], b = hh * p_.inv_inertia[i];
-    p_.vx[i] += a * p_.fx[i];
-    p_.vy[i] += a * p_.fy[i];
-    p_.vz[i] += a * p_.fz[i];
-    p_.wx[i] += b * p_.tx[i];
-    p_.wy[i] += b * p_.ty[i];
-    p_.wz[i] += b * p_.tz[i];
-    p_.x[i] += h * p_.vx[i];
-    p_.y[i] += h * p_.vy[i];
-    p_.z[i] += h * p_.vz[i];
+    const double inv_mass = p_.inv_mass[i];
+    const double a = hh * inv_mass, b = hh * p_.inv_inertia[i];
+    const double vx = p_.vx[i] + a * p_.fx[i];
+    const double vy = p_.vy[i] + a * p_.fy[i];
+    const double vz = p_.vz[i] + a * p_.fz[i];
+    const double wx = p_.wx[i] + b * p_.tx[i];
+    const double wy = p_.wy[i] + b * p_.ty[i];
+    const double wz = p_.wz[i] + b * p_.tz[i];
+    const double x = p_.x[i] + h * vx;
+    const double y = p_.y[i] + h * vy;
+    const double z = p_.z[i] + h * vz;
+    p_.vx[i] = vx;
+    p_.vy[i] = vy;
+    p_.vz[i] = vz;
+    p_.wx[i] = wx;
+    p_.wy[i] = wy;
+    p_.wz[i] = wz;
+    p_.x[i] = x;
+    p_.y[i] = y;
+    p_.z[i] = z;
+    P[i] = {x, y, z, p_.radius[i]};
+    V[i] = {vx, vy, vz, wx, wy, wz, inv_mass, 0.0};
     const double dx = p_.x[i] - x0[i], dy = p_.y[i] - y0[i], dz = p_.z[i] - z0[i];
     const double d2 = dx * dx + dy * dy + dz * dz;
     // A NaN must not be lost by max(): make it infinite so the rebuild (and its check) runs.
     m2 = std::max(m2, d2 == d2 ? d2 : std::numeric_limits<double>::infinity());
   }
+  packed_fresh_ = true;
   return m2;
 }
 

@@ -211,6 +211,11 @@ class Simulation {
   std::vector<detail::PackedPosition> packed_pos_;
   std::vector<detail::PackedVelocity> packed_vel_;
   std::vector<detail::PackedForce> packed_force_;
+  // kick_drift() writes the packed copies as it updates the store, saving the pair loop a pass
+  // over eleven arrays; any other path (first evaluation, rebuild, topology) repacks. Likewise
+  // gather_and_damp() zeroes the sums it reads, for the next pair loop.
+  bool packed_fresh_ = false;
+  bool packed_force_zero_ = false;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
   std::vector<PairHistory> saved_rolling_;

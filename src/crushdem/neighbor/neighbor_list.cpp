@@ -81,6 +81,7 @@ void NeighborList::build(const ParticleStore& p, double skin) {
   column_offsets.assign(1, 0);
   column_members.clear();
   color_offsets.assign(kColors + 1, 0);
+  column_work.assign(1, 0);
   if (N == 0) return;
 
   const Bounds B = particle_bounds(p);
@@ -200,6 +201,20 @@ void NeighborList::build(const ParticleStore& p, double skin) {
   }
 
   build_columns(p, B.lo, column_side(r_max, skin));
+  sum_column_work();
+}
+
+void NeighborList::sum_column_work() {
+  const std::size_t ncols = column_offsets.empty() ? 0 : column_offsets.size() - 1;
+  column_work.assign(ncols + 1, 0);
+  for (std::size_t c = 0; c < ncols; ++c) {
+    std::uint64_t w = 0;
+    for (auto k = column_offsets[c]; k < column_offsets[c + 1]; ++k) {
+      const Index i = column_members[k];
+      w += 1 + offsets[i + 1] - offsets[i];
+    }
+    column_work[c + 1] = column_work[c] + w;
+  }
 }
 
 void NeighborList::build_columns(const ParticleStore& p, const double lo[3], double h) {
@@ -297,6 +312,7 @@ void NeighborList::load_state(StateReader& in) {
   in.get(x0_);
   in.get(y0_);
   in.get(z0_);
+  sum_column_work();  // derived, not stored
 }
 
 }  // namespace crushdem

@@ -74,11 +74,15 @@ class NeighborList {
   static constexpr int kColors = 9;
   std::vector<Index> column_offsets, column_members;
   std::vector<Index> color_offsets;
+  // Pair-loop work before each column (prefix sums of 1 + entries over its particles; one more
+  // element than columns), so each thread can take a contiguous, balanced share of a colour.
+  std::vector<std::uint64_t> column_work;
   // Owner of each entry (i for entry e in i's range), kept to make entry loops flat.
   std::vector<Index> owner;
 
  private:
   void build_columns(const ParticleStore& p, const double lo[3], double h);
+  void sum_column_work();
   double skin_ = 0.0;
   std::size_t builds_ = 0;
   std::vector<double> x0_, y0_, z0_;  // positions at the last build
