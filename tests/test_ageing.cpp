@@ -4,7 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <vector>
 
+#include "crushdem/ageing/ageing_jump.hpp"
+#include "crushdem/fracture/crack_growth.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "helpers.hpp"
 
@@ -84,7 +88,7 @@ TEST(Ageing, ConstantStressGrainFailsAtTheCrackTimeAcrossAJump) {
     EXPECT_TRUE(h.crusher.apply(h.sim).empty());
   }
   const double t_dem = h.sim.time();
-  const Crusher::Jump j = h.crusher.ageing_jump(h.sim, 1, 1e12);
+  const AgeingJump j = ageing_jump(h.sim, h.crusher, 1, 1e12);
   EXPECT_EQ(j.failing, 1u);
   EXPECT_NEAR((j.dt + t_dem) / t_expected, 1.0, 1e-3);
   EXPECT_EQ(h.a(), 0.5 * d);
@@ -95,7 +99,7 @@ TEST(Ageing, ConstantStressGrainFailsAtTheCrackTimeAcrossAJump) {
   Held g(d, 4e-6, crack_config(0.1));
   const double a0 = g.a();
   const double cap = 0.25 * (0.5 * d - a0) / (0.1 * std::pow(g.sigma_ratio(), 60.0));
-  const Crusher::Jump jc = g.crusher.ageing_jump(g.sim, 1, cap);
+  const AgeingJump jc = ageing_jump(g.sim, g.crusher, 1, cap);
   EXPECT_EQ(jc.failing, 0u);
   EXPECT_DOUBLE_EQ(jc.dt, cap);
   EXPECT_NEAR((g.a() - a0) / (0.25 * (0.5 * d - a0)), 1.0, 1e-12);
@@ -130,7 +134,7 @@ TEST(Ageing, EachJumpBringsExactlyNBreakGrainsToFailure) {
   for (int jump = 0; jump < 5; ++jump) {
     const std::size_t before = sim.particles().size();
     const std::uint64_t cracks = crusher.breakages(BreakCause::Crack);
-    const Crusher::Jump j = crusher.ageing_jump(sim, 3, 1e15);
+    const AgeingJump j = ageing_jump(sim, crusher, 3, 1e15);
     ASSERT_GT(j.dt, 0.0);
     clock += j.dt;
     EXPECT_EQ(j.failing, 3u) << "jump " << jump;
@@ -176,4 +180,19 @@ TEST(Ageing, InstantAndCrackFailuresInOneCheckBothKeepTheirLoad) {
     }
   }
   EXPECT_EQ(vertical_pairs, 4);
+}
+
+TEST(Ageing, CrackLawAndJumpDurationByHand) {
+  // v = v0 (sigma / sigma_lim)^n: at half the strength with n = 2, v = v0 / 4.
+  EXPECT_DOUBLE_EQ(crack_velocity(0.1, 1.0e9, 2.0e9, 2.0), 0.025);
+  EXPECT_DOUBLE_EQ(crack_time_to_failure(0.02e-3, 0.1e-3, 0.025), 0.08e-3 / 0.025);
+  EXPECT_EQ(crack_time_to_failure(0.2e-3, 0.1e-3, 0.025), 0.0);  // already past failure
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<double> t = {5.0, inf, 1.0, 3.0, 2.0, inf, 4.0};
+  EXPECT_EQ(ageing_jump_duration(t, 1, 100.0), 1.0);
+  EXPECT_EQ(ageing_jump_duration(t, 3, 100.0), 3.0);
+  EXPECT_EQ(ageing_jump_duration(t, 3, 2.5), 2.5);      // capped at the time left
+  EXPECT_EQ(ageing_jump_duration(t, 6, 100.0), 100.0);  // only five grains can fail
+  EXPECT_EQ(ageing_jump_duration(t, 8, 100.0), 100.0);  // more than there are grains
+  EXPECT_EQ(ageing_jump_duration({}, 1, 7.0), 7.0);
 }

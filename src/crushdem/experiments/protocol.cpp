@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "crushdem/ageing/ageing_jump.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/fracture/crushing.hpp"
@@ -463,8 +464,8 @@ bool StageController::update(Simulation& sim) {
         if (on_dynamic_phase_end) on_dynamic_phase_end(sim, ageing_time_, res_.dynamic_phases - 1);
         res_.ageing_time = ageing_time_;
         if (ageing_time_ >= cfg_.duration) return finish("target ageing time");
-        const Crusher::Jump j =
-            crusher_->ageing_jump(sim, cfg_.n_break, cfg_.duration - ageing_time_);
+        const AgeingJump j =
+            ageing_jump(sim, *crusher_, cfg_.n_break, cfg_.duration - ageing_time_);
         ageing_time_ = j.dt >= cfg_.duration - ageing_time_ ? cfg_.duration : ageing_time_ + j.dt;
         start_phase(sim);
       }

@@ -7,6 +7,7 @@
 
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/fracture/crack_growth.hpp"
 #include "crushdem/particles/grading.hpp"
 
 namespace crushdem {
@@ -112,44 +113,7 @@ double Crusher::crack_velocity(const Simulation& sim, std::size_t i) const {
   if (!cfg_.crack_growth || std::isnan(a) || 2.0 * p.radius[i] < d_c_) return 0.0;
   const Simulation::ContactLoad& load = sim.contact_load();
   if (load.sigma.size() != p.size() || !(load.sigma[i] > 0.0)) return 0.0;
-  return cfg_.v0 * std::pow(load.sigma[i] / p.field(strength_field_)[i], cfg_.n);
-}
-
-Crusher::Jump Crusher::ageing_jump(Simulation& sim, std::size_t n_break, double max_dt) {
-  const PartScope timed(sim.part_clock(), Part::Ageing);
-  sim.compute_forces();
-  ParticleStore& p = sim.particles();
-  std::vector<double>& a = p.field(crack_field_);
-  std::vector<double> v(p.size(), 0.0), t_fail(p.size(), std::numeric_limits<double>::infinity());
-  const Simulation::ContactLoad& load = sim.contact_load();
-  const std::vector<double>& strength = p.field(strength_field_);
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    // A grain already above its strength fails instantly at the next check, not by its crack.
-    if (load.sigma.size() == p.size() && load.sigma[i] >= strength[i]) continue;
-    v[i] = crack_velocity(sim, i);
-    if (v[i] > 0.0) t_fail[i] = std::max(0.0, (p.radius[i] - a[i]) / v[i]);  // 0.5 d - a
-  }
-  std::vector<double> sorted = t_fail;
-  Jump j;
-  if (n_break > 0 && n_break <= sorted.size()) {
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n_break - 1),
-                     sorted.end());
-    j.dt = sorted[n_break - 1];
-  } else {
-    j.dt = std::numeric_limits<double>::infinity();
-  }
-  j.dt = std::min(j.dt, max_dt);
-  if (!std::isfinite(j.dt)) j.dt = max_dt;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    if (!(v[i] > 0.0)) continue;
-    if (t_fail[i] <= j.dt) {
-      a[i] = p.radius[i];  // exactly at failure: broken at the next check
-      ++j.failing;
-    } else {
-      a[i] += v[i] * j.dt;
-    }
-  }
-  return j;
+  return crushdem::crack_velocity(cfg_.v0, load.sigma[i], p.field(strength_field_)[i], cfg_.n);
 }
 
 double Crusher::fragment_density(double d) const {

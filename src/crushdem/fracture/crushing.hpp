@@ -15,7 +15,8 @@
 // carries a crack of half-length a, seeded uniform in [0.001 d, 0.5 d] when the grain is created
 // (its own random stream), growing at v = v0 (sigma / sigma_lim)^n; the grain fails (cause
 // "crack") when a >= 0.5 d. During dynamic DEM a grows by v times the time since the last check;
-// across an off-DEM ageing jump (ageing module) by v times the jump.
+// across an off-DEM ageing jump by v times the jump (ageing/ageing_jump.hpp). The law itself is
+// fracture/crack_growth.hpp.
 #pragma once
 
 #include <cstdint>
@@ -93,15 +94,6 @@ class Crusher {
   /// Crack velocity v0 (sigma / sigma_lim)^n of grain i at the current contact load (0 for a
   /// grain that cannot break or without a crack).
   double crack_velocity(const Simulation& sim, std::size_t i) const;
-  /// Off-DEM ageing jump (model-notes 3.1): with every crack velocity frozen, the time until the
-  /// n_break-th grain would fail, capped at max_dt; every crack grows by v dt and the grains that
-  /// reach failure get a = 0.5 d exactly (they break at the next check). Returns the jump and how
-  /// many grains reached failure (n_break, fewer only when capped or when fewer can fail).
-  struct Jump {
-    double dt = 0.0;
-    std::size_t failing = 0;
-  };
-  Jump ageing_jump(Simulation& sim, std::size_t n_break, double max_dt);
   std::size_t crack_field() const { return crack_field_; }
 
   double d0() const { return d0_; }
