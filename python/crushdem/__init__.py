@@ -31,7 +31,7 @@ from typing import Any, Dict, Mapping, Optional, Sequence
 import numpy as np
 
 from . import _core
-from ._core import ConfigError, RuntimeFailure, cli_main
+from ._core import ConfigError, Interrupted, RuntimeFailure, cli_main
 from . import lab
 from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_test,
                   prepare_sample, triaxial_relaxation, triaxial_test)
@@ -39,6 +39,7 @@ from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_
 __all__ = [
     "Simulation",
     "ConfigError",
+    "Interrupted",
     "RuntimeFailure",
     "WALL_NAMES",
     "NO_PARENT",

@@ -26,14 +26,17 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import plot
 
         sys.exit(plot.main(args[1:]))
-    if args and args[0] == "reproduce":
-        from . import reproduce
+    if args and args[0] in ("reproduce", "sensitivity"):
+        from . import _core, reproduce, sensitivity
 
-        sys.exit(reproduce.main(args[1:]))
-    if args and args[0] == "sensitivity":
-        from . import sensitivity
-
-        sys.exit(sensitivity.main(args[1:]))
+        command = reproduce.main if args[0] == "reproduce" else sensitivity.main
+        try:
+            sys.exit(command(args[1:]))
+        except _core.Interrupted as e:
+            # SIGINT / SIGTERM: the run in progress saved its checkpoint; the command, run
+            # again, resumes it (finished runs are reused).
+            sys.stderr.write(f"crushdem: {e}\n")
+            sys.exit(128 + e.signal)
 
     from . import _core
 

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <initializer_list>
 #include <optional>
 #include <string>
@@ -223,6 +224,35 @@ nb::dict summary_dict(const RunSummary& s) {
   return d;
 }
 
+/// crushdem._core.Interrupted, a KeyboardInterrupt (so that `except Exception` does not swallow
+/// it): a run stopped by SIGINT or SIGTERM after saving its checkpoint.
+PyObject* interrupted_type = nullptr;
+
+/// Runs `go` (a whole run) without the GIL and with SIGINT / SIGTERM asking it to checkpoint and
+/// stop, as in the CLI; a stopped run raises Interrupted with `signal` and `out_dir` set.
+RunSummary run_interruptible(const std::function<RunSummary()>& go, const std::string& out) {
+  int stopped_by = 0;
+  RunSummary s;
+  {
+    nb::gil_scoped_release release;  // a long run must not block other Python threads
+    const StopOnSignals handlers;
+    try {
+      s = go();
+    } catch (const Interrupted& e) {
+      stopped_by = e.signal();
+    }
+  }
+  if (stopped_by != 0) {
+    nb::object exc =
+        nb::borrow(interrupted_type)(Interrupted::resume_hint(stopped_by, out));
+    exc.attr("signal") = stopped_by;
+    exc.attr("out_dir") = out;
+    PyErr_SetObject(interrupted_type, exc.ptr());
+    throw nb::python_error();
+  }
+  return s;
+}
+
 }  // namespace
 }  // namespace crushdem::python
 
@@ -234,6 +264,12 @@ NB_MODULE(_core, m) {
 
   nb::exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
   nb::exception<RuntimeFailure>(m, "RuntimeFailure", PyExc_RuntimeError);
+  interrupted_type = PyErr_NewExceptionWithDoc(
+      "crushdem._core.Interrupted",
+      "A run stopped by SIGINT or SIGTERM after saving its checkpoint; `signal` and `out_dir` "
+      "say which signal and where (continue with crushdem.resume(out_dir)).",
+      PyExc_KeyboardInterrupt, nullptr);
+  m.attr("Interrupted") = nb::handle(interrupted_type);
 
   nb::class_<Simulation>(m, "Simulation",
                          "The time-stepping engine. Build it from a nested dict with the sections "
@@ -484,31 +520,22 @@ NB_MODULE(_core, m) {
         RunOptions opt;
         opt.out_dir = out;
         opt.progress = progress;
-        RunSummary s;
-        {
-          nb::gil_scoped_release release;  // a long run must not block other Python threads
-          s = run_to_directory(cfg, opt);
-        }
-        return summary_dict(s);
+        return summary_dict(run_interruptible([&] { return run_to_directory(cfg, opt); }, out));
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true,
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
-      "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`.");
+      "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
+      "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)).");
   m.def(
       "resume",
       [](const std::string& out, bool progress) {
         RunOptions opt;
         opt.progress = progress;
-        RunSummary s;
-        {
-          nb::gil_scoped_release release;
-          s = resume_directory(out, opt);
-        }
-        return summary_dict(s);
+        return summary_dict(run_interruptible([&] { return resume_directory(out, opt); }, out));
       },
       "out"_a, "progress"_a = true,
       "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
-      "the files come out as those of an uninterrupted run.");
+      "the files come out as those of an uninterrupted run. Stops on SIGINT / SIGTERM as run() does.");
   m.def(
       "resolved_run_config",
       [](nb::dict config, const std::string& base_dir) {

@@ -149,3 +149,48 @@ def test_sigint_saves_and_stops_with_a_resume_hint_then_python_resumes(tmp_path)
     assert not (out / "checkpoint.bin").exists()
     with pytest.raises(ValueError, match="finished"):
         lab.resume(out)
+
+
+PYTHON_RUN = """
+import sys, tomllib, crushdem
+cfg = tomllib.loads(open(sys.argv[1]).read())
+try:
+    crushdem.lab.run(cfg, sys.argv[2])
+except crushdem.Interrupted as e:
+    print(e.signal, e.out_dir, isinstance(e, KeyboardInterrupt))
+    sys.exit(3)
+"""
+
+
+def test_sigterm_stops_a_python_run_with_a_checkpoint_and_resume_completes_it(tmp_path):
+    # From Python the same signals must save the state: a script (or `crushdem sensitivity`)
+    # killed by the batch system loses nothing past its last step.
+    import tomllib
+
+    from crushdem import lab
+
+    cfg = tmp_path / "creep.toml"
+    cfg.write_text(CONFIG)
+    whole = tmp_path / "whole"
+    lab.run(tomllib.loads(CONFIG), whole)
+
+    out = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-c", PYTHON_RUN, str(cfg), str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 300
+    while p.poll() is None and not mid_phase(out) and time.time() < deadline:
+        time.sleep(0.02)
+    if p.poll() is not None:
+        pytest.fail("the run ended before it could be stopped: " + p.stderr.read())
+    p.send_signal(signal.SIGTERM)
+    stdout, stderr = p.communicate(timeout=120)
+    assert p.returncode == 3, stderr
+    assert stdout.split() == [str(int(signal.SIGTERM)), str(out), "True"]
+    assert (out / "checkpoint.bin").exists()
+    assert not (out / "summary.json").exists()
+
+    lab.resume(out)
+    a, b = files(whole), files(out)
+    assert sorted(a) == sorted(b)
+    different = [k for k in a if a[k] != b[k]]
+    assert not different, f"files differ after resume: {different}"

@@ -1,6 +1,5 @@
 // `crushdem run CONFIG.toml --out DIR [--threads N]`, `crushdem resume DIR [--threads N]` and
 // `crushdem check CONFIG.toml`.
-#include <csignal>
 #include <cstdio>
 #include <functional>
 #include <optional>
@@ -19,30 +18,6 @@ namespace crushdem::cli {
 
 namespace {
 
-extern "C" void stop_on_signal(int sig) {
-  // The run saves a checkpoint and stops within seconds; a second signal ends it at once.
-  crushdem::request_stop(sig);
-  std::signal(sig, SIG_DFL);
-}
-
-/// SIGINT and SIGTERM ask the run to checkpoint and stop, for as long as this object lives (the
-/// previous handlers, e.g. Python's, come back afterwards).
-class StopOnSignals {
- public:
-  StopOnSignals()
-      : int_(std::signal(SIGINT, stop_on_signal)), term_(std::signal(SIGTERM, stop_on_signal)) {}
-  ~StopOnSignals() {
-    std::signal(SIGINT, int_);
-    std::signal(SIGTERM, term_);
-  }
-  StopOnSignals(const StopOnSignals&) = delete;
-  StopOnSignals& operator=(const StopOnSignals&) = delete;
-
- private:
-  using Handler = void (*)(int);
-  Handler int_, term_;
-};
-
 /// Runs (or resumes) with the stop handlers installed; an interrupted run says how to go on.
 int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
                   bool checkpoints = true) {
@@ -58,10 +33,7 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
         100.0 * s.dominant_fraction, s.dominant_part.c_str(), out.c_str());
     return 0;
   } catch (const Interrupted& e) {
-    std::fprintf(stderr,
-                 "crushdem: stopped by signal %d; the state is saved in %s/checkpoint.bin. "
-                 "Continue with: crushdem resume %s\n",
-                 e.signal(), out.c_str(), out.c_str());
+    std::fprintf(stderr, "crushdem: %s\n", Interrupted::resume_hint(e.signal(), out).c_str());
     return 128 + e.signal();
   }
 }

@@ -485,6 +485,22 @@ void request_stop(int signal) {
   g_stop_signal = signal;
 }
 
+namespace {
+extern "C" void stop_on_signal(int sig) {
+  // The run saves a checkpoint and stops within seconds; a second signal ends it at once.
+  request_stop(sig);
+  std::signal(sig, SIG_DFL);
+}
+}  // namespace
+
+StopOnSignals::StopOnSignals()
+    : int_(std::signal(SIGINT, stop_on_signal)), term_(std::signal(SIGTERM, stop_on_signal)) {}
+
+StopOnSignals::~StopOnSignals() {
+  std::signal(SIGINT, int_);
+  std::signal(SIGTERM, term_);
+}
+
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   namespace fs = std::filesystem;
   g_stop_signal = 0;

@@ -34,12 +34,32 @@ struct RunOptions {
 /// (within seconds). Async-signal-safe: the CLI calls it from its SIGINT / SIGTERM handler.
 void request_stop(int signal);
 
+/// SIGINT and SIGTERM call request_stop() for as long as this object lives, so that a run
+/// saves its checkpoint and stops; a second signal ends the process at once. The previous
+/// handlers (Python's, say) come back afterwards. Used by the CLI and by the Python run/resume.
+class StopOnSignals {
+ public:
+  StopOnSignals();
+  ~StopOnSignals();
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  using Handler = void (*)(int);
+  Handler int_, term_;
+};
+
 /// Thrown by run_to_directory when it stopped on request, after saving its checkpoint.
 class Interrupted : public std::runtime_error {
  public:
   explicit Interrupted(int signal)
       : std::runtime_error("interrupted by signal " + std::to_string(signal)), signal_(signal) {}
   int signal() const { return signal_; }
+  /// What to tell the user: where the state is and how to go on.
+  static std::string resume_hint(int signal, const std::string& out_dir) {
+    return "stopped by signal " + std::to_string(signal) + "; the state is saved in " + out_dir +
+           "/checkpoint.bin. Continue with: crushdem resume " + out_dir;
+  }
 
  private:
   int signal_;
