@@ -4,7 +4,8 @@ The CSV has one header row whose column names carry their SI unit (``time_s``,
 ``wall_zmax_stress_Pa``, ``kinetic_energy_J``, ...); strains are fractions, compression positive,
 counted from the start of the test. Every figure is drawn only when the columns (and, for the
 laboratory figures, the stages listed in summary.json) it needs exist, so the command works for
-any experiment. Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless
+any experiment. A run still going, or stopped with a checkpoint, has no summary.json yet: its
+stage types then come from DIR/config.toml and the figures show the rows written so far. Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless
 ``--out`` is given):
 
 * ``stress_time.png``      wall normal stresses (and mean stress p) [MPa] against time [s]
@@ -135,6 +136,24 @@ def read_summary(run_dir: str) -> Dict[str, Any]:
     return s if isinstance(s, dict) else {}
 
 
+def stages_from_config(run_dir: str) -> List[Dict[str, Any]]:
+    """The stages (type and name) of DIR/config.toml, which a run writes when it starts: the
+    stage types for a run still going or stopped before summary.json exists. [] when the file
+    is missing, unreadable or has no [[stage]]."""
+    import tomllib
+
+    try:
+        with open(os.path.join(run_dir, "config.toml"), "rb") as f:
+            cfg = tomllib.load(f)
+    except (OSError, ValueError):
+        return []
+    listed = cfg.get("stage")
+    if not isinstance(listed, list):
+        return []
+    return [{"type": st.get("type"), "name": st.get("name")} for st in listed
+            if isinstance(st, dict)]
+
+
 def _num(x: Any) -> float:
     """A summary.json value as a float (NaN when missing or not a number)."""
     try:
@@ -260,6 +279,10 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     csv_path = os.path.join(run_dir, "timeseries.csv")
     d = read_timeseries(csv_path)
     summary = read_summary(run_dir)
+    if not isinstance(summary.get("stages"), list):
+        # Still running, or stopped (a checkpoint waits for `crushdem resume`): the stage types
+        # come from the configuration, the figures from the rows written so far.
+        summary = {**summary, "stages": stages_from_config(run_dir), "unfinished": True}
     out_dir = out_dir or run_dir
     os.makedirs(out_dir, exist_ok=True)
     t, t_label = _time_axis(d)
@@ -558,12 +581,15 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
         same_rows = n == n_rows
         # {row: label parts}; a row that ends a stage and is also the last row is drawn once.
         picks: Dict[int, List[str]] = {0: ["initial"]}
+        unfinished = bool(summary.get("unfinished"))
         if same_rows:
             for k, rows, info in stages:
                 idx = np.flatnonzero(rows)
-                if idx.size:
+                # The stage still running has no end yet, only a last output.
+                if idx.size and not (unfinished and idx[-1] == n - 1):
                     picks.setdefault(int(idx[-1]), []).append("end of " + _stage_name(k, info))
-        picks.setdefault(n - 1, []).insert(0, "final")
+        picks.setdefault(n - 1, []).insert(
+            0, "last output (run not finished)" if unfinished else "final")
         if n == 1:
             picks = {0: ["initial"]}
         fig, ax = plt.subplots(figsize=(7, 5))

@@ -169,6 +169,23 @@ def test_triaxial_without_summary_still_plots(tmp_path):
     assert "triaxial.png" not in names
 
 
+def test_stopped_run_takes_its_stage_types_from_config_toml(tmp_path):
+    # A run stopped with a checkpoint (or still going) has no summary.json, only config.toml.
+    run = _oedometer_run(tmp_path / "stopped")
+    os.remove(os.path.join(run, "summary.json"))
+    assert "oedometer.png" not in _names(plot.make_plots(run, str(tmp_path / "none")))
+    with open(os.path.join(run, "config.toml"), "w") as f:
+        f.write('[[stage]]\ntype = "oedometric"\nname = "loading"\nstress = 2e6\n'
+                '[[stage]]\ntype = "oedometric"\nname = "unloading"\nstress = 1e6\n'
+                '[[stage]]\ntype = "hold"\nname = "hold"\nsteps = 10\n')
+    assert plot.stages_from_config(run) == [{"type": "oedometric", "name": "loading"},
+                                            {"type": "oedometric", "name": "unloading"},
+                                            {"type": "hold", "name": "hold"}]
+    written = plot.make_plots(run, str(tmp_path / "figs"))
+    assert "oedometer.png" in _names(written)
+    _assert_pngs(written, str(tmp_path / "figs"))
+
+
 def test_oedometer_run_writes_oedometer_figure(tmp_path):
     run = _oedometer_run(tmp_path / "oedometer")
     written = plot.make_plots(run)  # default: into the run directory
