@@ -27,9 +27,12 @@ def main(argv: Optional[List[str]] = None) -> None:
 
         sys.exit(plot.main(args[1:]))
     if args and args[0] in ("reproduce", "sensitivity"):
-        from . import _core, reproduce, sensitivity
+        from . import _core
 
-        command = reproduce.main if args[0] == "reproduce" else sensitivity.main
+        if args[0] == "reproduce":
+            from .reproduce import main as command
+        else:
+            from .sensitivity import main as command
         try:
             sys.exit(command(args[1:]))
         except _core.Interrupted as e:

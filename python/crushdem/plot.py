@@ -5,8 +5,9 @@ The CSV has one header row whose column names carry their SI unit (``time_s``,
 counted from the start of the test. Every figure is drawn only when the columns (and, for the
 laboratory figures, the stages listed in summary.json) it needs exist, so the command works for
 any experiment. A run still going, or stopped with a checkpoint, has no summary.json yet: its
-stage types then come from DIR/config.toml and the figures show the rows written so far. Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless
-``--out`` is given):
+stage types then come from DIR/config.toml and the figures show the rows written so far.
+Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless ``--out`` is
+given):
 
 * ``stress_time.png``      wall normal stresses (and mean stress p) [MPa] against time [s]
 * ``strain_stress.png``    deviator stress q (or axial wall stress) [MPa] against axial strain [%],
@@ -279,10 +280,11 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     csv_path = os.path.join(run_dir, "timeseries.csv")
     d = read_timeseries(csv_path)
     summary = read_summary(run_dir)
-    if not isinstance(summary.get("stages"), list):
+    finished = bool(summary)  # summary.json is written when the run ends
+    if not finished:
         # Still running, or stopped (a checkpoint waits for `crushdem resume`): the stage types
         # come from the configuration, the figures from the rows written so far.
-        summary = {**summary, "stages": stages_from_config(run_dir), "unfinished": True}
+        summary = {"stages": stages_from_config(run_dir)}
     out_dir = out_dir or run_dir
     os.makedirs(out_dir, exist_ok=True)
     t, t_label = _time_axis(d)
@@ -556,7 +558,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
         _save(fig, out_dir, "kinetic_energy.png", written)
         plt.close(fig)
 
-    _crushing_plots(d, summary, stages, run_dir, out_dir, title, t, t_label, written)
+    _crushing_plots(d, summary, stages, run_dir, out_dir, title, t, t_label, written, finished)
     _ageing_plots(run_dir, summary, out_dir, title, written)
     return written
 
@@ -564,8 +566,9 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
 def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
                     stages: List[Tuple[int, np.ndarray, Dict[str, Any]]], run_dir: str,
                     out_dir: str, title: str, t: np.ndarray, t_label: str,
-                    written: List[str]) -> None:
-    """grading.png, breakage.png and breakage_sizes.png, each when its data exist."""
+                    written: List[str], finished: bool = True) -> None:
+    """grading.png, breakage.png and breakage_sizes.png, each when its data exist. A run not
+    ``finished`` has its last grading labelled as such, not as the end of its stage."""
     import matplotlib.pyplot as plt
 
     crushing = summary.get("crushing") if isinstance(summary.get("crushing"), dict) else {}
@@ -581,15 +584,14 @@ def _crushing_plots(d: Dict[str, np.ndarray], summary: Dict[str, Any],
         same_rows = n == n_rows
         # {row: label parts}; a row that ends a stage and is also the last row is drawn once.
         picks: Dict[int, List[str]] = {0: ["initial"]}
-        unfinished = bool(summary.get("unfinished"))
         if same_rows:
             for k, rows, info in stages:
                 idx = np.flatnonzero(rows)
                 # The stage still running has no end yet, only a last output.
-                if idx.size and not (unfinished and idx[-1] == n - 1):
+                if idx.size and (finished or idx[-1] != n - 1):
                     picks.setdefault(int(idx[-1]), []).append("end of " + _stage_name(k, info))
         picks.setdefault(n - 1, []).insert(
-            0, "last output (run not finished)" if unfinished else "final")
+            0, "final" if finished else "last output (run not finished)")
         if n == 1:
             picks = {0: ["initial"]}
         fig, ax = plt.subplots(figsize=(7, 5))

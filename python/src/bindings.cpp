@@ -230,8 +230,8 @@ PyObject* interrupted_type = nullptr;
 
 /// Runs `go` (a whole run) without the GIL and with SIGINT / SIGTERM asking it to checkpoint and
 /// stop, as in the CLI; a stopped run raises Interrupted with `signal` and `out_dir` set.
-RunSummary run_interruptible(const std::function<RunSummary()>& go, const std::string& out) {
-  int stopped_by = 0;
+nb::dict run_interruptible(const std::function<RunSummary()>& go) {
+  std::optional<Interrupted> stopped;
   RunSummary s;
   {
     nb::gil_scoped_release release;  // a long run must not block other Python threads
@@ -239,18 +239,17 @@ RunSummary run_interruptible(const std::function<RunSummary()>& go, const std::s
     try {
       s = go();
     } catch (const Interrupted& e) {
-      stopped_by = e.signal();
+      stopped = e;  // raised below, with the GIL held again
     }
   }
-  if (stopped_by != 0) {
-    nb::object exc =
-        nb::borrow(interrupted_type)(Interrupted::resume_hint(stopped_by, out));
-    exc.attr("signal") = stopped_by;
-    exc.attr("out_dir") = out;
+  if (stopped) {
+    nb::object exc = nb::borrow(interrupted_type)(stopped->what());
+    exc.attr("signal") = stopped->signal();
+    exc.attr("out_dir") = stopped->out_dir();
     PyErr_SetObject(interrupted_type, exc.ptr());
     throw nb::python_error();
   }
-  return s;
+  return summary_dict(s);
 }
 
 }  // namespace
@@ -520,7 +519,7 @@ NB_MODULE(_core, m) {
         RunOptions opt;
         opt.out_dir = out;
         opt.progress = progress;
-        return summary_dict(run_interruptible([&] { return run_to_directory(cfg, opt); }, out));
+        return run_interruptible([&] { return run_to_directory(cfg, opt); });
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true,
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
@@ -531,11 +530,12 @@ NB_MODULE(_core, m) {
       [](const std::string& out, bool progress) {
         RunOptions opt;
         opt.progress = progress;
-        return summary_dict(run_interruptible([&] { return resume_directory(out, opt); }, out));
+        return run_interruptible([&] { return resume_directory(out, opt); });
       },
       "out"_a, "progress"_a = true,
       "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
-      "the files come out as those of an uninterrupted run. Stops on SIGINT / SIGTERM as run() does.");
+      "the files come out as those of an uninterrupted run. Stops on SIGINT / SIGTERM as run() "
+      "does.");
   m.def(
       "resolved_run_config",
       [](nb::dict config, const std::string& base_dir) {

@@ -33,7 +33,7 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
         100.0 * s.dominant_fraction, s.dominant_part.c_str(), out.c_str());
     return 0;
   } catch (const Interrupted& e) {
-    std::fprintf(stderr, "crushdem: %s\n", Interrupted::resume_hint(e.signal(), out).c_str());
+    std::fprintf(stderr, "crushdem: %s\n", e.what());
     return 128 + e.signal();
   }
 }

@@ -259,7 +259,7 @@ class Driver {
           checkpoint(c, to_check);
           checkpoint_requested_ = false;
         }
-        if (stop != 0) throw Interrupted(stop);
+        if (stop != 0) throw Interrupted(stop, opt_.out_dir);
       }
     }
   }
@@ -641,7 +641,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     st.part = part;
     if (checkpoints) save_checkpoint(nullptr, 0);
     if (checkpoints && driver.stop_requested()) {
-      throw Interrupted(static_cast<int>(g_stop_signal));
+      throw Interrupted(static_cast<int>(g_stop_signal), opt.out_dir);
     }
   };
   // The controller of the part the checkpoint was taken in continues where it was.

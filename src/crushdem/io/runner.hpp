@@ -49,20 +49,22 @@ class StopOnSignals {
   Handler int_, term_;
 };
 
-/// Thrown by run_to_directory when it stopped on request, after saving its checkpoint.
+/// Thrown by run_to_directory when it stopped on request, after saving its checkpoint in
+/// out_dir; what() tells the user where the state is and how to go on.
 class Interrupted : public std::runtime_error {
  public:
-  explicit Interrupted(int signal)
-      : std::runtime_error("interrupted by signal " + std::to_string(signal)), signal_(signal) {}
+  Interrupted(int signal, const std::string& out_dir)
+      : std::runtime_error("stopped by signal " + std::to_string(signal) +
+                           "; the state is saved in " + out_dir +
+                           "/checkpoint.bin. Continue with: crushdem resume " + out_dir),
+        signal_(signal),
+        out_dir_(out_dir) {}
   int signal() const { return signal_; }
-  /// What to tell the user: where the state is and how to go on.
-  static std::string resume_hint(int signal, const std::string& out_dir) {
-    return "stopped by signal " + std::to_string(signal) + "; the state is saved in " + out_dir +
-           "/checkpoint.bin. Continue with: crushdem resume " + out_dir;
-  }
+  const std::string& out_dir() const { return out_dir_; }
 
  private:
   int signal_;
+  std::string out_dir_;
 };
 
 struct RunSummary {
