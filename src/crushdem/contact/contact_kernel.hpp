@@ -21,7 +21,9 @@ struct ContactResponse {
 
 /// n: unit normal from body 1 towards body 2; v_rel: velocity of body 1 relative to body 2 at
 /// the contact point; F_t_old: stored tangential force on body 1; mu: friction of this contact.
-template <class Law>
+/// kFastPath: the rare steps are left out (contact_plane_spring(), and the cap on the total
+/// tangential force below); fast_path_inexact(r.F_t) tells where that changed the result.
+template <class Law, bool kFastPath = false>
 CD_HD inline ContactResponse contact_response(const Law& law, double delta, double R_star,
                                               double sqrt_R_star, double m_eff, Vec3 n, Vec3 v_rel,
                                               Vec3 F_t_old, double mu, const ContactParams& p,
@@ -32,7 +34,8 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
   r.k_n = nf.k_n;
   const double v_n = dot(v_rel, n);  // > 0 while approaching
   const Vec3 v_t = v_rel - v_n * n;
-  r.F_t = mindlin_tangential(F_t_old, n, dt * v_t, p.tangential_ratio * nf.k_n, mu, nf.F_n);
+  r.F_t =
+      mindlin_tangential<kFastPath>(F_t_old, n, dt * v_t, p.tangential_ratio * nf.k_n, mu, nf.F_n);
   double F_normal = nf.F_n;
   Vec3 F_damp_t{};
   if (p.viscous.alpha_n > 0.0 && delta > 0.0) {
@@ -43,11 +46,23 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
     // The total tangential force obeys the Coulomb cap as well.
     const Vec3 total = r.F_t + F_damp_t;
     const double t2 = dot(total, total), cap = mu * nf.F_n;
-    if (t2 > cap * cap) F_damp_t = (cap / std::sqrt(t2)) * total - r.F_t;
+    if (exceeds_cap(t2, cap)) {
+      if constexpr (kFastPath) {
+        r.F_t = {kNeedsExactPath, kNeedsExactPath, kNeedsExactPath};
+      } else {
+        F_damp_t = (cap / std::sqrt(t2)) * total - r.F_t;
+      }
+    }
   }
   r.tangential = r.F_t + F_damp_t;
   r.force = (-F_normal) * n + r.tangential;
   return r;
+}
+
+/// After a kFastPath evaluation: whether a rare step applied (then the new history F_t is
+/// kNeedsExactPath), so that the contact must be evaluated again without kFastPath.
+CD_HD inline bool fast_path_inexact(Vec3 F_t) {
+  return F_t.x == kNeedsExactPath;
 }
 
 /// One grain-grain contact from its geometry, shared by every backend's pair loop.
@@ -61,7 +76,8 @@ struct PairContact {
 
 /// dx = x_j - x_i (d2 = |dx|^2 < (r_i + r_j)^2), dv = v_i - v_j; R*, sqrt(R*) and the effective
 /// mass come cached per pair. n points from i to j; v_rel = dv + (a_i w_i + a_j w_j) x n.
-template <class Law>
+/// kFastPath: see contact_response().
+template <class Law, bool kFastPath = false>
 CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double r_i, double r_j,
                                       Vec3 dv, Vec3 w_i, Vec3 w_j, double R_star,
                                       double sqrt_R_star, double m_eff, Vec3 F_t_old,
@@ -76,7 +92,8 @@ CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   out.a_i = r_i - 0.5 * delta;
   out.a_j = r_j - 0.5 * delta;
   const Vec3 v_rel = dv + cross(out.a_i * w_i + out.a_j * w_j, n);
-  out.c = contact_response(law, delta, R_star, sqrt_R_star, m_eff, n, v_rel, F_t_old, p.mu, p, dt);
+  out.c = contact_response<Law, kFastPath>(law, delta, R_star, sqrt_R_star, m_eff, n, v_rel,
+                                           F_t_old, p.mu, p, dt);
   out.tn = cross(n, out.c.tangential);
   return out;
 }

@@ -30,6 +30,15 @@ inline int team_size() {
 #endif
 }
 
+/// The largest team a parallel region may get here (1 without OpenMP).
+inline int max_team_size() {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
 inline constexpr std::size_t kReductionBlock = 1024;
 
 /// Below this many items a loop runs on one thread: forking and joining a team costs more than

@@ -286,34 +286,56 @@ struct PairLoop {
 enum BatchField : std::size_t {
   // inputs
   kDX, kDY, kDZ, kD2, kRI, kRJ, kDVX, kDVY, kDVZ, kWIX, kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ,
-  // inputs, overwritten by the new history
+  // inputs (the rolling moment's: overwritten by the new one)
   kFTX, kFTY, kFTZ, kMRX, kMRY, kMRZ,
   // outputs
   kFX, kFY, kFZ, kTNX, kTNY, kTNZ, kAI, kAJ, kFN, kDELTA, kNX, kNY, kNZ,
+  // the new history
+  kNFTX, kNFTY, kNFTZ,
   kBatchFields
 };
 // clang-format on
 
+// kBatchFields arrays of `cap` doubles.
+struct BatchView {
+  double* data;
+  std::size_t cap;
+  double* f(BatchField k) const { return data + k * cap; }
+};
+
 // One thread's batch: kBatchFields arrays of `cap` doubles, plus the entry, partner and owner
-// bookkeeping of the scatter pass.
+// bookkeeping of the scatter pass, and a second set of arrays for the contacts that need the
+// exact evaluation (evaluate_batch()).
 struct PairBatch {
-  static constexpr std::size_t kTarget = 136;  // contacts per batch (about 40 KB, fits in L2)
+  static constexpr std::size_t kTarget = 136;  // contacts per batch (about 43 KB, fits in L2)
   std::size_t cap = 0;
-  std::vector<double> data;
+  std::vector<double> data, exact_data;
   std::vector<NeighborList::Index> entry, partner;
-  std::vector<NeighborList::Index> owner, owner_end;  // particles of the batch, end of each
+  // Particles of the batch with a touching contact (at most cap), the end of each one's contacts.
+  std::vector<NeighborList::Index> owner, owner_end;
+  std::size_t owners = 0;
+  std::vector<std::size_t> exact_lane;  // batch slot of each exact contact
+  std::size_t exact_only = 0;  // batches still to evaluate exactly at once (evaluate_batch())
   void reserve(std::size_t n) {
     if (n <= cap) return;
     cap = std::max(n, kTarget);
     data.assign(cap * kBatchFields, 0.0);
+    exact_data.assign(cap * kBatchFields, 0.0);
     entry.resize(cap);
     partner.resize(cap);
+    owner.resize(cap);
+    owner_end.resize(cap);
+    exact_lane.resize(cap);
   }
   double* f(BatchField k) { return data.data() + k * cap; }
+  BatchView view() { return {data.data(), cap}; }
+  BatchView exact_view() { return {exact_data.data(), cap}; }
 };
 
-template <class Law, bool Rolling>
-void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
+// Evaluates contacts 0 .. n-1 of a batch in vector lanes; kFastPath: without the rare steps
+// (contact_plane_spring()).
+template <class Law, bool Rolling, bool kFastPath>
+void evaluate_lanes(const PairLoop<Law>& L, BatchView b, std::size_t n) {
   const Law law = L.law;
   const ContactParams cp = L.cp;
   const double h = L.h;
@@ -355,22 +377,25 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   double* __restrict const bNX = b.f(kNX);
   double* __restrict const bNY = b.f(kNY);
   double* __restrict const bNZ = b.f(kNZ);
+  double* __restrict const bNFTX = b.f(kNFTX);
+  double* __restrict const bNFTY = b.f(kNFTY);
+  double* __restrict const bNFTZ = b.f(kNFTZ);
 #pragma omp simd
   for (std::size_t m = 0; m < n; ++m) {
     // R*, its root and the effective mass: cheaper here, in vector lanes, than cached per entry
     // and read (the GPU upload computes the same expressions).
     const double R_star = pair_R_star(bRI[m], bRJ[m]);
     const double m_eff = pair_m_eff(bIMI[m], bIMJ[m]);
-    const PairContact pc = pair_contact(
+    const PairContact pc = pair_contact<Law, kFastPath>(
         law, Vec3{bDX[m], bDY[m], bDZ[m]}, bD2[m], bRI[m], bRJ[m], Vec3{bDVX[m], bDVY[m], bDVZ[m]},
         Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, std::sqrt(R_star),
         m_eff, Vec3{bFTX[m], bFTY[m], bFTZ[m]}, cp, h);
     bFX[m] = pc.c.force.x;
     bFY[m] = pc.c.force.y;
     bFZ[m] = pc.c.force.z;
-    bFTX[m] = pc.c.F_t.x;
-    bFTY[m] = pc.c.F_t.y;
-    bFTZ[m] = pc.c.F_t.z;
+    bNFTX[m] = pc.c.F_t.x;
+    bNFTY[m] = pc.c.F_t.y;
+    bNFTZ[m] = pc.c.F_t.z;
     bTNX[m] = pc.tn.x;
     bTNY[m] = pc.tn.y;
     bTNZ[m] = pc.tn.z;
@@ -392,20 +417,67 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   }
 }
 
+// Evaluates a batch: every contact on the fast path, in vector lanes; then the few that need
+// the exact path (a sliding contact, a turned contact plane) copied into the second arrays,
+// evaluated exactly (also in vector lanes) and copied back. Each contact gets the bits of an
+// exact evaluation either way, so the results do not depend on how contacts fall into batches.
+// (The rolling moment is exact in the first pass and not evaluated again.)
+template <class Law, bool Rolling>
+void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
+  const BatchView main = b.view();
+  // Where most contacts slide (shearing, a sample out of equilibrium) the fast path only adds a
+  // second evaluation: after a batch with more than a quarter of its contacts on the exact path,
+  // the next kExactOnly batches go straight to it. Both paths give the same bits, so which one
+  // runs changes no result (and may differ between threads).
+  constexpr std::size_t kExactOnly = 64;
+  if (b.exact_only > 0) {
+    --b.exact_only;
+    evaluate_lanes<Law, Rolling, false>(L, main, n);
+    return;
+  }
+  evaluate_lanes<Law, Rolling, true>(L, main, n);
+  // The contacts where a rare step applies (branch-free, as in the collect pass).
+  const double* nftx = main.f(kNFTX);
+  std::size_t* const lane = b.exact_lane.data();
+  std::size_t ne = 0;
+  for (std::size_t m = 0; m < n; ++m) {
+    lane[ne] = m;
+    ne += fast_path_inexact(Vec3{nftx[m], 0.0, 0.0}) ? 1 : 0;
+  }
+  if (ne == 0) return;
+  if (4 * ne > n) b.exact_only = kExactOnly;
+  constexpr BatchField kInputs[] = {kDX,  kDY,  kDZ,  kD2,  kRI,  kRJ,  kDVX, kDVY, kDVZ, kWIX,
+                                    kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ, kFTX, kFTY, kFTZ};
+  constexpr BatchField kOutputs[] = {kFX,  kFY, kFZ, kNFTX, kNFTY,  kNFTZ, kTNX, kTNY,
+                                     kTNZ, kAI, kAJ, kFN,   kDELTA, kNX,   kNY,  kNZ};
+  const BatchView side = b.exact_view();
+  for (const BatchField f : kInputs) {
+    const double* from = main.f(f);
+    double* to = side.f(f);
+    for (std::size_t k = 0; k < ne; ++k) to[k] = from[lane[k]];
+  }
+  evaluate_lanes<Law, false, false>(L, side, ne);
+  for (const BatchField f : kOutputs) {
+    const double* from = side.f(f);
+    double* to = main.f(f);
+    for (std::size_t k = 0; k < ne; ++k) to[lane[k]] = from[k];
+  }
+}
+
 template <class Law, bool Rolling>
 void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
   evaluate_batch<Law, Rolling>(L, b, n);
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
   const double *ai = b.f(kAI), *aj = b.f(kAJ);
-  const double *ftx = b.f(kFTX), *fty = b.f(kFTY), *ftz = b.f(kFTZ);
+  const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
   const double *mrx = b.f(kMRX), *mry = b.f(kMRY), *mrz = b.f(kMRZ);
   // Local copies of the bookkeeping pointers: they stay in registers through the stores below.
   const NeighborList::Index* const entry = b.entry.data();
   const NeighborList::Index* const partner = b.partner.data();
   const NeighborList::Index* const owner = b.owner.data();
   const NeighborList::Index* const owner_end = b.owner_end.data();
-  const std::size_t owners = b.owner.size();
+  const std::size_t owners = b.owners;
   std::size_t m = 0;
   for (std::size_t q = 0; q < owners; ++q) {
     const std::size_t i = owner[q];
@@ -464,13 +536,18 @@ void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
     L.PF[i].ty += T.y;
     L.PF[i].tz += T.z;
   }
-  b.owner.clear();
-  b.owner_end.clear();
+  b.owners = 0;
+}
+
+inline void column_pointers(double* (&in)[kBatchFields], PairBatch& b) {
+  for (std::size_t f = 0; f < kBatchFields; ++f) in[f] = b.f(static_cast<BatchField>(f));
 }
 
 template <class Law, bool Rolling>
 void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
   std::size_t n = 0;
+  double* in[kBatchFields];  // the batch's columns (they move only when it grows)
+  column_pointers(in, b);
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
     const std::size_t i = L.col_mem[k];
     const std::size_t degree = L.off[i + 1] - L.off[i];
@@ -478,9 +555,10 @@ void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
       flush_batch<Law, Rolling>(L, b, n);
       n = 0;
     }
-    b.reserve(degree);
-    double* in[kBatchFields];
-    for (std::size_t f = 0; f < kBatchFields; ++f) in[f] = b.f(static_cast<BatchField>(f));
+    if (degree > b.cap) {  // rare: a particle with more pairs than a batch holds
+      b.reserve(degree);
+      column_pointers(in, b);
+    }
     const detail::PackedPosition pi = L.P[i];
     const detail::PackedVelocity vi = L.V[i];
     // Overlap test without a branch on its outcome: every entry is written to slot n and n
@@ -537,8 +615,13 @@ void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
         in[kMRZ][m] = L.mrz[e];
       }
     }
-    b.owner.push_back(static_cast<NeighborList::Index>(i));
-    b.owner_end.push_back(static_cast<NeighborList::Index>(n));
+    // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
+    // left out, so that owners never outnumber contacts.
+    if (n > n_first) {
+      b.owner[b.owners] = static_cast<NeighborList::Index>(i);
+      b.owner_end[b.owners] = static_cast<NeighborList::Index>(n);
+      ++b.owners;
+    }
   }
   flush_batch<Law, Rolling>(L, b, n);
 }
@@ -597,10 +680,27 @@ void Simulation::pair_forces(const Law& law, double h) {
   }
   const std::vector<NeighborList::Index>& colors = nl_.color_offsets;
   const std::uint64_t* work = nl_.column_work.data();
+  WorkShares& shares = pair_shares_;
+  shares.reset(NeighborList::kColors, static_cast<std::size_t>(max_team_size()));
 #pragma omp parallel if (worth_threading(N))
   {
     const auto threads = static_cast<std::uint64_t>(team_size());
     const auto t = static_cast<std::uint64_t>(thread_index());
+    // Each thread's contiguous share of each colour's columns, balanced by their work: columns
+    // are in z order and particles in cell order, so a thread keeps to the same slab of the
+    // sample in every colour and in the integration loops, and its share of the data stays in
+    // its cache. A thread done with its share takes columns from the back of the others'
+    // (WorkShares): which thread runs a column does not change any result.
+    for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
+      const std::uint64_t* first = work + colors[color];
+      const std::uint64_t* last = work + colors[color + 1];
+      const auto share_start = [&](std::uint64_t k) {
+        if (k == threads) return last;
+        return std::lower_bound(first, last, *first + (*last - *first) * k / threads);
+      };
+      shares.set(color, t, static_cast<std::uint32_t>(share_start(t) - work),
+                 static_cast<std::uint32_t>(share_start(t + 1) - work));
+    }
     // One batch per thread, kept between steps (its buffers are reused, not reallocated).
     thread_local PairBatch batch;
     batch.reserve(PairBatch::kTarget);
@@ -616,21 +716,11 @@ void Simulation::pair_forces(const Law& law, double h) {
       }
     }
     // Colours one after another, with a barrier after each; within a colour, columns never
-    // write to the same particle, so both members of a pair are updated directly. Each thread
-    // takes a contiguous share of the colour's columns, balanced by their work: columns are in
-    // z order and particles in cell order, so a thread keeps to the same slab of the sample in
-    // every colour and in the integration loops, and its share of the data stays in its cache.
-    // (Which thread runs a column does not change any result.)
+    // write to the same particle, so both members of a pair are updated directly.
     for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
-      const std::uint64_t* first = work + colors[color];
-      const std::uint64_t* last = work + colors[color + 1];
-      const auto share_start = [&](std::uint64_t k) {
-        if (k == threads) return last;
-        return std::lower_bound(first, last, *first + (*last - *first) * k / threads);
-      };
-      const auto col_end = static_cast<Idx>(share_start(t + 1) - work);
-      for (auto col = static_cast<Idx>(share_start(t) - work); col < col_end; ++col) {
-        pair_column<Law, Rolling>(loop, col, batch);
+      std::uint32_t col = 0;
+      while (shares.next(color, t, threads, col)) {
+        pair_column<Law, Rolling>(loop, static_cast<Idx>(col), batch);
       }
 #pragma omp barrier
     }

@@ -19,6 +19,7 @@
 
 #include "crushdem/contact/contact_config.hpp"
 #include "crushdem/core/part_clock.hpp"
+#include "crushdem/core/work_shares.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
 #include "crushdem/walls/walls.hpp"
@@ -211,6 +212,7 @@ class Simulation {
   std::vector<detail::PackedPosition> packed_pos_;
   std::vector<detail::PackedVelocity> packed_vel_;
   std::vector<detail::PackedForce> packed_force_;
+  WorkShares pair_shares_;  // the pair loop's column shares, one loop per colour
   // kick_drift() writes the packed copies as it updates the store, saving the pair loop a pass
   // over eleven arrays; any other path (first evaluation, rebuild, topology) repacks. Likewise
   // gather_and_damp() zeroes the sums it reads, for the next pair loop.
