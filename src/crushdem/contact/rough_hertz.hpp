@@ -102,8 +102,9 @@ CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double 
   const double k_rough = (upper ? p.b : p.c) * F_rough / (upper ? u : delta);
   const double F = hertz ? F_hertz : F_rough;
   const double k_n = hertz ? k_hertz : k_rough;
-  const double k_secant =
-      hertz ? (smooth ? k_hertz * (2.0 / 3.0) : F_hertz / delta) : F_rough / delta;
+  // One division in every lane: the numerator is selected first (the same bits as dividing
+  // both and selecting). smooth implies hertz.
+  const double k_secant = smooth ? k_hertz * (2.0 / 3.0) : (hertz ? F_hertz : F_rough) / delta;
   const bool touching = delta > 0.0;
   return {touching ? F : 0.0, touching ? k_n : 0.0, touching ? k_secant : 0.0};
 }
