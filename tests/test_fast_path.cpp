@@ -73,7 +73,7 @@ void check(const Law& law, NormalLaw law_kind) {
     const PairContact fast = pair_contact<Law, true>(law, dx, d2, r_i, r_j, dv, w_i, w_j, R_star,
                                                      std::sqrt(R_star), m_eff, F_t_old, cp, dt);
     ++cases[kind];
-    if (fast_path_inexact(fast.c.F_t)) {
+    if (fast_path_inexact(fast.c.F_t.x)) {
       ++flagged[kind];
       continue;
     }

@@ -22,7 +22,7 @@ struct ContactResponse {
 /// n: unit normal from body 1 towards body 2; v_rel: velocity of body 1 relative to body 2 at
 /// the contact point; F_t_old: stored tangential force on body 1; mu: friction of this contact.
 /// kFastPath: the rare steps are left out (contact_plane_spring(), and the cap on the total
-/// tangential force below); fast_path_inexact(r.F_t) tells where that changed the result.
+/// tangential force below); fast_path_inexact(r.F_t.x) tells where that changed the result.
 template <class Law, bool kFastPath = false>
 CD_HD inline ContactResponse contact_response(const Law& law, double delta, double R_star,
                                               double sqrt_R_star, double m_eff, Vec3 n, Vec3 v_rel,
@@ -59,10 +59,11 @@ CD_HD inline ContactResponse contact_response(const Law& law, double delta, doub
   return r;
 }
 
-/// After a kFastPath evaluation: whether a rare step applied (then the new history F_t is
-/// kNeedsExactPath), so that the contact must be evaluated again without kFastPath.
-CD_HD inline bool fast_path_inexact(Vec3 F_t) {
-  return F_t.x == kNeedsExactPath;
+/// After a kFastPath evaluation: whether a rare step applied, from one component of the new
+/// history F_t (the fast path sets all three to kNeedsExactPath), so that the contact must be
+/// evaluated again without kFastPath.
+CD_HD inline bool fast_path_inexact(double F_t_x) {
+  return F_t_x == kNeedsExactPath;
 }
 
 /// One grain-grain contact from its geometry, shared by every backend's pair loop.

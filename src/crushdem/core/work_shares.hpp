@@ -29,7 +29,6 @@ class WorkShares {
       capacity_ = groups * threads;
       slots_ = std::make_unique<Slot[]>(capacity_);
     }
-    groups_ = groups;
     threads_ = threads;
     for (std::size_t k = 0; k < capacity_; ++k) slots_[k].range.store(0, std::memory_order_relaxed);
   }
@@ -75,7 +74,7 @@ class WorkShares {
     }
   }
   std::unique_ptr<Slot[]> slots_;
-  std::size_t capacity_ = 0, groups_ = 0, threads_ = 0;
+  std::size_t capacity_ = 0, threads_ = 0;
 };
 
 }  // namespace crushdem

@@ -327,8 +327,8 @@ struct PairBatch {
     owner_end.resize(cap);
     exact_lane.resize(cap);
   }
-  double* f(BatchField k) { return data.data() + k * cap; }
   BatchView view() { return {data.data(), cap}; }
+  double* f(BatchField k) { return view().f(k); }
   BatchView exact_view() { return {exact_data.data(), cap}; }
 };
 
@@ -442,7 +442,7 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   std::size_t ne = 0;
   for (std::size_t m = 0; m < n; ++m) {
     lane[ne] = m;
-    ne += fast_path_inexact(Vec3{nftx[m], 0.0, 0.0}) ? 1 : 0;
+    ne += fast_path_inexact(nftx[m]) ? 1 : 0;
   }
   if (ne == 0) return;
   if (4 * ne > n) b.exact_only = kExactOnly;
