@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# crushdem against LAMMPS gran/hertz/history, interleaved: each round runs LAMMPS and then
+# crushdem on the same process/thread count, back to back, and the ratio is taken per round.
+#
+#   bash bench/interleaved_peers.sh                 # 5 rounds of 1 and 2 threads (about 8 min)
+#   ROUNDS=7 THREADS_LIST="1 2" bash bench/interleaved_peers.sh
+#   ROUGH=1 bash bench/interleaved_peers.sh        # also rough against Hertz, settled, 1 thread
+#
+# Why: run_all.sh (bench/run_peers.sh) runs all LAMMPS repeats, then all crushdem repeats. On a
+# shared host whose speed drifts by 20-30 % over minutes, the two medians then come from
+# different host states and their ratio moves by as much. Pairs made a minute apart see nearly
+# the same host; the median of the per-round ratios is the figure to compare builds with. The
+# problem, protocol and LAMMPS input are the shared ones (../shared/bench-peers), unchanged.
+# Background `crushdem run`/`resume` jobs are stopped (SIGSTOP) while it runs and continued after.
+set -euo pipefail
+ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+PEER_DIR="${PEER_DIR:-$ROOT/../shared/bench-peers}"
+ROUNDS="${ROUNDS:-5}"
+THREADS_LIST="${THREADS_LIST:-1 2}"
+STEPS="${STEPS:-10000}"
+WARM="${WARM:-500}"
+source "$PEER_DIR/common/lib.sh"
+ensure_packing
+export RHO G_SHEAR NU YOUNG MU REST DT SKIN
+
+cmake -S "$ROOT" -B "$ROOT/build/bench" -DCMAKE_BUILD_TYPE=Release -DCRUSHDEM_TESTS=OFF >/dev/null
+cmake --build "$ROOT/build/bench" -j "$(nproc)" >/dev/null
+BIN="$ROOT/build/bench/crushdem"
+
+BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
+if [ -n "$BG" ]; then
+  echo "# stopping background crushdem jobs: $BG" >&2
+  kill -STOP $BG
+  trap 'kill -CONT $BG' EXIT
+fi
+
+WORK="$(mktemp -d)"
+lammps() { # nprocs -> particle-steps/s
+  NPROCS_LIST=$1 REPEATS=1 STEPS=$STEPS WARM=$WARM LAMMPS_PAIR=hertz_history WORK="$WORK" \
+    bash "$PEER_DIR/lammps/run.sh" 2>"$WORK/lammps.err" | tail -1 | sed 's/^particle_steps_per_s=//'
+}
+engine() { # threads [extra bench args] -> particle-steps/s
+  local t=$1
+  shift
+  "$BIN" bench --packing "$PACKING" --steps "$STEPS" --threads "$t" "$@" | tail -1 |
+    sed 's/^particle_steps_per_s=//'
+}
+median() { tr ' ' '\n' | grep -v '^$' | sort -g | awk '{v[NR]=$1} END{print (NR%2)?v[(NR+1)/2]:(v[NR/2]+v[NR/2+1])/2}'; }
+
+echo "# host: $(lscpu | grep -m1 'Model name' | sed 's/.*: *//'); nproc=$(nproc)"
+echo "# crushdem $(git -C "$ROOT" rev-parse --short HEAD)$(git -C "$ROOT" diff --quiet || echo '+changes'); steps=$STEPS warm=$WARM"
+declare -A RATIOS ENG PEER
+for r in $(seq 1 "$ROUNDS"); do
+  for t in $THREADS_LIST; do
+    l=$(lammps "$t")
+    e=$(engine "$t")
+    ratio=$(awk -v e="$e" -v l="$l" 'BEGIN{printf "%.3f", e/l}')
+    echo "round $r threads $t lammps_hh=$l crushdem=$e ratio=$ratio"
+    RATIOS[$t]+=" $ratio"
+    ENG[$t]+=" $e"
+    PEER[$t]+=" $l"
+  done
+done
+for t in $THREADS_LIST; do
+  echo "threads $t: median ratio $(echo "${RATIOS[$t]}" | median) (ratios:${RATIOS[$t]});" \
+    "medians crushdem $(echo "${ENG[$t]}" | median), lammps_hh $(echo "${PEER[$t]}" | median)"
+done
+
+if [ "${ROUGH:-0}" = 1 ]; then
+  # The rough law on its own state at rest (bench/README.md, "--settle"), against Hertz settled
+  # the same way, one after the other in each round.
+  SLOW=""
+  SLOWT=""
+  for r in $(seq 1 "$ROUNDS"); do
+    h=$(engine 1 --settle 20000 --law hertz)
+    g=$(engine 1 --settle 20000 --law rough)
+    # Slower as lower throughput (1 - rough/hertz) and as longer time (hertz/rough - 1).
+    s=$(awk -v h="$h" -v g="$g" 'BEGIN{printf "%.1f", 100*(1-g/h)}')
+    st=$(awk -v h="$h" -v g="$g" 'BEGIN{printf "%.1f", 100*(h/g-1)}')
+    echo "round $r settled 1 thread: hertz=$h rough=$g throughput_lower_pct=$s time_longer_pct=$st"
+    SLOW+=" $s"
+    SLOWT+=" $st"
+  done
+  echo "rough against hertz (settled, 1 thread): throughput $(echo "$SLOW" | median) % lower," \
+    "time $(echo "$SLOWT" | median) % longer (medians; per round:$SLOW /$SLOWT)"
+fi
+rm -rf "$WORK"
