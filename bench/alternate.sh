@@ -18,6 +18,7 @@ ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 PEER_DIR="${PEER_DIR:-$ROOT/../shared/bench-peers}"
 threads=$1 law=$2 reps=$3
 shift 3
+# shellcheck source=/dev/null
 source "$PEER_DIR/common/lib.sh"
 ensure_packing
 export RHO G_SHEAR NU YOUNG MU REST DT SKIN
@@ -27,6 +28,7 @@ done
 
 BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
 if [ -n "$BG" ]; then
+  # shellcheck disable=SC2086  # one word per process id
   kill -STOP $BG
   trap 'kill -CONT $BG' EXIT
 fi

@@ -19,6 +19,7 @@ ROUNDS="${ROUNDS:-5}"
 THREADS_LIST="${THREADS_LIST:-1 2}"
 STEPS="${STEPS:-10000}"
 WARM="${WARM:-500}"
+# shellcheck source=/dev/null
 source "$PEER_DIR/common/lib.sh"
 ensure_packing
 export RHO G_SHEAR NU YOUNG MU REST DT SKIN
@@ -30,6 +31,7 @@ BIN="$ROOT/build/bench/crushdem"
 BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
 if [ -n "$BG" ]; then
   echo "# stopping background crushdem jobs: $BG" >&2
+  # shellcheck disable=SC2086  # one word per process id
   kill -STOP $BG
   trap 'kill -CONT $BG' EXIT
 fi
