@@ -54,7 +54,7 @@ echo "# crushdem $(git -C "$ROOT" rev-parse --short HEAD)$(git -C "$ROOT" diff -
 declare -A RATIOS ENG PEER
 for r in $(seq 1 "$ROUNDS"); do
   for t in $THREADS_LIST; do
-    l=$(lammps "$t")
+    l=$(lammps "$t") || { tail -20 "$WORK/lammps.err" >&2; echo "LAMMPS run failed" >&2; exit 1; }
     e=$(engine "$t")
     ratio=$(awk -v e="$e" -v l="$l" 'BEGIN{printf "%.3f", e/l}')
     echo "round $r threads $t lammps_hh=$l crushdem=$e ratio=$ratio"
