@@ -14,37 +14,26 @@ if [ $# -lt 4 ]; then
   echo "usage: bash bench/alternate.sh THREADS LAW REPS BIN [BIN ...]" >&2
   exit 2
 fi
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
-PEER_DIR="${PEER_DIR:-$ROOT/../shared/bench-peers}"
 threads=$1 law=$2 reps=$3
 shift 3
-# shellcheck source=/dev/null
-source "$PEER_DIR/common/lib.sh"
-ensure_packing
-export RHO G_SHEAR NU YOUNG MU REST DT SKIN
+# shellcheck source=bench/lib.sh
+source "$(dirname "$0")/lib.sh"
+bench_setup
 for b in "$@"; do
   [ -x "$b" ] || { echo "alternate.sh: '$b' is not an executable" >&2; exit 2; }
 done
-
-BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
-if [ -n "$BG" ]; then
-  # shellcheck disable=SC2086  # one word per process id
-  kill -STOP $BG
-  trap 'kill -CONT $BG' EXIT
-fi
+pause_background_jobs
 
 declare -A FIG
 for r in $(seq 1 "$reps"); do
   for b in "$@"; do
-    # shellcheck disable=SC2086
-    v=$("$b" bench --packing "$PACKING" --steps "${STEPS:-2000}" --threads "$threads" \
-      --law "$law" ${EXTRA:-} | tail -1 | sed 's/^particle_steps_per_s=//')
+    # shellcheck disable=SC2086  # EXTRA holds several bench arguments
+    v=$(crushdem_rate "$b" "$threads" "${STEPS:-2000}" --law "$law" ${EXTRA:-})
     echo "round $r $b $v"
     FIG[$b]+=" $v"
   done
 done
 for b in "$@"; do
-  echo "${FIG[$b]}" | tr ' ' '\n' | grep -v '^$' | sort -g |
-    awk -v b="$b" '{v[NR]=$1} END{m=(NR%2)?v[(NR+1)/2]:(v[NR/2]+v[NR/2+1])/2;
-      printf "%s median=%.3e min=%.3e max=%.3e n=%d\n", b, m, v[1], v[NR], NR}'
+  read -r med lo hi n <<<"$(echo "${FIG[$b]}" | stats)"
+  echo "$b median=$med min=$lo max=$hi n=$n"
 done

@@ -13,30 +13,21 @@
 # problem, protocol and LAMMPS input are the shared ones (../shared/bench-peers), unchanged.
 # Background `crushdem run`/`resume` jobs are stopped (SIGSTOP) while it runs and continued after.
 set -euo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
-PEER_DIR="${PEER_DIR:-$ROOT/../shared/bench-peers}"
+# shellcheck source=bench/lib.sh
+source "$(dirname "$0")/lib.sh"
+bench_setup
 ROUNDS="${ROUNDS:-5}"
 THREADS_LIST="${THREADS_LIST:-1 2}"
 STEPS="${STEPS:-10000}"
 WARM="${WARM:-500}"
-# shellcheck source=/dev/null
-source "$PEER_DIR/common/lib.sh"
-ensure_packing
-export RHO G_SHEAR NU YOUNG MU REST DT SKIN
 
 cmake -S "$ROOT" -B "$ROOT/build/bench" -DCMAKE_BUILD_TYPE=Release -DCRUSHDEM_TESTS=OFF >/dev/null
 cmake --build "$ROOT/build/bench" -j "$(nproc)" >/dev/null
 BIN="$ROOT/build/bench/crushdem"
 
-BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
-if [ -n "$BG" ]; then
-  echo "# stopping background crushdem jobs: $BG" >&2
-  # shellcheck disable=SC2086  # one word per process id
-  kill -STOP $BG
-  trap 'kill -CONT $BG' EXIT
-fi
-
 WORK="$(mktemp -d)"
+BENCH_ON_EXIT="rm -rf '$WORK'"
+pause_background_jobs
 lammps() { # nprocs -> particle-steps/s
   NPROCS_LIST=$1 REPEATS=1 STEPS=$STEPS WARM=$WARM LAMMPS_PAIR=hertz_history WORK="$WORK" \
     bash "$PEER_DIR/lammps/run.sh" 2>"$WORK/lammps.err" | tail -1 | sed 's/^particle_steps_per_s=//'
@@ -44,10 +35,8 @@ lammps() { # nprocs -> particle-steps/s
 engine() { # threads [extra bench args] -> particle-steps/s
   local t=$1
   shift
-  "$BIN" bench --packing "$PACKING" --steps "$STEPS" --threads "$t" "$@" | tail -1 |
-    sed 's/^particle_steps_per_s=//'
+  crushdem_rate "$BIN" "$t" "$STEPS" "$@"
 }
-median() { tr ' ' '\n' | grep -v '^$' | sort -g | awk '{v[NR]=$1} END{print (NR%2)?v[(NR+1)/2]:(v[NR/2]+v[NR/2+1])/2}'; }
 
 echo "# host: $(lscpu | grep -m1 'Model name' | sed 's/.*: *//'); nproc=$(nproc)"
 echo "# crushdem $(git -C "$ROOT" rev-parse --short HEAD)$(git -C "$ROOT" diff --quiet || echo '+changes'); steps=$STEPS warm=$WARM"
@@ -64,8 +53,9 @@ for r in $(seq 1 "$ROUNDS"); do
   done
 done
 for t in $THREADS_LIST; do
-  echo "threads $t: median ratio $(echo "${RATIOS[$t]}" | median) (ratios:${RATIOS[$t]});" \
-    "medians crushdem $(echo "${ENG[$t]}" | median), lammps_hh $(echo "${PEER[$t]}" | median)"
+  # shellcheck disable=SC2086  # one argument per figure
+  echo "threads $t: median ratio $(median ${RATIOS[$t]}) (ratios:${RATIOS[$t]});" \
+    "medians crushdem $(median ${ENG[$t]}), lammps_hh $(median ${PEER[$t]})"
 done
 
 if [ "${ROUGH:-0}" = 1 ]; then
@@ -83,7 +73,7 @@ if [ "${ROUGH:-0}" = 1 ]; then
     SLOW+=" $s"
     SLOWT+=" $st"
   done
-  echo "rough against hertz (settled, 1 thread): throughput $(echo "$SLOW" | median) % lower," \
-    "time $(echo "$SLOWT" | median) % longer (medians; per round:$SLOW /$SLOWT)"
+  # shellcheck disable=SC2086  # one argument per figure
+  echo "rough against hertz (settled, 1 thread): throughput $(median $SLOW) % lower," \
+    "time $(median $SLOWT) % longer (medians; per round:$SLOW /$SLOWT)"
 fi
-rm -rf "$WORK"
