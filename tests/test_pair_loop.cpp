@@ -55,7 +55,9 @@ Totals reference(const Simulation& sim, const Law& law, const ContactParams& cp)
 
 // A jittered cubic lattice of grains of radius 0.8 to 1.2 r0 far from the walls: overlaps from
 // none (a third of the list's pairs do not touch) to 0.2 r0, random velocities and spins.
-Simulation make_sample(NormalLaw law) {
+// wide_skin: a Verlet skin of 4 lattice spacings, so that the grains inside the lattice own about
+// 250 list entries each, more than one batch of the pair loop holds.
+Simulation make_sample(NormalLaw law, bool wide_skin = false) {
   const double r0 = 0.5e-3;
   const int n = 12;
   const double a = 2.0 * r0;
@@ -63,6 +65,7 @@ Simulation make_sample(NormalLaw law) {
   cfg.material.friction = 0.05;   // small, so the Coulomb cap binds the viscous tangential force
   cfg.contact.restitution = 0.5;  // viscous damping on
   cfg.contact.rolling_friction = 0.1;
+  if (wide_skin) cfg.neighbor.skin = 4.0 * a;
   Simulation sim(cfg);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -79,9 +82,17 @@ Simulation make_sample(NormalLaw law) {
   return sim;
 }
 
-void check(NormalLaw law_kind) {
-  Simulation sim = make_sample(law_kind);
+void check(NormalLaw law_kind, bool wide_skin = false) {
+  Simulation sim = make_sample(law_kind, wide_skin);
   sim.compute_forces();
+  if (wide_skin) {
+    // Grains with more list entries than a batch holds (PairBatch::kTarget = 136).
+    const auto& off = sim.neighbors().offsets;
+    std::size_t most = 0;
+    for (std::size_t i = 0; i + 1 < off.size(); ++i)
+      most = std::max<std::size_t>(most, off[i + 1] - off[i]);
+    ASSERT_GT(most, 136u);
+  }
   const ContactParams cp = make_contact_params(sim.config().material, sim.config().contact);
   const Totals ref = law_kind == NormalLaw::Hertz
                          ? reference(sim, HertzLaw{cp.E_star}, cp)
@@ -125,6 +136,12 @@ TEST(PairLoop, HertzForcesAndTorquesEqualABruteForcePairByPairEvaluation) {
 
 TEST(PairLoop, RoughLawForcesAndTorquesEqualABruteForcePairByPairEvaluation) {
   check(NormalLaw::Rough);
+}
+
+// A grain with more list entries than a batch holds is collected into a batch of its own.
+TEST(PairLoop, GrainsWithMoreEntriesThanABatchHoldsGetTheSameForces) {
+  check(NormalLaw::Hertz, true);
+  check(NormalLaw::Rough, true);
 }
 
 }  // namespace

@@ -296,11 +296,17 @@ enum BatchField : std::size_t {
 };
 // clang-format on
 
-// kBatchFields arrays of `cap` doubles.
+// The kBatchFields columns of a batch, column k at data + k cap. kCap: the cap as a compile-time
+// constant, for the fixed-size batch that holds nearly every contact: each column is then one
+// register plus a constant offset. With the cap a run-time value (kCap = 0, the batch of a grain
+// with more list entries than the fixed one holds) the loops over a batch need the 40 column
+// addresses in registers, x86-64 has 16, and every load or store first reloaded its address from
+// the stack (a fifth of the collect pass's instructions).
+template <std::size_t kCap>
 struct BatchView {
   double* data;
-  std::size_t cap;
-  double* f(BatchField k) const { return data + k * cap; }
+  std::size_t cap;  // read only when kCap == 0
+  double* f(BatchField k) const { return data + k * (kCap != 0 ? kCap : cap); }
 };
 
 // One thread's batch: kBatchFields arrays of `cap` doubles, plus the entry, partner and owner
@@ -327,15 +333,20 @@ struct PairBatch {
     owner_end.resize(cap);
     exact_lane.resize(cap);
   }
-  BatchView view() { return {data.data(), cap}; }
-  double* f(BatchField k) { return view().f(k); }
-  BatchView exact_view() { return {exact_data.data(), cap}; }
+  template <std::size_t kCap>
+  BatchView<kCap> view() {
+    return {data.data(), cap};
+  }
+  template <std::size_t kCap>
+  BatchView<kCap> exact_view() {
+    return {exact_data.data(), cap};
+  }
 };
 
 // Evaluates contacts 0 .. n-1 of a batch in vector lanes; kFastPath: without the rare steps
 // (contact_plane_spring()).
-template <class Law, bool Rolling, bool kFastPath>
-void evaluate_lanes(const PairLoop<Law>& L, BatchView b, std::size_t n) {
+template <class Law, bool Rolling, bool kFastPath, class View>
+void evaluate_lanes(const PairLoop<Law>& L, View b, std::size_t n) {
   const Law law = L.law;
   const ContactParams cp = L.cp;
   const double h = L.h;
@@ -422,9 +433,9 @@ void evaluate_lanes(const PairLoop<Law>& L, BatchView b, std::size_t n) {
 // evaluated exactly (also in vector lanes) and copied back. Each contact gets the bits of an
 // exact evaluation either way, so the results do not depend on how contacts fall into batches.
 // (The rolling moment is exact in the first pass and not evaluated again.)
-template <class Law, bool Rolling>
+template <class Law, bool Rolling, std::size_t kCap>
 void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
-  const BatchView main = b.view();
+  const BatchView<kCap> main = b.view<kCap>();
   // Where most contacts slide (shearing, a sample out of equilibrium) the fast path only adds a
   // second evaluation: after a batch with more than a quarter of its contacts on the exact path,
   // the next kExactOnly batches go straight to it. Both paths give the same bits, so which one
@@ -450,7 +461,7 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
                                     kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ, kFTX, kFTY, kFTZ};
   constexpr BatchField kOutputs[] = {kFX,  kFY, kFZ, kNFTX, kNFTY,  kNFTZ, kTNX, kTNY,
                                      kTNZ, kAI, kAJ, kFN,   kDELTA, kNX,   kNY,  kNZ};
-  const BatchView side = b.exact_view();
+  const BatchView<kCap> side = b.exact_view<kCap>();
   for (const BatchField f : kInputs) {
     const double* from = main.f(f);
     double* to = side.f(f);
@@ -464,20 +475,21 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   }
 }
 
-template <class Law, bool Rolling>
-void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
-  evaluate_batch<Law, Rolling>(L, b, n);
+template <class Law, bool Rolling, std::size_t kCap>
+void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
+  evaluate_batch<Law, Rolling, kCap>(L, pb, n);
+  const BatchView<kCap> b = pb.view<kCap>();
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
   const double *ai = b.f(kAI), *aj = b.f(kAJ);
   const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
   const double *mrx = b.f(kMRX), *mry = b.f(kMRY), *mrz = b.f(kMRZ);
   // Local copies of the bookkeeping pointers: they stay in registers through the stores below.
-  const NeighborList::Index* const entry = b.entry.data();
-  const NeighborList::Index* const partner = b.partner.data();
-  const NeighborList::Index* const owner = b.owner.data();
-  const NeighborList::Index* const owner_end = b.owner_end.data();
-  const std::size_t owners = b.owners;
+  const NeighborList::Index* const entry = pb.entry.data();
+  const NeighborList::Index* const partner = pb.partner.data();
+  const NeighborList::Index* const owner = pb.owner.data();
+  const NeighborList::Index* const owner_end = pb.owner_end.data();
+  const std::size_t owners = pb.owners;
   std::size_t m = 0;
   for (std::size_t q = 0; q < owners; ++q) {
     const std::size_t i = owner[q];
@@ -536,94 +548,104 @@ void flush_batch(const PairLoop<Law> L, PairBatch& b, std::size_t n) {
     L.PF[i].ty += T.y;
     L.PF[i].tz += T.z;
   }
-  b.owners = 0;
+  pb.owners = 0;
 }
 
-inline void column_pointers(double* (&in)[kBatchFields], PairBatch& b) {
-  for (std::size_t f = 0; f < kBatchFields; ++f) in[f] = b.f(static_cast<BatchField>(f));
+// Appends the touching pairs of particle i to the batch from slot n on (the batch has room for
+// all of i's entries); returns the new fill.
+template <class Law, bool Rolling, std::size_t kCap>
+std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b, std::size_t n) {
+  const BatchView<kCap> in = b.view<kCap>();
+  const detail::PackedPosition pi = L.P[i];
+  const detail::PackedVelocity vi = L.V[i];
+  // Overlap test without a branch on its outcome: every entry is written to slot n and n
+  // advances only for a touching pair. Whether a pair in the skin touches is a coin toss for
+  // the branch predictor, and each mispredicted branch used to stall on the next partner's
+  // position (a third of the pair loop's time).
+  const std::size_t n_first = n;
+  NeighborList::Index* const slot_entry = b.entry.data();  // in registers through the stores
+  NeighborList::Index* const slot_partner = b.partner.data();
+  for (auto e = L.off[i]; e < L.off[i + 1]; ++e) {
+    const auto j = L.nb[e];
+    const detail::PackedPosition pj = L.P[j];
+    const double dx = pj.x - pi.x, dy = pj.y - pi.y, dz = pj.z - pi.z;
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    const double rsum = pi.r + pj.r;
+    const bool touching = d2 < rsum * rsum;
+    if (static_cast<int>(!touching) & static_cast<int>(L.touch[e])) {
+      // The pair separated (rare): forget its history.
+      L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
+      if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
+    }
+    L.touch[e] = static_cast<std::uint8_t>(touching);
+    slot_entry[n] = e;
+    slot_partner[n] = j;
+    in.f(kDX)[n] = dx;
+    in.f(kDY)[n] = dy;
+    in.f(kDZ)[n] = dz;
+    in.f(kD2)[n] = d2;
+    in.f(kRJ)[n] = pj.r;
+    n += touching ? 1 : 0;
+  }
+  // The touching pairs' other inputs.
+  for (std::size_t m = n_first; m < n; ++m) {
+    const std::size_t e = slot_entry[m];
+    const detail::PackedVelocity& vj = L.V[slot_partner[m]];
+    in.f(kRI)[m] = pi.r;
+    in.f(kDVX)[m] = vi.vx - vj.vx;
+    in.f(kDVY)[m] = vi.vy - vj.vy;
+    in.f(kDVZ)[m] = vi.vz - vj.vz;
+    in.f(kWIX)[m] = vi.wx;
+    in.f(kWIY)[m] = vi.wy;
+    in.f(kWIZ)[m] = vi.wz;
+    in.f(kWJX)[m] = vj.wx;
+    in.f(kWJY)[m] = vj.wy;
+    in.f(kWJZ)[m] = vj.wz;
+    in.f(kIMI)[m] = vi.inv_mass;
+    in.f(kIMJ)[m] = vj.inv_mass;
+    in.f(kFTX)[m] = L.ftx[e];
+    in.f(kFTY)[m] = L.fty[e];
+    in.f(kFTZ)[m] = L.ftz[e];
+    if constexpr (Rolling) {
+      in.f(kMRX)[m] = L.mrx[e];
+      in.f(kMRY)[m] = L.mry[e];
+      in.f(kMRZ)[m] = L.mrz[e];
+    }
+  }
+  // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
+  // left out, so that owners never outnumber contacts.
+  if (n > n_first) {
+    b.owner[b.owners] = static_cast<NeighborList::Index>(i);
+    b.owner_end[b.owners] = static_cast<NeighborList::Index>(n);
+    ++b.owners;
+  }
+  return n;
 }
 
+// One column: its particles' pairs in batches of at most PairBatch::kTarget (`batch`, fixed
+// size); a particle with more pairs than that (a large grain among fragments) gets a batch of
+// its own (`grown`). A grain's pairs are never split between batches, and each contact gets the
+// same bits in any batch, so where the batches end changes no result.
 template <class Law, bool Rolling>
-void pair_column(const PairLoop<Law> L, Idx col, PairBatch& b) {
+void pair_column(const PairLoop<Law> L, Idx col, PairBatch& batch, PairBatch& grown) {
+  constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap (reserved once, never grown)
   std::size_t n = 0;
-  double* in[kBatchFields];  // the batch's columns (they move only when it grows)
-  column_pointers(in, b);
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
     const std::size_t i = L.col_mem[k];
     const std::size_t degree = L.off[i + 1] - L.off[i];
-    if (n > 0 && n + degree > b.cap) {
-      flush_batch<Law, Rolling>(L, b, n);
+    if (n > 0 && n + degree > PairBatch::kTarget) {
+      flush_batch<Law, Rolling, kFixed>(L, batch, n);
       n = 0;
     }
-    if (degree > b.cap) {  // rare: a particle with more pairs than a batch holds
-      b.reserve(degree);
-      column_pointers(in, b);
+    if (degree > PairBatch::kTarget) {  // rare
+      grown.reserve(degree);
+      const std::size_t m = collect_particle<Law, Rolling, 0>(L, i, grown, 0);
+      flush_batch<Law, Rolling, 0>(L, grown, m);
+      continue;
     }
-    const detail::PackedPosition pi = L.P[i];
-    const detail::PackedVelocity vi = L.V[i];
-    // Overlap test without a branch on its outcome: every entry is written to slot n and n
-    // advances only for a touching pair. Whether a pair in the skin touches is a coin toss for
-    // the branch predictor, and each mispredicted branch used to stall on the next partner's
-    // position (a third of the pair loop's time).
-    const std::size_t n_first = n;
-    NeighborList::Index* const slot_entry = b.entry.data();  // in registers through the stores
-    NeighborList::Index* const slot_partner = b.partner.data();
-    for (auto e = L.off[i]; e < L.off[i + 1]; ++e) {
-      const auto j = L.nb[e];
-      const detail::PackedPosition pj = L.P[j];
-      const double dx = pj.x - pi.x, dy = pj.y - pi.y, dz = pj.z - pi.z;
-      const double d2 = dx * dx + dy * dy + dz * dz;
-      const double rsum = pi.r + pj.r;
-      const bool touching = d2 < rsum * rsum;
-      if (static_cast<int>(!touching) & static_cast<int>(L.touch[e])) {
-        // The pair separated (rare): forget its history.
-        L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
-        if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
-      }
-      L.touch[e] = static_cast<std::uint8_t>(touching);
-      slot_entry[n] = e;
-      slot_partner[n] = j;
-      in[kDX][n] = dx;
-      in[kDY][n] = dy;
-      in[kDZ][n] = dz;
-      in[kD2][n] = d2;
-      in[kRJ][n] = pj.r;
-      n += touching ? 1 : 0;
-    }
-    // The touching pairs' other inputs.
-    for (std::size_t m = n_first; m < n; ++m) {
-      const std::size_t e = slot_entry[m];
-      const detail::PackedVelocity& vj = L.V[slot_partner[m]];
-      in[kRI][m] = pi.r;
-      in[kDVX][m] = vi.vx - vj.vx;
-      in[kDVY][m] = vi.vy - vj.vy;
-      in[kDVZ][m] = vi.vz - vj.vz;
-      in[kWIX][m] = vi.wx;
-      in[kWIY][m] = vi.wy;
-      in[kWIZ][m] = vi.wz;
-      in[kWJX][m] = vj.wx;
-      in[kWJY][m] = vj.wy;
-      in[kWJZ][m] = vj.wz;
-      in[kIMI][m] = vi.inv_mass;
-      in[kIMJ][m] = vj.inv_mass;
-      in[kFTX][m] = L.ftx[e];
-      in[kFTY][m] = L.fty[e];
-      in[kFTZ][m] = L.ftz[e];
-      if constexpr (Rolling) {
-        in[kMRX][m] = L.mrx[e];
-        in[kMRY][m] = L.mry[e];
-        in[kMRZ][m] = L.mrz[e];
-      }
-    }
-    // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
-    // left out, so that owners never outnumber contacts.
-    if (n > n_first) {
-      b.owner[b.owners] = static_cast<NeighborList::Index>(i);
-      b.owner_end[b.owners] = static_cast<NeighborList::Index>(n);
-      ++b.owners;
-    }
+    n = collect_particle<Law, Rolling, kFixed>(L, i, batch, n);
   }
-  flush_batch<Law, Rolling>(L, b, n);
+  flush_batch<Law, Rolling, kFixed>(L, batch, n);
 }
 
 }  // namespace
@@ -702,7 +724,7 @@ void Simulation::pair_forces(const Law& law, double h) {
                  static_cast<std::uint32_t>(share_start(t + 1) - work));
     }
     // One batch per thread, kept between steps (its buffers are reused, not reallocated).
-    thread_local PairBatch batch;
+    thread_local PairBatch batch, grown;
     batch.reserve(PairBatch::kTarget);
     if (pack || zero) {
 #pragma omp for schedule(static)
@@ -720,7 +742,7 @@ void Simulation::pair_forces(const Law& law, double h) {
     for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
       std::uint32_t col = 0;
       while (shares.next(color, t, threads, col)) {
-        pair_column<Law, Rolling>(loop, static_cast<Idx>(col), batch);
+        pair_column<Law, Rolling>(loop, static_cast<Idx>(col), batch, grown);
       }
 #pragma omp barrier
     }
