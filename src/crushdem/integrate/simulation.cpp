@@ -345,8 +345,11 @@ struct PairBatch {
 
 // Evaluates contacts 0 .. n-1 of a batch in vector lanes; kFastPath: without the rare steps
 // (contact_plane_spring()).
+// Not inlined: inlined into evaluate_batch() with a fixed-size batch, GCC sees every column as
+// one base plus a constant offset, stops trusting the restrict pointers, and (for the rough
+// law) left the loop scalar.
 template <class Law, bool Rolling, bool kFastPath, class View>
-void evaluate_lanes(const PairLoop<Law>& L, View b, std::size_t n) {
+[[gnu::noinline]] void evaluate_lanes(const PairLoop<Law>& L, View b, std::size_t n) {
   const Law law = L.law;
   const ContactParams cp = L.cp;
   const double h = L.h;
