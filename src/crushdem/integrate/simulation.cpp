@@ -313,7 +313,10 @@ struct BatchView {
 // bookkeeping of the scatter pass, and a second set of arrays for the contacts that need the
 // exact evaluation (evaluate_batch()).
 struct PairBatch {
-  static constexpr std::size_t kTarget = 136;  // contacts per batch (about 43 KB, fits in L2)
+  // Slots of the fixed-size batch (about 43 KB, fits in L2): the list entries of the grains in
+  // it, of which the touching ones are kept. That batch is reserved once with exactly this
+  // capacity and never grown, so its views may use the constant (view<kTarget>()).
+  static constexpr std::size_t kTarget = 136;
   std::size_t cap = 0;
   std::vector<double> data, exact_data;
   std::vector<NeighborList::Index> entry, partner;
@@ -631,16 +634,16 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
 // same bits in any batch, so where the batches end changes no result.
 template <class Law, bool Rolling>
 void pair_column(const PairLoop<Law> L, Idx col, PairBatch& batch, PairBatch& grown) {
-  constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap (reserved once, never grown)
+  constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap
   std::size_t n = 0;
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
     const std::size_t i = L.col_mem[k];
     const std::size_t degree = L.off[i + 1] - L.off[i];
-    if (n > 0 && n + degree > PairBatch::kTarget) {
+    if (n > 0 && n + degree > kFixed) {
       flush_batch<Law, Rolling, kFixed>(L, batch, n);
       n = 0;
     }
-    if (degree > PairBatch::kTarget) {  // rare
+    if (degree > kFixed) {  // rare
       grown.reserve(degree);
       const std::size_t m = collect_particle<Law, Rolling, 0>(L, i, grown, 0);
       flush_batch<Law, Rolling, 0>(L, grown, m);
