@@ -5,6 +5,7 @@
 #   bash bench/interleaved_peers.sh                 # 5 rounds of 1 and 2 threads (about 8 min)
 #   ROUNDS=7 THREADS_LIST="1 2" bash bench/interleaved_peers.sh
 #   ROUGH=1 bash bench/interleaved_peers.sh        # also rough against Hertz, settled, 1 thread
+#   ROUGH=1 SETTLE=100000 bash bench/interleaved_peers.sh   # settling steps (the default)
 #
 # Why: run_all.sh (bench/run_peers.sh) runs all LAMMPS repeats, then all crushdem repeats. On a
 # shared host whose speed drifts by 20-30 % over minutes, the two medians then come from
@@ -60,12 +61,20 @@ done
 
 if [ "${ROUGH:-0}" = 1 ]; then
   # The rough law on its own state at rest (bench/README.md, "--settle"), against Hertz settled
-  # the same way, one after the other in each round.
+  # the same way, one after the other in each round. Each law is settled once, on every core
+  # (the settled state does not depend on the thread count), and kept in a file that every
+  # round reads (--settled-state): 100,000 steps bring the rough box to rest (kinetic energy
+  # 1.5e-11 J; 1e-9 J after 20,000 steps, when a quarter of its contacts still slid).
+  SETTLE="${SETTLE:-100000}"
+  for law in hertz rough; do
+    "$BIN" bench --packing "$PACKING" --steps 1 --warm 0 --threads "$(nproc)" --law "$law" \
+      --settle "$SETTLE" --settled-state "$WORK/settled_$law.bin" | grep '^settled' | sed "s/^/# $law /"
+  done
   SLOW=""
   SLOWT=""
   for r in $(seq 1 "$ROUNDS"); do
-    h=$(engine 1 --settle 20000 --law hertz)
-    g=$(engine 1 --settle 20000 --law rough)
+    h=$(engine 1 --settle "$SETTLE" --settled-state "$WORK/settled_hertz.bin" --law hertz)
+    g=$(engine 1 --settle "$SETTLE" --settled-state "$WORK/settled_rough.bin" --law rough)
     # Slower as lower throughput (1 - rough/hertz) and as longer time (hertz/rough - 1).
     s=$(awk -v h="$h" -v g="$g" 'BEGIN{printf "%.1f", 100*(1-g/h)}')
     st=$(awk -v h="$h" -v g="$g" 'BEGIN{printf "%.1f", 100*(h/g-1)}')

@@ -76,3 +76,33 @@ def test_bench_settles_under_its_own_law_first(tmp_path):
                           str(tmp_path / "p.txt"), "--settle", "-3"], capture_output=True,
                          text=True)
     assert res.returncode != 0 and "--settle" in res.stderr and "-3" in res.stderr
+
+
+def test_bench_keeps_the_settled_state_in_a_file(tmp_path):
+    L = 1e-3
+    _lattice(tmp_path / "p.txt", f"# L_m={L}\n# p_target_Pa=1e5\n", L)
+    state = tmp_path / "settled.bin"
+    args = ("--law", "rough", "--settle", "200", "--settled-state", str(state),
+            "--state-out")
+    first = _bench(tmp_path / "p.txt", *args, str(tmp_path / "a.txt"))
+    assert state.exists()
+    # Read back instead of settling: the same timed run, to the last bit.
+    again = _bench(tmp_path / "p.txt", *args, str(tmp_path / "b.txt"))
+    plain = _bench(tmp_path / "p.txt", "--law", "rough", "--settle", "200", "--state-out",
+                   str(tmp_path / "c.txt"))
+    assert first[0] == again[0] == plain[0]  # the settled line
+    assert first[3] == again[3] == plain[3]  # the timed run's final stresses
+    assert (tmp_path / "a.txt").read_bytes() == (tmp_path / "b.txt").read_bytes() == \
+        (tmp_path / "c.txt").read_bytes()
+    # A file settled for another run is refused, with what it expected.
+    for other in (("--law", "hertz", "--settle", "200"), ("--law", "rough", "--settle", "300")):
+        res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+                              str(tmp_path / "p.txt"), "--steps", "5", *other,
+                              "--settled-state", str(state)], capture_output=True, text=True)
+        assert res.returncode != 0
+        assert "--settled-state" in res.stderr and "written for another run" in res.stderr
+    # Without --settle there is nothing to keep.
+    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+                          str(tmp_path / "p.txt"), "--steps", "5", "--settled-state", str(state)],
+                         capture_output=True, text=True)
+    assert res.returncode != 0 and "needs --settle" in res.stderr

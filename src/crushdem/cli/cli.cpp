@@ -119,7 +119,8 @@ const char* kUsage =
     "DIR/checkpoint.bin\n"
     "  check CONFIG.toml                         validate a configuration without running\n"
     "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
-    "        [--state-out FILE] [--backend cpu|cuda]  peer reference benchmark\n";
+    "        [--state-out FILE] [--backend cpu|cuda] [--settle N [--settled-state FILE]]\n"
+    "        peer reference benchmark\n";
 }
 
 int cli_main(const std::vector<std::string>& args) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "crushdem/core/error.hpp"
 
@@ -142,6 +143,27 @@ void write_text_file(const std::string& path, const std::string& text) {
   if (!f) throw ConfigError("cannot write '" + path + "'");
   f << text;
   if (!f) throw ConfigError("cannot write '" + path + "'");
+}
+
+std::string read_binary_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ConfigError("cannot read '" + path + "'");
+  std::ostringstream o;
+  o << f.rdbuf();
+  return o.str();
+}
+
+void write_file_atomically(const std::string& path, const std::string& bytes) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    f.flush();
+    if (!f) throw RuntimeFailure("cannot write '" + tmp + "'");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw RuntimeFailure("cannot write '" + path + "': " + ec.message());
 }
 
 void write_vtk_particles(const std::string& path, const ParticleStore& p,

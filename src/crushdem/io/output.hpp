@@ -50,6 +50,11 @@ struct JsonObject {
   std::string dump(int indent = 0) const;
 };
 void write_text_file(const std::string& path, const std::string& text);
+/// The whole file as bytes (ConfigError naming the path when it cannot be read).
+std::string read_binary_file(const std::string& path);
+/// Writes PATH.tmp and renames it onto PATH, so that a crash while writing leaves the previous
+/// file intact (checkpoints, cached states).
+void write_file_atomically(const std::string& path, const std::string& bytes);
 
 /// Particle snapshot: positions, radius, id, parent id, velocity, angular velocity, the force
 /// given as three arrays (the resultant before damping when the caller has it), extra fields.

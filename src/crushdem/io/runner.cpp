@@ -455,30 +455,6 @@ bool same_resolved_config(const std::string& saved, const std::string& current,
   }
 }
 
-std::string read_binary(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw ConfigError("cannot read '" + path + "'");
-  std::ostringstream o;
-  o << f.rdbuf();
-  return o.str();
-}
-
-/// Written next to the results and renamed into place, so that a crash while writing leaves the
-/// previous checkpoint intact.
-void write_checkpoint_file(const std::filesystem::path& dir, const std::string& bytes) {
-  const std::filesystem::path tmp = dir / "checkpoint.bin.tmp", final_path = dir / "checkpoint.bin";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    f.flush();
-    if (!f) throw RuntimeFailure("cannot write checkpoint '" + tmp.string() + "'");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, final_path, ec);
-  if (ec)
-    throw RuntimeFailure("cannot write checkpoint '" + final_path.string() + "': " + ec.message());
-}
-
 }  // namespace
 
 void request_stop(int signal) {
@@ -521,7 +497,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
       throw ConfigError("crushdem resume: no checkpoint in '" + opt.out_dir + "'" +
                         (fs::exists(dir / "summary.json") ? " (the run has finished)" : ""));
     }
-    in = std::make_unique<StateReader>(read_binary(path), path);
+    in = std::make_unique<StateReader>(read_binary_file(path), path);
     std::string format;
     in->get(format);
     const int version = checkpoint_version(format);
@@ -625,7 +601,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
     if (running) running->save_state(out);
-    write_checkpoint_file(dir, out.bytes());
+    write_file_atomically((dir / "checkpoint.bin").string(), out.bytes());
     write_timing(st.wall_seconds + driver.seconds(), false);
     driver.checkpoint_written();
   };
