@@ -10,8 +10,8 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <memory>
@@ -22,8 +22,8 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/integrate/simulation.hpp"
-#include "crushdem/io/packing.hpp"
 #include "crushdem/io/output.hpp"
+#include "crushdem/io/packing.hpp"
 #include "crushdem/io/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_CUDA
@@ -102,8 +102,9 @@ int bench_main(const std::vector<std::string>& args) {
     throw ConfigError(bad_value("--settle", std::to_string(settle), "a count >= 0"));
   }
   if (!settled_state.empty() && settle == 0) {
-    throw ConfigError("--settled-state '" + settled_state +
-                      "': needs --settle N (the state it caches is the one after N settling steps)");
+    throw ConfigError(
+        "--settled-state '" + settled_state +
+        "': needs --settle N (the state it caches is the one after N settling steps)");
   }
   set_threads(threads);
 
