@@ -6,10 +6,8 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
-#include <sstream>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
