@@ -98,7 +98,7 @@ class Simulation:
         ``dt`` [s] (0 = automatic), ``rayleigh_fraction``, ``safety`` [-],
         ``update_interval`` [steps].
     ``neighbor``
-        ``skin`` [m] (0 = automatic), ``sort_particles`` (bool).
+        ``skin`` [m] (0 = automatic), ``sort_particles`` (bool), ``prune`` (bool).
     ``box``
         ``min``, ``max``: corners [m] as 3-lists.
     ``walls``

@@ -181,13 +181,14 @@ def test_value_conversion():
     # numpy scalars and arrays, tuples, ints for floats, bools
     sim = crushdem.Simulation(
         material={"shear_modulus": np.float64(30e9), "density": 2600},
-        neighbor={"sort_particles": np.bool_(False)},
+        neighbor={"sort_particles": np.bool_(False), "prune": False},
         box={"min": np.zeros(3), "max": (1e-3, 1e-3, np.float32(2e-3))},
         walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
     )
     np.testing.assert_allclose(sim.wall_positions(), [0, 1e-3, 0, 1e-3, 0, 2e-3], rtol=1e-7)
     toml = sim.config_toml()
     assert "sort_particles = false" in toml
+    assert "prune = false" in toml
     assert "shear_modulus = 3e+10" in toml or "shear_modulus = 30000000000.0" in toml
     assert sim.wall_config("zmax")["mode"] == "servo"
     with pytest.raises(ValueError, match="None"):
@@ -196,6 +197,8 @@ def test_value_conversion():
         crushdem.Simulation(material={"density": object()}, box=BOX)
     with pytest.raises(ValueError):
         crushdem.Simulation(neighbor={"sort_particles": 1}, box=BOX)  # an integer is not a boolean
+    with pytest.raises(ValueError, match="neighbor.prune"):
+        crushdem.Simulation(neighbor={"prune": "yes"}, box=BOX)
 
 
 def test_set_wall_moves_it():

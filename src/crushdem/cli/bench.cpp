@@ -93,7 +93,11 @@ int bench_main(const std::vector<std::string>& args) {
   const std::string backend = a.value("--backend", "cpu");
   const long settle = a.integer("--settle", 0);
   const std::string settled_state = a.value("--settled-state", "");
+  const long prune = a.integer("--prune", static_cast<long>(env_number("PRUNE", 1)));
   a.finish();
+  if (prune != 0 && prune != 1) {
+    throw ConfigError(bad_value("--prune", std::to_string(prune), "0 (walk the full list) or 1"));
+  }
   check_backend(backend);
   if (steps <= 0)
     throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
@@ -136,6 +140,7 @@ int bench_main(const std::vector<std::string>& args) {
   cfg.damping.local_alpha = 0.0;  // the peers use viscous contact damping only
   cfg.timestep.dt = env_number("DT", 1.494169e-8);
   cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
+  cfg.neighbor.prune = prune != 0;
   for (int k = 0; k < kNumWalls; ++k) {
     cfg.walls[static_cast<std::size_t>(k)].position = wall_position[static_cast<std::size_t>(k)];
   }
@@ -211,6 +216,7 @@ int bench_main(const std::vector<std::string>& args) {
   advance(warm);
   sim.compute_forces();
   const std::size_t builds0 = sim.neighbors().builds();
+  const std::size_t prunes0 = sim.pruned_neighbors().builds();
   const auto t0 = std::chrono::steady_clock::now();
   advance(steps);
   const auto t1 = std::chrono::steady_clock::now();
@@ -228,6 +234,9 @@ int bench_main(const std::vector<std::string>& args) {
               backend.c_str());
   std::printf("neighbor_pairs=%zu contacts=%zu neigh_builds_timed=%zu\n",
               sim.neighbors().num_pairs(), sim.num_contacts(), sim.neighbors().builds() - builds0);
+  std::printf("pruned_pairs=%zu inner_skin_m=%.3e prune_builds_timed=%zu\n",
+              sim.pruned_neighbors().size(), sim.pruned_neighbors().inner_skin(),
+              sim.pruned_neighbors().builds() - prunes0);
   std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,
               sim.kinetic_energy());
   std::printf("engine_bytes_per_particle=%.0f peak_rss_kib=%ld wall_s=%.4f\n",

@@ -120,6 +120,7 @@ const char* kUsage =
     "  check CONFIG.toml                         validate a configuration without running\n"
     "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
     "        [--state-out FILE] [--backend cpu|cuda] [--settle N [--settled-state FILE]]\n"
+    "        [--prune 0|1]\n"
     "        peer reference benchmark\n";
 }
 

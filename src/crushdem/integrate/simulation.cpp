@@ -269,6 +269,10 @@ struct PairLoop {
   detail::PackedVelocity* V = nullptr;  // from VX .. WZ
   detail::PackedForce* PF = nullptr;    // the sums, zeroed at the start of the loop
   const double* IM = nullptr;           // inverse masses (into V)
+  // The pruned list (PruneMode::Build writes it, Use reads it) and its inner skin.
+  PrunedList::Entry* near = nullptr;
+  NeighborList::Index* near_count = nullptr;
+  double inner_skin = 0.0;
 };
 
 // The CPU pair loop works on batches of touching contacts, in three passes per batch:
@@ -559,7 +563,7 @@ void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
 
 // Appends the touching pairs of particle i to the batch from slot n on (the batch has room for
 // all of i's entries); returns the new fill.
-template <class Law, bool Rolling, std::size_t kCap>
+template <class Law, bool Rolling, PruneMode kMode, std::size_t kCap>
 std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b, std::size_t n) {
   const BatchView<kCap> in = b.view<kCap>();
   const detail::PackedPosition pi = L.P[i];
@@ -571,8 +575,9 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
   const std::size_t n_first = n;
   NeighborList::Index* const slot_entry = b.entry.data();  // in registers through the stores
   NeighborList::Index* const slot_partner = b.partner.data();
-  for (auto e = L.off[i]; e < L.off[i + 1]; ++e) {
-    const auto j = L.nb[e];
+  const auto first = L.off[i];
+  NeighborList::Index kept = 0;  // PruneMode::Build: entries written to the pruned list
+  const auto visit = [&](NeighborList::Index e, NeighborList::Index j) {
     const detail::PackedPosition pj = L.P[j];
     const double dx = pj.x - pi.x, dy = pj.y - pi.y, dz = pj.z - pi.z;
     const double d2 = dx * dx + dy * dy + dz * dz;
@@ -592,6 +597,21 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
     in.f(kD2)[n] = d2;
     in.f(kRJ)[n] = pj.r;
     n += touching ? 1 : 0;
+    if constexpr (kMode == PruneMode::Build) {
+      // Kept when the gap is below the inner skin (every touching pair is); written to the next
+      // slot either way, without a branch, like the batch.
+      const double reach = rsum + L.inner_skin;
+      L.near[first + kept] = {e, j};
+      kept += d2 < reach * reach ? 1 : 0;
+    }
+  };
+  if constexpr (kMode == PruneMode::Use) {
+    const PrunedList::Entry* const near = L.near + first;
+    const NeighborList::Index count = L.near_count[i];
+    for (NeighborList::Index k = 0; k < count; ++k) visit(near[k].e, near[k].j);
+  } else {
+    for (auto e = first; e < L.off[i + 1]; ++e) visit(e, L.nb[e]);
+    if constexpr (kMode == PruneMode::Build) L.near_count[i] = kept;
   }
   // The touching pairs' other inputs.
   for (std::size_t m = n_first; m < n; ++m) {
@@ -632,24 +652,25 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
 // size); a particle with more pairs than that (a large grain among fragments) gets a batch of
 // its own (`grown`). A grain's pairs are never split between batches, and each contact gets the
 // same bits in any batch, so where the batches end changes no result.
-template <class Law, bool Rolling>
+template <class Law, bool Rolling, PruneMode kMode>
 void pair_column(const PairLoop<Law> L, Idx col, PairBatch& batch, PairBatch& grown) {
   constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap
   std::size_t n = 0;
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
     const std::size_t i = L.col_mem[k];
-    const std::size_t degree = L.off[i + 1] - L.off[i];
+    // The entries collect_particle() will walk (each needs a slot in the batch).
+    const std::size_t degree = kMode == PruneMode::Use ? L.near_count[i] : L.off[i + 1] - L.off[i];
     if (n > 0 && n + degree > kFixed) {
       flush_batch<Law, Rolling, kFixed>(L, batch, n);
       n = 0;
     }
     if (degree > kFixed) {  // rare
       grown.reserve(degree);
-      const std::size_t m = collect_particle<Law, Rolling, 0>(L, i, grown, 0);
+      const std::size_t m = collect_particle<Law, Rolling, kMode, 0>(L, i, grown, 0);
       flush_batch<Law, Rolling, 0>(L, grown, m);
       continue;
     }
-    n = collect_particle<Law, Rolling, kFixed>(L, i, batch, n);
+    n = collect_particle<Law, Rolling, kMode, kFixed>(L, i, batch, n);
   }
   flush_batch<Law, Rolling, kFixed>(L, batch, n);
 }
@@ -682,6 +703,10 @@ void Simulation::pair_forces(const Law& law, double h) {
                      touching_.data()};
   const bool pack = !packed_fresh_ || packed_pos_.size() != N || packed_vel_.size() != N;
   const bool zero = !packed_force_zero_ || packed_force_.size() != N;
+  const PruneMode mode = prune_.begin(nl_, cfg_.neighbor.prune, pack);
+  loop.near = prune_.entries.data();
+  loop.near_count = prune_.count.data();
+  loop.inner_skin = prune_.inner_skin();
   packed_fresh_ = packed_force_zero_ = false;  // consumed: the next loop refreshes unless told
   packed_pos_.resize(N);
   packed_vel_.resize(N);
@@ -748,7 +773,17 @@ void Simulation::pair_forces(const Law& law, double h) {
     for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
       std::uint32_t col = 0;
       while (shares.next(color, t, threads, col)) {
-        pair_column<Law, Rolling>(loop, static_cast<Idx>(col), batch, grown);
+        switch (mode) {
+          case PruneMode::Use:
+            pair_column<Law, Rolling, PruneMode::Use>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+          case PruneMode::Build:
+            pair_column<Law, Rolling, PruneMode::Build>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+          case PruneMode::Full:
+            pair_column<Law, Rolling, PruneMode::Full>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+        }
       }
 #pragma omp barrier
     }
@@ -1084,6 +1119,8 @@ void Simulation::load_state(StateReader& in) {
   if (nl_valid_ && nl_.num_particles() != p_.size()) {
     throw RuntimeFailure("checkpoint: neighbour list and particles disagree");
   }
+  // The loaded list may carry the build count the pruned list was made for.
+  prune_.invalidate();
 }
 
 // --- time integration --------------------------------------------------------------------------
@@ -1096,9 +1133,10 @@ void Simulation::set_friction(double mu) {
   cp_.mu = mu;
 }
 
-double Simulation::kick_drift() {
+Simulation::Drift Simulation::kick_drift() {
   // First half kick and drift in one pass; returns the largest squared displacement since the
-  // last neighbour build (the rebuild criterion), also computed in the same pass.
+  // last neighbour build (the rebuild criterion) and in this step (the pruned list's), also
+  // computed in the same pass.
   const double h = dt_, hh = 0.5 * dt_;
   const std::size_t N = p_.size();
   const double* x0 = nl_.x_ref().data();
@@ -1109,8 +1147,8 @@ double Simulation::kick_drift() {
   packed_vel_.resize(N);
   detail::PackedPosition* P = packed_pos_.data();
   detail::PackedVelocity* V = packed_vel_.data();
-  double m2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : m2) if (worth_threading(N))
+  double m2 = 0.0, step2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : m2, step2) if (worth_threading(N))
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double inv_mass = p_.inv_mass[i];
@@ -1133,7 +1171,16 @@ double Simulation::kick_drift() {
     p_.x[i] = x;
     p_.y[i] = y;
     p_.z[i] = z;
-    P[i] = {x, y, z, p_.radius[i]};
+    // The step's displacement is taken from the position the last pair loop saw (its packed
+    // copy), so a position set by hand between steps counts too; a changed radius makes it
+    // infinite (a copy not yet made has radius 0).
+    const detail::PackedPosition seen = P[i];
+    const double radius = p_.radius[i];
+    const double sx = x - seen.x, sy = y - seen.y, sz = z - seen.z;
+    const double s2 = sx * sx + sy * sy + sz * sz;
+    step2 = std::max(step2,
+                     s2 == s2 && seen.r == radius ? s2 : std::numeric_limits<double>::infinity());
+    P[i] = {x, y, z, radius};
     V[i] = {vx, vy, vz, wx, wy, wz, inv_mass, 0.0};
     const double dx = p_.x[i] - x0[i], dy = p_.y[i] - y0[i], dz = p_.z[i] - z0[i];
     const double d2 = dx * dx + dy * dy + dz * dz;
@@ -1141,7 +1188,7 @@ double Simulation::kick_drift() {
     m2 = std::max(m2, d2 == d2 ? d2 : std::numeric_limits<double>::infinity());
   }
   packed_fresh_ = true;
-  return m2;
+  return {m2, step2};
 }
 
 void Simulation::step(std::uint64_t n) {
@@ -1151,7 +1198,9 @@ void Simulation::step(std::uint64_t n) {
     dt();
     if (!forces_valid_ || !nl_valid_) compute_forces();
     const double h = dt_;
-    const double d = std::sqrt(kick_drift());
+    const Drift drift = kick_drift();
+    prune_.add_step(std::sqrt(drift.step2));
+    const double d = std::sqrt(drift.since_build2);
     walls_.move(h);
     if (rebuild_due(d, walls_.max_displacement_since_build(), skin_)) rebuild_neighbors();
     evaluate_forces(h, true);
@@ -1268,6 +1317,7 @@ std::size_t Simulation::memory_bytes() const {
   add(packed_pos_);
   add(packed_vel_);
   add(packed_force_);
+  b += prune_.memory_bytes();
   add(wc_.particle);
   add(wc_.wall);
   for (const auto* v : {&wc_.ft_x, &wc_.ft_y, &wc_.ft_z, &wc_.fx, &wc_.fy, &wc_.fz, &wc_.tx,

@@ -21,6 +21,7 @@
 #include "crushdem/core/part_clock.hpp"
 #include "crushdem/core/work_shares.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
+#include "crushdem/neighbor/pruned_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
 #include "crushdem/walls/walls.hpp"
 
@@ -43,6 +44,7 @@ struct TimestepConfig {
 struct NeighborConfig {
   double skin = 0.0;           // Verlet skin [m]; 0 = 0.5 * smallest radius at the first build
   bool sort_particles = true;  // reorder particles in cell order at each rebuild (cache locality)
+  bool prune = true;           // pair loop walks a pruned copy of the list (PrunedList; speed only)
   void validate() const;
 };
 
@@ -97,6 +99,7 @@ class Simulation {
   Walls& walls() { return walls_; }
   const Walls& walls() const { return walls_; }
   const NeighborList& neighbors() const { return nl_; }
+  const PrunedList& pruned_neighbors() const { return prune_; }
   const ContactParams& contact_params() const { return cp_; }
 
   /// Adds one grain with the configured density; returns its id.
@@ -195,12 +198,17 @@ class Simulation {
   void wall_forces(const Law& law, double increment_dt);
   void evaluate_forces(double increment_dt, bool kick);
   void gather_and_damp(bool kick);
-  double kick_drift();
+  struct Drift {
+    double since_build2;  // largest squared displacement since the last neighbour build [m^2]
+    double step2;         // largest squared displacement in this step [m^2]
+  };
+  Drift kick_drift();
 
   SimulationConfig cfg_;
   ContactParams cp_;
   ParticleStore p_;
   NeighborList nl_;
+  PrunedList prune_;
   Walls walls_;
   WallContacts wc_;
   // Per neighbour entry: tangential history (force on the owner) and the reaction on the partner.

@@ -174,6 +174,7 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     Section s = root.sub("neighbor");
     s.number("skin", c.neighbor.skin);
     s.boolean("sort_particles", c.neighbor.sort_particles);
+    s.boolean("prune", c.neighbor.prune);
     s.finish();
   }
   {
@@ -621,6 +622,7 @@ toml::Table to_toml(const SimulationConfig& c) {
   Table nb;
   nb["skin"] = num(c.neighbor.skin);
   nb["sort_particles"] = Value::make_bool(c.neighbor.sort_particles);
+  nb["prune"] = Value::make_bool(c.neighbor.prune);
   t["neighbor"] = Value::make_table(nb);
   Table box;
   std::vector<Value> lo, hi;

@@ -1,0 +1,192 @@
+// The pruned neighbour list (neighbor.prune) is a speed-up only: with it on, every step must give
+// the same bits as with it off, on any thread count, after a position set by hand between steps,
+// and across a checkpoint.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "crushdem/core/state_io.hpp"
+#include "helpers.hpp"
+
+#ifdef CRUSHDEM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+namespace crushdem {
+namespace {
+
+constexpr double kR0 = 0.5e-3;
+
+// A jittered cubic lattice of radii 0.99 to 1.01 r0 in a box that holds it tightly (overlaps of
+// a few um, about half the list's pairs touching), with random velocities and spins, and
+// rolling resistance on (its history follows the list). Skin r0 / 2.
+Simulation make_sample(bool prune, NormalLaw law) {
+  const int n = 9;
+  const double a = 2.0 * kR0;
+  SimulationConfig cfg = testing::box_config(-0.5 * a, (n - 0.5) * a, law);
+  cfg.material.friction = 0.3;
+  cfg.contact.restitution = 0.5;
+  cfg.contact.rolling_friction = 0.1;
+  cfg.damping.local_alpha = 0.2;
+  cfg.neighbor.prune = prune;
+  cfg.neighbor.skin = 0.5 * kR0;
+  Simulation sim(cfg);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int ix = 0; ix < n; ++ix) {
+    for (int iy = 0; iy < n; ++iy) {
+      for (int iz = 0; iz < n; ++iz) {
+        const Vec3 x{(ix + 0.003 * u(rng)) * a, (iy + 0.003 * u(rng)) * a,
+                     (iz + 0.003 * u(rng)) * a};
+        sim.add_particle(x, kR0 * (0.995 + 0.01 * u(rng)),
+                         Vec3{0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)},
+                         Vec3{50.0 * u(rng), 50.0 * u(rng), 50.0 * u(rng)});
+      }
+    }
+  }
+  return sim;
+}
+
+void set_threads(int t) {
+#ifdef CRUSHDEM_HAVE_OPENMP
+  omp_set_num_threads(t);
+#else
+  (void)t;
+#endif
+}
+
+void expect_same_state(const Simulation& a, const Simulation& b) {
+  const ParticleStore &p = a.particles(), &q = b.particles();
+  ASSERT_EQ(p.size(), q.size());
+  EXPECT_EQ(p.id, q.id);
+  // Exact equality of every value.
+  EXPECT_EQ(p.x, q.x);
+  EXPECT_EQ(p.y, q.y);
+  EXPECT_EQ(p.z, q.z);
+  EXPECT_EQ(p.vx, q.vx);
+  EXPECT_EQ(p.vy, q.vy);
+  EXPECT_EQ(p.vz, q.vz);
+  EXPECT_EQ(p.wx, q.wx);
+  EXPECT_EQ(p.wy, q.wy);
+  EXPECT_EQ(p.wz, q.wz);
+  EXPECT_EQ(p.tx, q.tx);
+  EXPECT_EQ(a.num_contacts(), b.num_contacts());
+}
+
+class Pruning : public ::testing::TestWithParam<NormalLaw> {
+ protected:
+  void TearDown() override { set_threads(saved_threads_); }
+#ifdef CRUSHDEM_HAVE_OPENMP
+  int saved_threads_ = omp_get_max_threads();
+#else
+  int saved_threads_ = 1;
+#endif
+};
+
+TEST_P(Pruning, StepsAreBitIdenticalToTheFullListOnOneAndTwoThreads) {
+  Simulation full = make_sample(false, GetParam());
+  Simulation pruned_1 = make_sample(true, GetParam());
+  Simulation pruned_2 = make_sample(true, GetParam());
+  set_threads(1);
+  full.step(600);
+  pruned_1.step(600);
+  set_threads(2);
+  pruned_2.step(600);
+  expect_same_state(full, pruned_1);
+  expect_same_state(full, pruned_2);
+  // The pruned list was made more than once and used in between, and it is shorter.
+  const PrunedList& list = pruned_2.pruned_neighbors();
+  EXPECT_GE(list.builds(), 2u);
+  EXPECT_LT(list.builds(), 300u);
+  EXPECT_GT(list.size(), 0u);
+  EXPECT_LT(list.size(), pruned_2.neighbors().num_pairs());
+  EXPECT_EQ(full.pruned_neighbors().builds(), 0u);
+}
+
+// A grain moved by hand between steps, into a partner the pruned list had left out (its gap was
+// above the inner skin, and below half the Verlet skin, so the Verlet list stands): the pair is
+// found, as with the full list.
+TEST_P(Pruning, APositionSetByHandIsSeen) {
+  Simulation full = make_sample(false, GetParam());
+  Simulation pruned = make_sample(true, GetParam());
+  full.step(200);
+  pruned.step(200);
+  const NeighborList& nl = pruned.neighbors();
+  const PrunedList& list = pruned.pruned_neighbors();
+  const ParticleStore& p = pruned.particles();
+  ASSERT_GT(list.inner_skin(), 0.0);
+  // The first entry left out whose gap is between twice the inner skin and a quarter skin.
+  std::size_t owner = 0, entry = nl.num_pairs();
+  double gap = 0.0;
+  for (std::size_t i = 0; i < nl.num_particles() && entry == nl.num_pairs(); ++i) {
+    for (auto e = nl.offsets[i]; e < nl.offsets[i + 1]; ++e) {
+      const std::size_t j = nl.neighbors[e];
+      const double d = std::hypot(p.x[j] - p.x[i], p.y[j] - p.y[i], p.z[j] - p.z[i]);
+      const double g = d - p.radius[i] - p.radius[j];
+      bool kept = false;
+      for (auto k = nl.offsets[i]; k < nl.offsets[i] + list.count[i]; ++k) {
+        kept = kept || list.entries[k].e == e;
+      }
+      if (!kept && g > 2.0 * list.inner_skin() && g < 0.25 * nl.skin()) {
+        owner = i;
+        entry = e;
+        gap = g;
+        break;
+      }
+    }
+  }
+  ASSERT_LT(entry, nl.num_pairs()) << "no entry left out at a suitable gap";
+  const std::size_t i = owner, j = nl.neighbors[entry];
+  // Move i towards j by its gap and 1 % of r0: an overlap of 5 um.
+  const double d = std::hypot(p.x[j] - p.x[i], p.y[j] - p.y[i], p.z[j] - p.z[i]);
+  const double shift = (gap + 0.01 * kR0) / d;
+  for (Simulation* sim : {&full, &pruned}) {
+    ParticleStore& q = sim->particles();
+    const double dx = q.x[j] - q.x[i], dy = q.y[j] - q.y[i], dz = q.z[j] - q.z[i];
+    q.x[i] += shift * dx;
+    q.y[i] += shift * dy;
+    q.z[i] += shift * dz;
+  }
+  const std::size_t builds = nl.builds();
+  full.step(1);
+  pruned.step(1);
+  EXPECT_EQ(pruned.neighbors().builds(), builds) << "the Verlet list was rebuilt: no test";
+  // The moved pair touches, and the two runs agree.
+  bool touching = false;
+  for (const ContactRecord& c : pruned.contacts()) {
+    touching = touching || (!c.is_wall && ((c.id_i == p.id[i] && c.id_j == p.id[j]) ||
+                                           (c.id_i == p.id[j] && c.id_j == p.id[i])));
+  }
+  EXPECT_TRUE(touching);
+  expect_same_state(full, pruned);
+  full.step(100);
+  pruned.step(100);
+  expect_same_state(full, pruned);
+}
+
+// A run stopped and continued from a checkpoint: the loaded state may carry the build count the
+// pruned list was made for, with other entries behind it.
+TEST_P(Pruning, ACheckpointedRunContinuesBitIdentically) {
+  Simulation full = make_sample(false, GetParam());
+  Simulation first = make_sample(true, GetParam());
+  full.step(300);
+  first.step(150);
+  StateWriter out;
+  first.save_state(out);
+  Simulation second = make_sample(true, GetParam());
+  second.step(40);  // a pruned list of its own, for another state
+  StateReader in(out.bytes(), "memory");
+  second.load_state(in);
+  second.step(150);
+  expect_same_state(full, second);
+}
+
+INSTANTIATE_TEST_SUITE_P(Laws, Pruning, ::testing::Values(NormalLaw::Hertz, NormalLaw::Rough),
+                         [](const ::testing::TestParamInfo<NormalLaw>& law) {
+                           return law.param == NormalLaw::Hertz ? "Hertz" : "Rough";
+                         });
+
+}  // namespace
+}  // namespace crushdem
