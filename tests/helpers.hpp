@@ -1,6 +1,9 @@
 // Shared set-up for the C++ tests.
 #pragma once
 
+#include <cstdint>
+#include <random>
+
 #include "crushdem/integrate/simulation.hpp"
 
 namespace crushdem::testing {
@@ -14,6 +17,27 @@ inline SimulationConfig box_config(double lo, double hi, NormalLaw law = NormalL
     c.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? lo : hi;
   }
   return c;
+}
+
+/// Adds an n x n x n cubic lattice of spacing a from the origin: each coordinate jittered by
+/// up to jitter a, radius r0 (radius_mean + radius_spread u), velocity components up to speed
+/// and spin components up to spin, with u uniform in [-1, 1] from a generator seeded with seed.
+inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t seed,
+                                 double jitter, double r0, double radius_mean, double radius_spread,
+                                 double speed, double spin) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int ix = 0; ix < n; ++ix) {
+    for (int iy = 0; iy < n; ++iy) {
+      for (int iz = 0; iz < n; ++iz) {
+        const Vec3 x{(ix + jitter * u(rng)) * a, (iy + jitter * u(rng)) * a,
+                     (iz + jitter * u(rng)) * a};
+        sim.add_particle(x, r0 * (radius_mean + radius_spread * u(rng)),
+                         Vec3{speed * u(rng), speed * u(rng), speed * u(rng)},
+                         Vec3{spin * u(rng), spin * u(rng), spin * u(rng)});
+      }
+    }
+  }
 }
 
 }  // namespace crushdem::testing

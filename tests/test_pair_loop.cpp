@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <vector>
 
 #include "crushdem/contact/contact_kernel.hpp"
@@ -67,18 +66,7 @@ Simulation make_sample(NormalLaw law, bool wide_skin = false) {
   cfg.contact.rolling_friction = 0.1;
   if (wide_skin) cfg.neighbor.skin = 4.0 * a;
   Simulation sim(cfg);
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (int ix = 0; ix < n; ++ix) {
-    for (int iy = 0; iy < n; ++iy) {
-      for (int iz = 0; iz < n; ++iz) {
-        const Vec3 x{(ix + 0.02 * u(rng)) * a, (iy + 0.02 * u(rng)) * a, (iz + 0.02 * u(rng)) * a};
-        sim.add_particle(x, r0 * (1.0 + 0.2 * u(rng)),
-                         Vec3{0.1 * u(rng), 0.1 * u(rng), 0.1 * u(rng)},
-                         Vec3{100.0 * u(rng), 100.0 * u(rng), 100.0 * u(rng)});
-      }
-    }
-  }
+  testing::add_jittered_lattice(sim, n, a, 7, 0.02, r0, 1.0, 0.2, 0.1, 100.0);
   return sim;
 }
 

@@ -4,9 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 #include <vector>
 
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "helpers.hpp"
 
@@ -33,19 +33,7 @@ Simulation make_sample(bool prune, NormalLaw law) {
   cfg.neighbor.prune = prune;
   cfg.neighbor.skin = 0.5 * kR0;
   Simulation sim(cfg);
-  std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (int ix = 0; ix < n; ++ix) {
-    for (int iy = 0; iy < n; ++iy) {
-      for (int iz = 0; iz < n; ++iz) {
-        const Vec3 x{(ix + 0.003 * u(rng)) * a, (iy + 0.003 * u(rng)) * a,
-                     (iz + 0.003 * u(rng)) * a};
-        sim.add_particle(x, kR0 * (0.995 + 0.01 * u(rng)),
-                         Vec3{0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)},
-                         Vec3{50.0 * u(rng), 50.0 * u(rng), 50.0 * u(rng)});
-      }
-    }
-  }
+  testing::add_jittered_lattice(sim, n, a, 11, 0.003, kR0, 0.995, 0.01, 0.05, 50.0);
   return sim;
 }
 
@@ -77,7 +65,11 @@ void expect_same_state(const Simulation& a, const Simulation& b) {
 
 class Pruning : public ::testing::TestWithParam<NormalLaw> {
  protected:
-  void TearDown() override { set_threads(saved_threads_); }
+  void TearDown() override {
+    set_threads(saved_threads_);
+    threading_threshold() = saved_threshold_;
+  }
+  std::size_t saved_threshold_ = threading_threshold();
 #ifdef CRUSHDEM_HAVE_OPENMP
   int saved_threads_ = omp_get_max_threads();
 #else
@@ -93,6 +85,7 @@ TEST_P(Pruning, StepsAreBitIdenticalToTheFullListOnOneAndTwoThreads) {
   full.step(600);
   pruned_1.step(600);
   set_threads(2);
+  threading_threshold() = 0;  // thread even this small system (729 grains)
   pruned_2.step(600);
   expect_same_state(full, pruned_1);
   expect_same_state(full, pruned_2);

@@ -44,7 +44,7 @@ class PrunedList {
   using Index = NeighborList::Index;
   struct Entry {
     Index e;  // the Verlet list entry (its history and touch flag)
-    Index j;  // the partner, neighbors[e], kept beside it to save a dependent load
+    Index j;  // the partner, neighbors[e], copied so that the walk reads one array
   };
   /// Steps a list should last at the current speed (each build costs a walk of the full list).
   static constexpr double kTargetSteps = 32.0;
