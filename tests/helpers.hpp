@@ -1,6 +1,8 @@
 // Shared set-up for the C++ tests.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <random>
 
@@ -55,6 +57,25 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem::testing {
+
+/// Every particle value and the contact count of two simulations equal, bit for bit.
+inline void expect_same_state(const Simulation& a, const Simulation& b) {
+  const ParticleStore &p = a.particles(), &q = b.particles();
+  ASSERT_EQ(p.size(), q.size());
+  EXPECT_EQ(p.id, q.id);
+  // Exact equality of every value.
+  EXPECT_EQ(p.x, q.x);
+  EXPECT_EQ(p.y, q.y);
+  EXPECT_EQ(p.z, q.z);
+  EXPECT_EQ(p.vx, q.vx);
+  EXPECT_EQ(p.vy, q.vy);
+  EXPECT_EQ(p.vz, q.vz);
+  EXPECT_EQ(p.wx, q.wx);
+  EXPECT_EQ(p.wy, q.wy);
+  EXPECT_EQ(p.wz, q.wz);
+  EXPECT_EQ(p.tx, q.tx);
+  EXPECT_EQ(a.num_contacts(), b.num_contacts());
+}
 
 /// A CSV file as columns of numbers.
 inline std::map<std::string, std::vector<double>> read_csv(const std::string& path) {

@@ -45,24 +45,6 @@ void set_threads(int t) {
 #endif
 }
 
-void expect_same_state(const Simulation& a, const Simulation& b) {
-  const ParticleStore &p = a.particles(), &q = b.particles();
-  ASSERT_EQ(p.size(), q.size());
-  EXPECT_EQ(p.id, q.id);
-  // Exact equality of every value.
-  EXPECT_EQ(p.x, q.x);
-  EXPECT_EQ(p.y, q.y);
-  EXPECT_EQ(p.z, q.z);
-  EXPECT_EQ(p.vx, q.vx);
-  EXPECT_EQ(p.vy, q.vy);
-  EXPECT_EQ(p.vz, q.vz);
-  EXPECT_EQ(p.wx, q.wx);
-  EXPECT_EQ(p.wy, q.wy);
-  EXPECT_EQ(p.wz, q.wz);
-  EXPECT_EQ(p.tx, q.tx);
-  EXPECT_EQ(a.num_contacts(), b.num_contacts());
-}
-
 class Pruning : public ::testing::TestWithParam<NormalLaw> {
  protected:
   void TearDown() override {
@@ -87,8 +69,8 @@ TEST_P(Pruning, StepsAreBitIdenticalToTheFullListOnOneAndTwoThreads) {
   set_threads(2);
   threading_threshold() = 0;  // thread even this small system (729 grains)
   pruned_2.step(600);
-  expect_same_state(full, pruned_1);
-  expect_same_state(full, pruned_2);
+  testing::expect_same_state(full, pruned_1);
+  testing::expect_same_state(full, pruned_2);
   // The pruned list was made more than once and used in between, and it is shorter.
   const PrunedList& list = pruned_2.pruned_neighbors();
   EXPECT_GE(list.builds(), 2u);
@@ -153,10 +135,10 @@ TEST_P(Pruning, APositionSetByHandIsSeen) {
                                            (c.id_i == p.id[j] && c.id_j == p.id[i])));
   }
   EXPECT_TRUE(touching);
-  expect_same_state(full, pruned);
+  testing::expect_same_state(full, pruned);
   full.step(100);
   pruned.step(100);
-  expect_same_state(full, pruned);
+  testing::expect_same_state(full, pruned);
 }
 
 // A run stopped and continued from a checkpoint: the loaded state may carry the build count the
@@ -173,7 +155,7 @@ TEST_P(Pruning, ACheckpointedRunContinuesBitIdentically) {
   StateReader in(out.bytes(), "memory");
   second.load_state(in);
   second.step(150);
-  expect_same_state(full, second);
+  testing::expect_same_state(full, second);
 }
 
 INSTANTIATE_TEST_SUITE_P(Laws, Pruning, ::testing::Values(NormalLaw::Hertz, NormalLaw::Rough),

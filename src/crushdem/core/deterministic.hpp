@@ -39,6 +39,18 @@ inline int max_team_size() {
 #endif
 }
 
+/// Thread t's contiguous share [first, last) of n items among `threads`, as `schedule(static)`
+/// deals them (the first n % threads shares one item longer), for a loop that must know its
+/// range before it starts.
+struct Share {
+  std::size_t first, last;
+};
+inline Share static_share(std::size_t n, std::size_t threads, std::size_t t) {
+  const std::size_t q = n / threads, r = n % threads;
+  const std::size_t first = t * q + (t < r ? t : r);
+  return {first, first + q + (t < r ? 1 : 0)};
+}
+
 inline constexpr std::size_t kReductionBlock = 1024;
 
 /// Below this many items a loop runs on one thread: forking and joining a team costs more than

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <tuple>
@@ -16,6 +17,95 @@ namespace crushdem {
 namespace {
 
 using Idx = std::ptrdiff_t;
+
+// The first half kick and drift of velocity Verlet for one grain, the pair loop's packed copies
+// written from values already in registers, and the two squared-displacement maxima: since the
+// last neighbour build (the rebuild criterion) and in this step (the pruned list's). Inlined into
+// kick_drift() and into the gather pass of the step before (gather_grains<.., kDrift = true>),
+// both loops in vector lanes: each element gets the same operations as a scalar loop, and max()
+// is exact, so the lanes change no bit.
+struct KickDrift {
+  double h, hh;
+  double *x, *y, *z, *vx, *vy, *vz, *wx, *wy, *wz;
+  const double *fx, *fy, *fz, *tx, *ty, *tz, *inv_mass, *inv_inertia, *radius;
+  const double *x0, *y0, *z0;  // positions at the last neighbour build
+  detail::PackedPosition* P;
+  detail::PackedVelocity* V;
+
+  KickDrift(ParticleStore& p, const NeighborList& nl, std::vector<detail::PackedPosition>& pos,
+            std::vector<detail::PackedVelocity>& vel, double dt)
+      : h(dt),
+        hh(0.5 * dt),
+        x(p.x.data()),
+        y(p.y.data()),
+        z(p.z.data()),
+        vx(p.vx.data()),
+        vy(p.vy.data()),
+        vz(p.vz.data()),
+        wx(p.wx.data()),
+        wy(p.wy.data()),
+        wz(p.wz.data()),
+        fx(p.fx.data()),
+        fy(p.fy.data()),
+        fz(p.fz.data()),
+        tx(p.tx.data()),
+        ty(p.ty.data()),
+        tz(p.tz.data()),
+        inv_mass(p.inv_mass.data()),
+        inv_inertia(p.inv_inertia.data()),
+        radius(p.radius.data()),
+        x0(nl.x_ref().data()),
+        y0(nl.y_ref().data()),
+        z0(nl.z_ref().data()) {
+    pos.resize(p.size());
+    vel.resize(p.size());
+    P = pos.data();
+    V = vel.data();
+  }
+
+  // F and T: the force and torque on the grain (p.fx ... p.tz, or the same values still in
+  // registers when fused with the gather pass).
+  void operator()(std::size_t i, double Fx, double Fy, double Fz, double Tx, double Ty, double Tz,
+                  double& since_build2, double& step2) const {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    const double im = inv_mass[i];
+    const double a = hh * im, b = hh * inv_inertia[i];
+    const double vx1 = vx[i] + a * Fx;
+    const double vy1 = vy[i] + a * Fy;
+    const double vz1 = vz[i] + a * Fz;
+    const double wx1 = wx[i] + b * Tx;
+    const double wy1 = wy[i] + b * Ty;
+    const double wz1 = wz[i] + b * Tz;
+    const double x1 = x[i] + h * vx1;
+    const double y1 = y[i] + h * vy1;
+    const double z1 = z[i] + h * vz1;
+    vx[i] = vx1;
+    vy[i] = vy1;
+    vz[i] = vz1;
+    wx[i] = wx1;
+    wy[i] = wy1;
+    wz[i] = wz1;
+    x[i] = x1;
+    y[i] = y1;
+    z[i] = z1;
+    // The step's displacement is taken from the position the last pair loop saw (its packed
+    // copy), so a position set by hand between steps counts too; a changed radius makes it
+    // infinite (a copy not yet made has radius 0).
+    const detail::PackedPosition seen = P[i];
+    const double r = radius[i];
+    const double sx = x1 - seen.x, sy = y1 - seen.y, sz = z1 - seen.z;
+    const double s2 = sx * sx + sy * sy + sz * sz;
+    const double s2_checked = s2 == s2 && seen.r == r ? s2 : kInf;
+    step2 = step2 < s2_checked ? s2_checked : step2;
+    P[i] = {x1, y1, z1, r};
+    V[i] = {vx1, vy1, vz1, wx1, wy1, wz1, im, 0.0};
+    const double dx = x1 - x0[i], dy = y1 - y0[i], dz = z1 - z0[i];
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    // A NaN must not be lost by max(): make it infinite so the rebuild (and its check) runs.
+    const double d2_checked = d2 == d2 ? d2 : kInf;
+    since_build2 = since_build2 < d2_checked ? d2_checked : since_build2;
+  }
+};
 
 }  // namespace
 
@@ -160,6 +250,7 @@ std::vector<ParticleId> Simulation::apply_topology(const TopologyChange& change)
 
 void Simulation::invalidate() {
   capture_history();
+  next_drift_.reset();
   nl_valid_ = false;
   forces_valid_ = false;
   dt_valid_ = false;
@@ -300,22 +391,27 @@ enum BatchField : std::size_t {
 };
 // clang-format on
 
-// The kBatchFields columns of a batch, column k at data + k cap. kCap: the cap as a compile-time
-// constant, for the fixed-size batch that holds nearly every contact: each column is then one
-// register plus a constant offset. With the cap a run-time value (kCap = 0, the batch of a grain
-// with more list entries than the fixed one holds) the loops over a batch need the 40 column
-// addresses in registers, x86-64 has 16, and every load or store first reloaded its address from
-// the stack (a fifth of the collect pass's instructions).
+// Each column of a batch ends in kBatchPad spare slots, so that a group of four slots starting at
+// any used slot stays inside its column (scatter_sums() reads whole groups and ignores the lanes
+// past the fill).
+inline constexpr std::size_t kBatchPad = 4;
+
+// The kBatchFields columns of a batch, column k at data + k (cap + kBatchPad). kCap: the cap as
+// a compile-time constant, for the fixed-size batch that holds nearly every contact: each column
+// is then one register plus a constant offset. With the cap a run-time value (kCap = 0, the
+// batch of a grain with more list entries than the fixed one holds) the loops over a batch need
+// the 40 column addresses in registers, x86-64 has 16, and every load or store first reloaded
+// its address from the stack (a fifth of the collect pass's instructions).
 template <std::size_t kCap>
 struct BatchView {
   double* data;
   std::size_t cap;  // read only when kCap == 0
-  double* f(BatchField k) const { return data + k * (kCap != 0 ? kCap : cap); }
+  double* f(BatchField k) const { return data + k * ((kCap != 0 ? kCap : cap) + kBatchPad); }
 };
 
-// One thread's batch: kBatchFields arrays of `cap` doubles, plus the entry, partner and owner
-// bookkeeping of the scatter pass, and a second set of arrays for the contacts that need the
-// exact evaluation (evaluate_batch()).
+// One thread's batch: kBatchFields arrays of `cap` (+ kBatchPad) doubles, plus the entry, partner
+// and owner bookkeeping of the scatter pass, and a second set of arrays for the contacts that need
+// the exact evaluation (evaluate_batch()).
 struct PairBatch {
   // Slots of the fixed-size batch (about 43 KB, fits in L2): the list entries of the grains in
   // it, of which the touching ones are kept. That batch is reserved once with exactly this
@@ -332,8 +428,8 @@ struct PairBatch {
   void reserve(std::size_t n) {
     if (n <= cap) return;
     cap = std::max(n, kTarget);
-    data.assign(cap * kBatchFields, 0.0);
-    exact_data.assign(cap * kBatchFields, 0.0);
+    data.assign((cap + kBatchPad) * kBatchFields, 0.0);
+    exact_data.assign((cap + kBatchPad) * kBatchFields, 0.0);
     entry.resize(cap);
     partner.resize(cap);
     owner.resize(cap);
@@ -485,9 +581,138 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   }
 }
 
+// The contact load of one contact (crushing): the largest contact stress on each grain, and the
+// largest normal force with its normal. j is safe to write for the same reason as its sums
+// (column colouring).
+template <class Law, std::size_t kCap>
+inline void track_contact_load(const PairLoop<Law>& L, const BatchView<kCap> b, std::size_t m,
+                               std::size_t i, std::size_t j) {
+  const double F_n = b.f(kFN)[m];
+  const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
+  const double sig =
+      pair_contact_stress(F_n, L.inv_pi_k, pair_R_star(b.f(kRI)[m], b.f(kRJ)[m]), b.f(kDELTA)[m]);
+  if (sig > L.LS[i]) L.LS[i] = sig;
+  if (sig > L.LS[j]) L.LS[j] = sig;
+  if (F_n > L.LF[i]) {
+    L.LF[i] = F_n;
+    L.LNX[i] = normal.x;
+    L.LNY[i] = normal.y;
+    L.LNZ[i] = normal.z;
+  }
+  if (F_n > L.LF[j]) {
+    L.LF[j] = F_n;
+    L.LNX[j] = -normal.x;
+    L.LNY[j] = -normal.y;
+    L.LNZ[j] = -normal.z;
+  }
+}
+
+// Four doubles in one vector register (AVX), or two SSE registers where there is no AVX: GCC
+// lowers the same code either way.
+using v4d = double __attribute__((vector_size(32)));
+using v2d = double __attribute__((vector_size(16)));
+inline v4d load4(const double* p) {
+  v4d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline v2d load2(const double* p) {
+  v2d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4(double* p, v4d v) {
+  std::memcpy(p, &v, sizeof v);
+}
+inline void store2(double* p, v2d v) {
+  std::memcpy(p, &v, sizeof v);
+}
+// Rows k = 0..3 of the 4 x 4 matrix whose columns are a, b, c, d: (a[k], b[k], c[k], d[k]).
+inline void transpose4(v4d a, v4d b, v4d c, v4d d, v4d row[4]) {
+  const v4d ab_even = __builtin_shufflevector(a, b, 0, 4, 2, 6);  // a0 b0 a2 b2
+  const v4d ab_odd = __builtin_shufflevector(a, b, 1, 5, 3, 7);   // a1 b1 a3 b3
+  const v4d cd_even = __builtin_shufflevector(c, d, 0, 4, 2, 6);
+  const v4d cd_odd = __builtin_shufflevector(c, d, 1, 5, 3, 7);
+  row[0] = __builtin_shufflevector(ab_even, cd_even, 0, 1, 4, 5);
+  row[1] = __builtin_shufflevector(ab_odd, cd_odd, 0, 1, 4, 5);
+  row[2] = __builtin_shufflevector(ab_even, cd_even, 2, 3, 6, 7);
+  row[3] = __builtin_shufflevector(ab_odd, cd_odd, 2, 3, 6, 7);
+}
+
+// The scatter pass without rolling resistance: each contact's force and torques added to both
+// grains' sums (PackedForce: fx fy fz tx | ty tz) and its new history stored, in the collect
+// order. Each grain's sums get the same IEEE operations in the same order as a scalar loop
+// (x - (-y) is x + y exactly), so the bits do not change; but four contacts at a time are turned
+// from the batch's columns into rows, so that a partner's six sums take one 4-wide and one
+// 2-wide subtraction instead of six scalar ones.
+template <class Law, std::size_t kCap>
+void scatter_sums(const PairLoop<Law>& L, PairBatch& pb, std::size_t n) {
+  const BatchView<kCap> b = pb.view<kCap>();
+  const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
+  const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
+  const double *ai = b.f(kAI), *aj = b.f(kAJ);
+  const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
+  const NeighborList::Index* const entry = pb.entry.data();
+  const NeighborList::Index* const partner = pb.partner.data();
+  const NeighborList::Index* const owner = pb.owner.data();
+  const NeighborList::Index* const owner_end = pb.owner_end.data();
+  double* const PF = &L.PF->fx;  // eight doubles per grain
+  const v4d zero{0.0, 0.0, 0.0, 0.0};
+  std::size_t q = 0;       // the owner of contact m
+  v4d F = zero, T = zero;  // its sums so far: force (lanes 0-2), torque (lanes 0-2)
+  const auto finish_owner = [&] {
+    double* const sum = PF + 8 * std::size_t{owner[q]};
+    store4(sum, load4(sum) + __builtin_shufflevector(F, T, 0, 1, 2, 4));    // fx fy fz tx
+    store2(sum + 4, load2(sum + 4) + __builtin_shufflevector(T, T, 1, 2));  // ty tz
+    F = T = zero;
+    ++q;
+  };
+  for (std::size_t m0 = 0; m0 < n; m0 += 4) {
+    // Columns m0 .. m0+3 (kBatchPad; lanes past n are never used).
+    const v4d AI = load4(ai + m0), AJ = load4(aj + m0);
+    const v4d TX = load4(tnx + m0), TY = load4(tny + m0), TZ = load4(tnz + m0);
+    v4d on_j[4], on_i_torque[4];
+    // On j: fx fy fz subtracted, and aj tn_x added as the subtraction of its negative.
+    transpose4(load4(fx + m0), load4(fy + m0), load4(fz + m0), -(AJ * TX), on_j);
+    transpose4(AI * TX, AI * TY, AI * TZ, zero, on_i_torque);
+    const v4d ajy = AJ * TY, ajz = AJ * TZ;
+    const v4d yz_lo = __builtin_shufflevector(ajy, ajz, 0, 4, 1, 5);  // y0 z0 y1 z1
+    const v4d yz_hi = __builtin_shufflevector(ajy, ajz, 2, 6, 3, 7);  // y2 z2 y3 z3
+    const v2d on_j_yz[4] = {
+        __builtin_shufflevector(yz_lo, yz_lo, 0, 1), __builtin_shufflevector(yz_lo, yz_lo, 2, 3),
+        __builtin_shufflevector(yz_hi, yz_hi, 0, 1), __builtin_shufflevector(yz_hi, yz_hi, 2, 3)};
+    const std::size_t group = std::min<std::size_t>(4, n - m0);
+    for (std::size_t k = 0; k < group; ++k) {
+      const std::size_t m = m0 + k;
+      if (m == owner_end[q]) finish_owner();
+      const std::size_t e = entry[m];
+      L.ftx[e] = ftx[m];
+      L.fty[e] = fty[m];
+      L.ftz[e] = ftz[m];
+      F += on_j[k];  // lanes 0-2 (lane 3 is not used)
+      T += on_i_torque[k];
+      double* const sum = PF + 8 * std::size_t{partner[m]};
+      store4(sum, load4(sum) - on_j[k]);
+      store2(sum + 4, load2(sum + 4) + on_j_yz[k]);
+    }
+  }
+  if (n > 0) finish_owner();
+  if (L.LS) {  // the contact load, in the same order (a tie keeps the first normal)
+    std::size_t m = 0;
+    for (std::size_t r = 0; r < pb.owners; ++r) {
+      for (; m < owner_end[r]; ++m) track_contact_load<Law, kCap>(L, b, m, owner[r], partner[m]);
+    }
+  }
+}
+
 template <class Law, bool Rolling, std::size_t kCap>
 void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
   evaluate_batch<Law, Rolling, kCap>(L, pb, n);
+  if constexpr (!Rolling) {
+    scatter_sums<Law, kCap>(L, pb, n);
+    pb.owners = 0;
+    return;
+  }
   const BatchView<kCap> b = pb.view<kCap>();
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
@@ -519,37 +744,15 @@ void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
       L.PF[j].tx += aj[m] * tn.x;
       L.PF[j].ty += aj[m] * tn.y;
       L.PF[j].tz += aj[m] * tn.z;
-      if constexpr (Rolling) {
-        const Vec3 M_r{mrx[m], mry[m], mrz[m]};
-        L.mrx[e] = M_r.x;
-        L.mry[e] = M_r.y;
-        L.mrz[e] = M_r.z;
-        T += M_r;
-        L.PF[j].tx -= M_r.x;
-        L.PF[j].ty -= M_r.y;
-        L.PF[j].tz -= M_r.z;
-      }
-      if (L.LS) {
-        // j is safe to write here for the same reason as FX[j] (column colouring).
-        const double F_n = b.f(kFN)[m];
-        const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
-        const double sig = pair_contact_stress(
-            F_n, L.inv_pi_k, pair_R_star(b.f(kRI)[m], b.f(kRJ)[m]), b.f(kDELTA)[m]);
-        if (sig > L.LS[i]) L.LS[i] = sig;
-        if (sig > L.LS[j]) L.LS[j] = sig;
-        if (F_n > L.LF[i]) {
-          L.LF[i] = F_n;
-          L.LNX[i] = normal.x;
-          L.LNY[i] = normal.y;
-          L.LNZ[i] = normal.z;
-        }
-        if (F_n > L.LF[j]) {
-          L.LF[j] = F_n;
-          L.LNX[j] = -normal.x;
-          L.LNY[j] = -normal.y;
-          L.LNZ[j] = -normal.z;
-        }
-      }
+      const Vec3 M_r{mrx[m], mry[m], mrz[m]};
+      L.mrx[e] = M_r.x;
+      L.mry[e] = M_r.y;
+      L.mrz[e] = M_r.z;
+      T += M_r;
+      L.PF[j].tx -= M_r.x;
+      L.PF[j].ty -= M_r.y;
+      L.PF[j].tz -= M_r.z;
+      if (L.LS) track_contact_load<Law, kCap>(L, b, m, i, j);
     }
     L.PF[i].fx += F.x;
     L.PF[i].fy += F.y;
@@ -559,6 +762,36 @@ void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
     L.PF[i].tz += T.z;
   }
   pb.owners = 0;
+}
+
+// A pair's batch inputs beyond the overlap test: radius of i, relative velocity, spins,
+// inverse masses and the history of entry e, into slot m. (A transposed copy, four partners'
+// velocity lines turned into columns with vector shuffles, measured 5 % slower on the whole
+// step: bench/README.md, session 14.)
+template <class Law, bool Rolling, std::size_t kCap>
+inline void write_motion_inputs(const PairLoop<Law>& L, const BatchView<kCap> in, std::size_t m,
+                                std::size_t e, double r_i, const detail::PackedVelocity& vi,
+                                const detail::PackedVelocity& vj) {
+  in.f(kRI)[m] = r_i;
+  in.f(kDVX)[m] = vi.vx - vj.vx;
+  in.f(kDVY)[m] = vi.vy - vj.vy;
+  in.f(kDVZ)[m] = vi.vz - vj.vz;
+  in.f(kWIX)[m] = vi.wx;
+  in.f(kWIY)[m] = vi.wy;
+  in.f(kWIZ)[m] = vi.wz;
+  in.f(kWJX)[m] = vj.wx;
+  in.f(kWJY)[m] = vj.wy;
+  in.f(kWJZ)[m] = vj.wz;
+  in.f(kIMI)[m] = vi.inv_mass;
+  in.f(kIMJ)[m] = vj.inv_mass;
+  in.f(kFTX)[m] = L.ftx[e];
+  in.f(kFTY)[m] = L.fty[e];
+  in.f(kFTZ)[m] = L.ftz[e];
+  if constexpr (Rolling) {
+    in.f(kMRX)[m] = L.mrx[e];
+    in.f(kMRY)[m] = L.mry[e];
+    in.f(kMRZ)[m] = L.mrz[e];
+  }
 }
 
 // Appends the touching pairs of particle i to the batch from slot n on (the batch has room for
@@ -596,6 +829,11 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
     in.f(kDZ)[n] = dz;
     in.f(kD2)[n] = d2;
     in.f(kRJ)[n] = pj.r;
+    if constexpr (kMode == PruneMode::Use) {
+      // Nearly every pruned entry touches: its other inputs are written here, in the same pass,
+      // rather than in a second pass over the kept slots.
+      write_motion_inputs<Law, Rolling, kCap>(L, in, n, e, pi.r, vi, L.V[j]);
+    }
     n += touching ? 1 : 0;
     if constexpr (kMode == PruneMode::Build) {
       // Kept when the gap is below the inner skin (every touching pair is); written to the next
@@ -613,29 +851,12 @@ std::size_t collect_particle(const PairLoop<Law>& L, std::size_t i, PairBatch& b
     for (auto e = first; e < L.off[i + 1]; ++e) visit(e, L.nb[e]);
     if constexpr (kMode == PruneMode::Build) L.near_count[i] = kept;
   }
-  // The touching pairs' other inputs.
-  for (std::size_t m = n_first; m < n; ++m) {
-    const std::size_t e = slot_entry[m];
-    const detail::PackedVelocity& vj = L.V[slot_partner[m]];
-    in.f(kRI)[m] = pi.r;
-    in.f(kDVX)[m] = vi.vx - vj.vx;
-    in.f(kDVY)[m] = vi.vy - vj.vy;
-    in.f(kDVZ)[m] = vi.vz - vj.vz;
-    in.f(kWIX)[m] = vi.wx;
-    in.f(kWIY)[m] = vi.wy;
-    in.f(kWIZ)[m] = vi.wz;
-    in.f(kWJX)[m] = vj.wx;
-    in.f(kWJY)[m] = vj.wy;
-    in.f(kWJZ)[m] = vj.wz;
-    in.f(kIMI)[m] = vi.inv_mass;
-    in.f(kIMJ)[m] = vj.inv_mass;
-    in.f(kFTX)[m] = L.ftx[e];
-    in.f(kFTY)[m] = L.fty[e];
-    in.f(kFTZ)[m] = L.ftz[e];
-    if constexpr (Rolling) {
-      in.f(kMRX)[m] = L.mrx[e];
-      in.f(kMRY)[m] = L.mry[e];
-      in.f(kMRZ)[m] = L.mrz[e];
+  // The touching pairs' other inputs (a second pass over the kept slots: with the full list
+  // about a third of the entries do not touch).
+  if constexpr (kMode != PruneMode::Use) {
+    for (std::size_t m = n_first; m < n; ++m) {
+      write_motion_inputs<Law, Rolling, kCap>(L, in, m, slot_entry[m], pi.r, vi,
+                                              L.V[slot_partner[m]]);
     }
   }
   // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
@@ -934,50 +1155,111 @@ void Simulation::wall_forces(const Law& law, double h) {
   }
 }
 
-void Simulation::gather_and_damp(bool kick) {
+void Simulation::gather_and_damp(bool kick, bool drift_next) {
   const std::size_t N = p_.size();
   fu_x_.resize(N);
   fu_y_.resize(N);
   fu_z_.resize(N);
-  const double alpha = cfg_.damping.local_alpha;
-  const double hh = 0.5 * dt_;
-#pragma omp parallel for schedule(static) if (worth_threading(N))
-  for (Idx jj = 0; jj < static_cast<Idx>(N); ++jj) {
-    const auto j = static_cast<std::size_t>(jj);
-    detail::PackedForce& pair_sum = packed_force_[j];
-    Vec3 F{pair_sum.fx, pair_sum.fy, pair_sum.fz};
-    Vec3 T{pair_sum.tx, pair_sum.ty, pair_sum.tz};
-    pair_sum = {};  // ready for the next pair loop (the line is in cache now)
-    for (auto e = wall_offsets_[j]; e < wall_offsets_[j + 1]; ++e) {
-      F += Vec3{wc_.fx[e], wc_.fy[e], wc_.fz[e]};
-      T += Vec3{wc_.tx[e], wc_.ty[e], wc_.tz[e]};
-    }
-    fu_x_[j] = F.x;
-    fu_y_[j] = F.y;
-    fu_z_[j] = F.z;
-    if (alpha > 0.0) {
-      F = {local_damping(F.x, p_.vx[j], alpha), local_damping(F.y, p_.vy[j], alpha),
-           local_damping(F.z, p_.vz[j], alpha)};
-      T = {local_damping(T.x, p_.wx[j], alpha), local_damping(T.y, p_.wy[j], alpha),
-           local_damping(T.z, p_.wz[j], alpha)};
-    }
-    p_.fx[j] = F.x;
-    p_.fy[j] = F.y;
-    p_.fz[j] = F.z;
-    p_.tx[j] = T.x;
-    p_.ty[j] = T.y;
-    p_.tz[j] = T.z;
-    if (kick) {  // second half kick of velocity Verlet, fused to save a pass over memory
-      const double a = hh * p_.inv_mass[j], b = hh * p_.inv_inertia[j];
-      p_.vx[j] += a * F.x;
-      p_.vy[j] += a * F.y;
-      p_.vz[j] += a * F.z;
-      p_.wx[j] += b * T.x;
-      p_.wy[j] += b * T.y;
-      p_.wz[j] += b * T.z;
-    }
+  const bool damp = cfg_.damping.local_alpha > 0.0;
+  if (drift_next) {
+    next_drift_ = damp ? gather_grains<true, true, true>() : gather_grains<false, true, true>();
+    packed_fresh_ = true;
+  } else if (damp) {
+    kick ? gather_grains<true, true, false>() : gather_grains<true, false, false>();
+  } else {
+    kick ? gather_grains<false, true, false>() : gather_grains<false, false, false>();
   }
   packed_force_zero_ = true;
+}
+
+template <bool kDamp, bool kKick, bool kDrift>
+Simulation::Drift Simulation::gather_grains() {
+  static_assert(kKick || !kDrift, "the next step's kick follows this one's");
+  const std::size_t N = p_.size();
+  if (N == 0) return {0.0, 0.0};
+  const double alpha = cfg_.damping.local_alpha;
+  const double hh = 0.5 * dt_;
+  // The sums as a plain array of doubles, eight per grain: GCC vectorises strided access to
+  // doubles, not to the fields of an over-aligned struct.
+  static_assert(sizeof(detail::PackedForce) == 8 * sizeof(double));
+  double* const PF = &packed_force_.data()->fx;
+  // Plain pointers, not restrict ones: KickDrift reaches the same velocities through its own.
+  // `omp simd` lets the loop run in vector lanes anyway, each element with the same operations
+  // as a scalar loop.
+  double* const fux = fu_x_.data();
+  double* const fuy = fu_y_.data();
+  double* const fuz = fu_z_.data();
+  double* const pfx = p_.fx.data();
+  double* const pfy = p_.fy.data();
+  double* const pfz = p_.fz.data();
+  double* const ptx = p_.tx.data();
+  double* const pty = p_.ty.data();
+  double* const ptz = p_.tz.data();
+  double* const pvx = p_.vx.data();
+  double* const pvy = p_.vy.data();
+  double* const pvz = p_.vz.data();
+  double* const pwx = p_.wx.data();
+  double* const pwy = p_.wy.data();
+  double* const pwz = p_.wz.data();
+  const double* const im = p_.inv_mass.data();
+  const double* const ii_ = p_.inv_inertia.data();
+  // kDrift: the next step's first half kick and drift, in the same pass (step() asks for it when
+  // nothing changes between the two steps: same dt, no caller in between).
+  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
+  const std::uint32_t* const wall_first = wall_offsets_.data();
+  double m2 = 0.0, step2 = 0.0;
+#pragma omp parallel reduction(max : m2, step2) if (worth_threading(N))
+  {
+    const Share share = static_share(N, static_cast<std::size_t>(team_size()),
+                                     static_cast<std::size_t>(thread_index()));
+    // The wall contacts of this thread's grains first (few; stored by grain, so each grain's in
+    // the order the per-grain loop used to add them): sum + w1 + w2 rounds the same whether the
+    // sum is in a register or in memory. The loop over the grains then has no inner loop and
+    // runs in vector lanes. (Each thread adds its own grains' walls: a serial pass would pull
+    // half the sums from the other core's cache and back.)
+    for (std::size_t e = wall_first[share.first]; e < wall_first[share.last]; ++e) {
+      double* const sum = PF + 8 * std::size_t{wc_.particle[e]};
+      sum[0] += wc_.fx[e];
+      sum[1] += wc_.fy[e];
+      sum[2] += wc_.fz[e];
+      sum[3] += wc_.tx[e];
+      sum[4] += wc_.ty[e];
+      sum[5] += wc_.tz[e];
+    }
+#pragma omp simd reduction(max : m2, step2)
+    for (std::size_t j = share.first; j < share.last; ++j) {
+      double* const sum = PF + 8 * j;
+      Vec3 F{sum[0], sum[1], sum[2]};
+      Vec3 T{sum[3], sum[4], sum[5]};
+      for (int k = 0; k < 8; ++k) sum[k] = 0.0;  // ready for the next pair loop (line in cache)
+      fux[j] = F.x;
+      fuy[j] = F.y;
+      fuz[j] = F.z;
+      if constexpr (kDamp) {
+        F = {local_damping(F.x, pvx[j], alpha), local_damping(F.y, pvy[j], alpha),
+             local_damping(F.z, pvz[j], alpha)};
+        T = {local_damping(T.x, pwx[j], alpha), local_damping(T.y, pwy[j], alpha),
+             local_damping(T.z, pwz[j], alpha)};
+      }
+      pfx[j] = F.x;
+      pfy[j] = F.y;
+      pfz[j] = F.z;
+      ptx[j] = T.x;
+      pty[j] = T.y;
+      ptz[j] = T.z;
+      if constexpr (kKick) {  // second half kick of velocity Verlet (one pass over memory)
+        const double a = hh * im[j], b = hh * ii_[j];
+        pvx[j] += a * F.x;
+        pvy[j] += a * F.y;
+        pvz[j] += a * F.z;
+        pwx[j] += b * T.x;
+        pwy[j] += b * T.y;
+        pwz[j] += b * T.z;
+      }
+      if constexpr (kDrift) kd(j, F.x, F.y, F.z, T.x, T.y, T.z, m2, step2);
+    }
+  }
+  return {m2, step2};
 }
 
 void Simulation::compute_forces() {
@@ -991,7 +1273,7 @@ void Simulation::compute_forces() {
   evaluate_forces(0.0, false);
 }
 
-void Simulation::evaluate_forces(double increment_dt, bool kick) {
+void Simulation::evaluate_forces(double increment_dt, bool kick, bool drift_next) {
   const PartScope timed(part_clock_, Part::ContactForces);
   // Rolling resistance is a template flag, so the loops without it carry none of its cost.
   if (cfg_.contact.law == NormalLaw::Hertz) {
@@ -1022,7 +1304,7 @@ void Simulation::evaluate_forces(double increment_dt, bool kick) {
       }
     }
   }
-  gather_and_damp(kick);
+  gather_and_damp(kick, drift_next);
   forces_valid_ = true;
 }
 
@@ -1077,6 +1359,7 @@ void Simulation::save_state(StateWriter& out) const {
 
 void Simulation::load_state(StateReader& in) {
   in.tag("simulation");
+  next_drift_.reset();
   p_.load_state(in);
   nl_.load_state(in);
   walls_.load_state(in);
@@ -1134,58 +1417,14 @@ void Simulation::set_friction(double mu) {
 }
 
 Simulation::Drift Simulation::kick_drift() {
-  // First half kick and drift in one pass; returns the largest squared displacement since the
-  // last neighbour build (the rebuild criterion) and in this step (the pruned list's), also
-  // computed in the same pass.
-  const double h = dt_, hh = 0.5 * dt_;
+  // First half kick and drift in one pass (KickDrift), with the displacement maxima.
   const std::size_t N = p_.size();
-  const double* x0 = nl_.x_ref().data();
-  const double* y0 = nl_.y_ref().data();
-  const double* z0 = nl_.z_ref().data();
-  // The pair loop's packed copies are written here, from values already in registers.
-  packed_pos_.resize(N);
-  packed_vel_.resize(N);
-  detail::PackedPosition* P = packed_pos_.data();
-  detail::PackedVelocity* V = packed_vel_.data();
+  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
   double m2 = 0.0, step2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : m2, step2) if (worth_threading(N))
+#pragma omp parallel for simd schedule(static) reduction(max : m2, step2) if (worth_threading(N))
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
-    const double inv_mass = p_.inv_mass[i];
-    const double a = hh * inv_mass, b = hh * p_.inv_inertia[i];
-    const double vx = p_.vx[i] + a * p_.fx[i];
-    const double vy = p_.vy[i] + a * p_.fy[i];
-    const double vz = p_.vz[i] + a * p_.fz[i];
-    const double wx = p_.wx[i] + b * p_.tx[i];
-    const double wy = p_.wy[i] + b * p_.ty[i];
-    const double wz = p_.wz[i] + b * p_.tz[i];
-    const double x = p_.x[i] + h * vx;
-    const double y = p_.y[i] + h * vy;
-    const double z = p_.z[i] + h * vz;
-    p_.vx[i] = vx;
-    p_.vy[i] = vy;
-    p_.vz[i] = vz;
-    p_.wx[i] = wx;
-    p_.wy[i] = wy;
-    p_.wz[i] = wz;
-    p_.x[i] = x;
-    p_.y[i] = y;
-    p_.z[i] = z;
-    // The step's displacement is taken from the position the last pair loop saw (its packed
-    // copy), so a position set by hand between steps counts too; a changed radius makes it
-    // infinite (a copy not yet made has radius 0).
-    const detail::PackedPosition seen = P[i];
-    const double radius = p_.radius[i];
-    const double sx = x - seen.x, sy = y - seen.y, sz = z - seen.z;
-    const double s2 = sx * sx + sy * sy + sz * sz;
-    step2 = std::max(step2,
-                     s2 == s2 && seen.r == radius ? s2 : std::numeric_limits<double>::infinity());
-    P[i] = {x, y, z, radius};
-    V[i] = {vx, vy, vz, wx, wy, wz, inv_mass, 0.0};
-    const double dx = p_.x[i] - x0[i], dy = p_.y[i] - y0[i], dz = p_.z[i] - z0[i];
-    const double d2 = dx * dx + dy * dy + dz * dz;
-    // A NaN must not be lost by max(): make it infinite so the rebuild (and its check) runs.
-    m2 = std::max(m2, d2 == d2 ? d2 : std::numeric_limits<double>::infinity());
+    kd(i, kd.fx[i], kd.fy[i], kd.fz[i], kd.tx[i], kd.ty[i], kd.tz[i], m2, step2);
   }
   packed_fresh_ = true;
   return {m2, step2};
@@ -1198,12 +1437,19 @@ void Simulation::step(std::uint64_t n) {
     dt();
     if (!forces_valid_ || !nl_valid_) compute_forces();
     const double h = dt_;
-    const Drift drift = kick_drift();
+    // The first half kick and drift, unless the last step's gather pass did it already.
+    const Drift drift = next_drift_ ? *next_drift_ : kick_drift();
+    next_drift_.reset();
     prune_.add_step(std::sqrt(drift.step2));
     const double d = std::sqrt(drift.since_build2);
     walls_.move(h);
     if (rebuild_due(d, walls_.max_displacement_since_build(), skin_)) rebuild_neighbors();
-    evaluate_forces(h, true);
+    // The next step's kick and drift join this step's gather pass (one pass over the grains
+    // instead of two) when that step follows in this call, with the same dt: nothing outside
+    // step() can change the state in between, and dt() will not recompute it.
+    const bool next_same_dt =
+        dt_fixed_ || (dt_valid_ && steps_ + 1 - dt_computed_at_ < cfg_.timestep.update_interval);
+    evaluate_forces(h, true, s + 1 < n && next_same_dt);
     walls_.update_velocities(h);
     time_ += h;
     ++steps_;

@@ -14,6 +14,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -196,12 +197,15 @@ class Simulation {
   void pair_forces(const Law& law, double increment_dt);
   template <class Law>
   void wall_forces(const Law& law, double increment_dt);
-  void evaluate_forces(double increment_dt, bool kick);
-  void gather_and_damp(bool kick);
   struct Drift {
     double since_build2;  // largest squared displacement since the last neighbour build [m^2]
     double step2;         // largest squared displacement in this step [m^2]
   };
+  /// drift_next: also the next step's first half kick and drift (into next_drift_).
+  void evaluate_forces(double increment_dt, bool kick, bool drift_next = false);
+  void gather_and_damp(bool kick, bool drift_next);
+  template <bool kDamp, bool kKick, bool kDrift>
+  Drift gather_grains();
   Drift kick_drift();
 
   SimulationConfig cfg_;
@@ -226,6 +230,9 @@ class Simulation {
   // gather_and_damp() zeroes the sums it reads, for the next pair loop.
   bool packed_fresh_ = false;
   bool packed_force_zero_ = false;
+  // The next step's kick and drift, done by this step's gather pass (only inside one step()
+  // call, which consumes it).
+  std::optional<Drift> next_drift_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
   std::vector<PairHistory> saved_rolling_;
