@@ -6,7 +6,12 @@
 #include <cstdint>
 #include <random>
 
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/integrate/simulation.hpp"
+
+#ifdef CRUSHDEM_HAVE_OPENMP
+#include <omp.h>
+#endif
 
 namespace crushdem::testing {
 
@@ -57,6 +62,31 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem::testing {
+
+/// Sets the team size of the following parallel regions (nothing without OpenMP).
+inline void set_threads(int t) {
+#ifdef CRUSHDEM_HAVE_OPENMP
+  omp_set_num_threads(t);
+#else
+  (void)t;
+#endif
+}
+
+/// A test over the normal laws that may change the thread count and the threading threshold:
+/// both are put back after each test.
+class ThreadedLawTest : public ::testing::TestWithParam<NormalLaw> {
+ protected:
+  void TearDown() override {
+    set_threads(saved_threads_);
+    threading_threshold() = saved_threshold_;
+  }
+  std::size_t saved_threshold_ = threading_threshold();
+#ifdef CRUSHDEM_HAVE_OPENMP
+  int saved_threads_ = omp_get_max_threads();
+#else
+  int saved_threads_ = 1;
+#endif
+};
 
 /// Every particle value and the contact count of two simulations equal, bit for bit.
 inline void expect_same_state(const Simulation& a, const Simulation& b) {

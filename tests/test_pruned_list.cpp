@@ -10,10 +10,6 @@
 #include "crushdem/core/state_io.hpp"
 #include "helpers.hpp"
 
-#ifdef CRUSHDEM_HAVE_OPENMP
-#include <omp.h>
-#endif
-
 namespace crushdem {
 namespace {
 
@@ -37,36 +33,16 @@ Simulation make_sample(bool prune, NormalLaw law) {
   return sim;
 }
 
-void set_threads(int t) {
-#ifdef CRUSHDEM_HAVE_OPENMP
-  omp_set_num_threads(t);
-#else
-  (void)t;
-#endif
-}
-
-class Pruning : public ::testing::TestWithParam<NormalLaw> {
- protected:
-  void TearDown() override {
-    set_threads(saved_threads_);
-    threading_threshold() = saved_threshold_;
-  }
-  std::size_t saved_threshold_ = threading_threshold();
-#ifdef CRUSHDEM_HAVE_OPENMP
-  int saved_threads_ = omp_get_max_threads();
-#else
-  int saved_threads_ = 1;
-#endif
-};
+class Pruning : public testing::ThreadedLawTest {};
 
 TEST_P(Pruning, StepsAreBitIdenticalToTheFullListOnOneAndTwoThreads) {
   Simulation full = make_sample(false, GetParam());
   Simulation pruned_1 = make_sample(true, GetParam());
   Simulation pruned_2 = make_sample(true, GetParam());
-  set_threads(1);
+  testing::set_threads(1);
   full.step(600);
   pruned_1.step(600);
-  set_threads(2);
+  testing::set_threads(2);
   threading_threshold() = 0;  // thread even this small system (729 grains)
   pruned_2.step(600);
   testing::expect_same_state(full, pruned_1);

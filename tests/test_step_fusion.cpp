@@ -10,10 +10,6 @@
 #include "crushdem/core/deterministic.hpp"
 #include "helpers.hpp"
 
-#ifdef CRUSHDEM_HAVE_OPENMP
-#include <omp.h>
-#endif
-
 namespace crushdem {
 namespace {
 
@@ -36,14 +32,6 @@ Simulation make_sample(NormalLaw law) {
   return sim;
 }
 
-void set_threads(int t) {
-#ifdef CRUSHDEM_HAVE_OPENMP
-  omp_set_num_threads(t);
-#else
-  (void)t;
-#endif
-}
-
 void expect_same_load(const Simulation& a, const Simulation& b) {
   EXPECT_EQ(a.contact_load().sigma, b.contact_load().sigma);
   EXPECT_EQ(a.contact_load().F_n_max, b.contact_load().F_n_max);
@@ -51,23 +39,11 @@ void expect_same_load(const Simulation& a, const Simulation& b) {
   EXPECT_EQ(a.contact_load().nz, b.contact_load().nz);
 }
 
-class StepFusion : public ::testing::TestWithParam<NormalLaw> {
- protected:
-  void TearDown() override {
-    set_threads(saved_threads_);
-    threading_threshold() = saved_threshold_;
-  }
-  std::size_t saved_threshold_ = threading_threshold();
-#ifdef CRUSHDEM_HAVE_OPENMP
-  int saved_threads_ = omp_get_max_threads();
-#else
-  int saved_threads_ = 1;
-#endif
-};
+class StepFusion : public testing::ThreadedLawTest {};
 
 TEST_P(StepFusion, ManyStepsInOneCallEqualOneStepPerCall) {
   constexpr int kSteps = 150;
-  set_threads(1);
+  testing::set_threads(1);
   Simulation one_per_call = make_sample(GetParam());
   for (int s = 0; s < kSteps; ++s) one_per_call.step(1);
   Simulation one_call = make_sample(GetParam());
@@ -84,7 +60,7 @@ TEST_P(StepFusion, ManyStepsInOneCallEqualOneStepPerCall) {
 
   // The same call on 2 threads (the sample is below the threading threshold: lowered).
   threading_threshold() = 0;
-  set_threads(2);
+  testing::set_threads(2);
   Simulation two_threads = make_sample(GetParam());
   two_threads.step(kSteps);
   testing::expect_same_state(one_per_call, two_threads);

@@ -23,7 +23,7 @@ using Idx = std::ptrdiff_t;
 // last neighbour build (the rebuild criterion) and in this step (the pruned list's). Inlined into
 // kick_drift() and into the gather pass of the step before (gather_grains<.., kDrift = true>),
 // both loops in vector lanes: each element gets the same operations as a scalar loop, and max()
-// is exact, so the lanes change no bit.
+// is exact, so the lanes change no bit. Constructing it sizes the packed copies to the store.
 struct KickDrift {
   double h, hh;
   double *x, *y, *z, *vx, *vy, *vz, *wx, *wy, *wz;
@@ -250,7 +250,6 @@ std::vector<ParticleId> Simulation::apply_topology(const TopologyChange& change)
 
 void Simulation::invalidate() {
   capture_history();
-  next_drift_.reset();
   nl_valid_ = false;
   forces_valid_ = false;
   dt_valid_ = false;
@@ -585,8 +584,8 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
 // largest normal force with its normal. j is safe to write for the same reason as its sums
 // (column colouring).
 template <class Law, std::size_t kCap>
-inline void track_contact_load(const PairLoop<Law>& L, const BatchView<kCap> b, std::size_t m,
-                               std::size_t i, std::size_t j) {
+inline void record_contact_load(const PairLoop<Law>& L, const BatchView<kCap> b, std::size_t m,
+                                std::size_t i, std::size_t j) {
   const double F_n = b.f(kFN)[m];
   const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
   const double sig =
@@ -700,19 +699,15 @@ void scatter_sums(const PairLoop<Law>& L, PairBatch& pb, std::size_t n) {
   if (L.LS) {  // the contact load, in the same order (a tie keeps the first normal)
     std::size_t m = 0;
     for (std::size_t r = 0; r < pb.owners; ++r) {
-      for (; m < owner_end[r]; ++m) track_contact_load<Law, kCap>(L, b, m, owner[r], partner[m]);
+      for (; m < owner_end[r]; ++m) record_contact_load<Law, kCap>(L, b, m, owner[r], partner[m]);
     }
   }
 }
 
-template <class Law, bool Rolling, std::size_t kCap>
-void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
-  evaluate_batch<Law, Rolling, kCap>(L, pb, n);
-  if constexpr (!Rolling) {
-    scatter_sums<Law, kCap>(L, pb, n);
-    pb.owners = 0;
-    return;
-  }
+// The scatter pass with rolling resistance (scalar): as scatter_sums(), plus the rolling moment
+// on both grains and its new history.
+template <class Law, std::size_t kCap>
+void scatter_sums_rolling(const PairLoop<Law> L, PairBatch& pb) {
   const BatchView<kCap> b = pb.view<kCap>();
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
@@ -752,7 +747,7 @@ void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
       L.PF[j].tx -= M_r.x;
       L.PF[j].ty -= M_r.y;
       L.PF[j].tz -= M_r.z;
-      if (L.LS) track_contact_load<Law, kCap>(L, b, m, i, j);
+      if (L.LS) record_contact_load<Law, kCap>(L, b, m, i, j);
     }
     L.PF[i].fx += F.x;
     L.PF[i].fy += F.y;
@@ -760,6 +755,16 @@ void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
     L.PF[i].tx += T.x;
     L.PF[i].ty += T.y;
     L.PF[i].tz += T.z;
+  }
+}
+
+template <class Law, bool Rolling, std::size_t kCap>
+void flush_batch(const PairLoop<Law> L, PairBatch& pb, std::size_t n) {
+  evaluate_batch<Law, Rolling, kCap>(L, pb, n);
+  if constexpr (Rolling) {
+    scatter_sums_rolling<Law, kCap>(L, pb);
+  } else {
+    scatter_sums<Law, kCap>(L, pb, n);
   }
   pb.owners = 0;
 }
@@ -1178,14 +1183,16 @@ Simulation::Drift Simulation::gather_grains() {
   const std::size_t N = p_.size();
   if (N == 0) return {0.0, 0.0};
   const double alpha = cfg_.damping.local_alpha;
-  const double hh = 0.5 * dt_;
   // The sums as a plain array of doubles, eight per grain: GCC vectorises strided access to
   // doubles, not to the fields of an over-aligned struct.
   static_assert(sizeof(detail::PackedForce) == 8 * sizeof(double));
   double* const PF = &packed_force_.data()->fx;
-  // Plain pointers, not restrict ones: KickDrift reaches the same velocities through its own.
-  // `omp simd` lets the loop run in vector lanes anyway, each element with the same operations
-  // as a scalar loop.
+  // The store's velocities, inverse masses and inertias through KickDrift's pointers; plain
+  // pointers, not restrict ones, since KickDrift also writes the velocities. `omp simd` lets
+  // the loop run in vector lanes anyway, each element with the same operations as a scalar
+  // loop. kDrift: the next step's first half kick and drift, in the same pass (step() asks for
+  // it when nothing changes between the two steps: same dt, no caller in between).
+  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
   double* const fux = fu_x_.data();
   double* const fuy = fu_y_.data();
   double* const fuz = fu_z_.data();
@@ -1195,17 +1202,6 @@ Simulation::Drift Simulation::gather_grains() {
   double* const ptx = p_.tx.data();
   double* const pty = p_.ty.data();
   double* const ptz = p_.tz.data();
-  double* const pvx = p_.vx.data();
-  double* const pvy = p_.vy.data();
-  double* const pvz = p_.vz.data();
-  double* const pwx = p_.wx.data();
-  double* const pwy = p_.wy.data();
-  double* const pwz = p_.wz.data();
-  const double* const im = p_.inv_mass.data();
-  const double* const ii_ = p_.inv_inertia.data();
-  // kDrift: the next step's first half kick and drift, in the same pass (step() asks for it when
-  // nothing changes between the two steps: same dt, no caller in between).
-  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
   const std::uint32_t* const wall_first = wall_offsets_.data();
   double m2 = 0.0, step2 = 0.0;
 #pragma omp parallel reduction(max : m2, step2) if (worth_threading(N))
@@ -1236,10 +1232,10 @@ Simulation::Drift Simulation::gather_grains() {
       fuy[j] = F.y;
       fuz[j] = F.z;
       if constexpr (kDamp) {
-        F = {local_damping(F.x, pvx[j], alpha), local_damping(F.y, pvy[j], alpha),
-             local_damping(F.z, pvz[j], alpha)};
-        T = {local_damping(T.x, pwx[j], alpha), local_damping(T.y, pwy[j], alpha),
-             local_damping(T.z, pwz[j], alpha)};
+        F = {local_damping(F.x, kd.vx[j], alpha), local_damping(F.y, kd.vy[j], alpha),
+             local_damping(F.z, kd.vz[j], alpha)};
+        T = {local_damping(T.x, kd.wx[j], alpha), local_damping(T.y, kd.wy[j], alpha),
+             local_damping(T.z, kd.wz[j], alpha)};
       }
       pfx[j] = F.x;
       pfy[j] = F.y;
@@ -1248,13 +1244,13 @@ Simulation::Drift Simulation::gather_grains() {
       pty[j] = T.y;
       ptz[j] = T.z;
       if constexpr (kKick) {  // second half kick of velocity Verlet (one pass over memory)
-        const double a = hh * im[j], b = hh * ii_[j];
-        pvx[j] += a * F.x;
-        pvy[j] += a * F.y;
-        pvz[j] += a * F.z;
-        pwx[j] += b * T.x;
-        pwy[j] += b * T.y;
-        pwz[j] += b * T.z;
+        const double a = kd.hh * kd.inv_mass[j], b = kd.hh * kd.inv_inertia[j];
+        kd.vx[j] += a * F.x;
+        kd.vy[j] += a * F.y;
+        kd.vz[j] += a * F.z;
+        kd.wx[j] += b * T.x;
+        kd.wy[j] += b * T.y;
+        kd.wz[j] += b * T.z;
       }
       if constexpr (kDrift) kd(j, F.x, F.y, F.z, T.x, T.y, T.z, m2, step2);
     }
@@ -1359,7 +1355,6 @@ void Simulation::save_state(StateWriter& out) const {
 
 void Simulation::load_state(StateReader& in) {
   in.tag("simulation");
-  next_drift_.reset();
   p_.load_state(in);
   nl_.load_state(in);
   walls_.load_state(in);
@@ -1447,9 +1442,7 @@ void Simulation::step(std::uint64_t n) {
     // The next step's kick and drift join this step's gather pass (one pass over the grains
     // instead of two) when that step follows in this call, with the same dt: nothing outside
     // step() can change the state in between, and dt() will not recompute it.
-    const bool next_same_dt =
-        dt_fixed_ || (dt_valid_ && steps_ + 1 - dt_computed_at_ < cfg_.timestep.update_interval);
-    evaluate_forces(h, true, s + 1 < n && next_same_dt);
+    evaluate_forces(h, true, s + 1 < n && !dt_due(steps_ + 1));
     walls_.update_velocities(h);
     time_ += h;
     ++steps_;
@@ -1509,9 +1502,12 @@ double Simulation::stiffness_dt() const {
   return best;
 }
 
+bool Simulation::dt_due(std::uint64_t step) const {
+  return !dt_fixed_ && (!dt_valid_ || step - dt_computed_at_ >= cfg_.timestep.update_interval);
+}
+
 double Simulation::dt() {
-  if (dt_fixed_) return dt_;
-  if (!dt_valid_ || steps_ - dt_computed_at_ >= cfg_.timestep.update_interval) {
+  if (dt_due(steps_)) {
     if (!nl_valid_ && p_.size() > 0) rebuild_neighbors();
     double h = cfg_.timestep.rayleigh_fraction * rayleigh_dt();
     h = std::min(h, cfg_.timestep.safety * stiffness_dt());

@@ -207,6 +207,8 @@ class Simulation {
   template <bool kDamp, bool kKick, bool kDrift>
   Drift gather_grains();
   Drift kick_drift();
+  /// Whether dt() re-evaluates the automatic time step at step number `step`.
+  bool dt_due(std::uint64_t step) const;
 
   SimulationConfig cfg_;
   ContactParams cp_;
@@ -230,8 +232,8 @@ class Simulation {
   // gather_and_damp() zeroes the sums it reads, for the next pair loop.
   bool packed_fresh_ = false;
   bool packed_force_zero_ = false;
-  // The next step's kick and drift, done by this step's gather pass (only inside one step()
-  // call, which consumes it).
+  // The next step's kick and drift, done by this step's gather pass: set only before another
+  // step of the same step() call, which consumes it first thing (so nothing else sees it).
   std::optional<Drift> next_drift_;
   std::vector<std::uint32_t> wall_offsets_;  // CSR: wall entries of particle i
   std::vector<PairHistory> saved_pairs_;
