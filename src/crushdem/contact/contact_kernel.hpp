@@ -24,7 +24,7 @@ struct ContactResponse {
 /// kFastPath: the rare steps are left out (contact_plane_spring(), and the cap on the total
 /// tangential force below); fast_path_inexact(r.F_t.x) tells where that changed the result.
 template <class Law, bool kFastPath = false>
-CD_HD inline ContactResponse contact_response(const Law& law, double delta, double R_star,
+CD_HD_INLINE ContactResponse contact_response(const Law& law, double delta, double R_star,
                                               double sqrt_R_star, double m_eff, Vec3 n, Vec3 v_rel,
                                               Vec3 F_t_old, double mu, const ContactParams& p,
                                               double dt) {
@@ -79,7 +79,7 @@ struct PairContact {
 /// mass come cached per pair. n points from i to j; v_rel = dv + (a_i w_i + a_j w_j) x n.
 /// kFastPath: see contact_response().
 template <class Law, bool kFastPath = false>
-CD_HD inline PairContact pair_contact(const Law& law, Vec3 dx, double d2, double r_i, double r_j,
+CD_HD_INLINE PairContact pair_contact(const Law& law, Vec3 dx, double d2, double r_i, double r_j,
                                       Vec3 dv, Vec3 w_i, Vec3 w_j, double R_star,
                                       double sqrt_R_star, double m_eff, Vec3 F_t_old,
                                       const ContactParams& p, double dt) {

@@ -20,7 +20,7 @@ namespace crushdem {
 /// x^p from a table of 2 (n + 1) nodes (PowerTable) that starts at nodes + first, written
 /// without branches so that a vector loop can evaluate it in every lane (`first` rather than a
 /// second pointer: a vector gather has one base address and an index per lane).
-CD_HD inline double power_table_lookup(const double* nodes, int first, int n, double inv_h,
+CD_HD_INLINE double power_table_lookup(const double* nodes, int first, int n, double inv_h,
                                        double x) {
   const double s = x * inv_h;
   // The interval, clamped to [0, n - 1]. s is clamped before it becomes an int (a double outside

@@ -73,19 +73,26 @@ inline RoughHertzParams make_rough_hertz(double s, double k1, double k2) {
 }
 
 /// sqrt_R_star = sqrt(R*), passed in because callers keep it per contact (saves a square root).
-CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double sqrt_R_star,
+/// kHertzRegime = false: for a caller that knows that no contact it evaluates is in the Hertz
+/// regime (s > 0 and delta <= d_T2 in every lane; rough_may_reach_hertz() tells): that regime,
+/// a square root per lane, is then not computed. Each result has the same bits as with it.
+template <bool kHertzRegime = true>
+CD_HD_INLINE NormalForce rough_hertz_normal(double delta, double R_star, double sqrt_R_star,
                                             double E_star, const RoughHertzParams& p) {
   // Every regime is evaluated and one selected, without branches, so that the CPU pair loop can
   // run the law in vector lanes (lanes in other regimes compute values that are thrown away,
   // NaN included). Each selected value is the same expression as in a branching form.
-  const bool smooth = p.s <= 0.0;
+  const bool smooth = kHertzRegime && p.s <= 0.0;
   // | and not ||: both comparisons are made in every lane (a comparison that runs only on some
   // path "could trap" on NaN, which stops the compiler from flattening the branches).
-  const bool hertz = smooth | (delta > p.d_T2);
+  const bool hertz = kHertzRegime && (smooth | (delta > p.d_T2));
   // Hertz branch, shifted by d_ps (d_ps = 0 when smooth).
-  const double d = delta - p.d_ps;
-  const double k_hertz = 2.0 * E_star * std::sqrt(R_star * d);
-  const double F_hertz = k_hertz * d * (2.0 / 3.0);
+  double k_hertz = 0.0, F_hertz = 0.0;
+  if constexpr (kHertzRegime) {
+    const double d = delta - p.d_ps;
+    k_hertz = 2.0 * E_star * std::sqrt(R_star * d);
+    F_hertz = k_hertz * d * (2.0 / 3.0);
+  }
   // Rough branches: N_T2 ((d - d_p1)/(d_T2 - d_p1))^b above d_T1, N_T1 (d/d_T1)^c below.
   const bool upper = delta > p.d_T1;
   const double X = E_star * sqrt_R_star * p.x_factor;
@@ -114,13 +121,32 @@ CD_HD inline NormalForce rough_hertz_normal(double delta, double R_star, double 
   return rough_hertz_normal(delta, R_star, std::sqrt(R_star), E_star, p);
 }
 
+/// Whether a pair whose centres are sqrt(d2) apart, with radii summing to rsum (r_i + r_j, as
+/// the kernels add them), can be in the Hertz regime, delta = rsum - sqrt(d2) > d_T2, without a
+/// square root. Conservative: true for every such pair and for pairs within 1e-12 rsum of the
+/// transition (a margin far above the roundings of delta, sqrt(d2) and this test); false
+/// where the regime cannot be reached (reach <= 0: it would need a negative distance).
+CD_HD inline bool rough_may_reach_hertz(double d2, double rsum, const RoughHertzParams& p) {
+  const double reach = rsum - p.d_T2 + 1e-12 * rsum;
+  return (p.s <= 0.0) | ((reach > 0.0) & (d2 < reach * reach));
+}
+
 /// Normal-law evaluator for the rough law; `rough` is chosen by the caller (grain-grain or wall).
-struct RoughHertzLaw {
+/// kHertzRegime: see rough_hertz_normal(); without_hertz_regime() gives the evaluator for a set
+/// of contacts of which rough_may_reach_hertz() is false for every one.
+template <bool kWithHertzRegime = true>
+struct RoughHertzLawT {
+  static constexpr bool kHertzRegime = kWithHertzRegime;
   double E_star = 0.0;
   RoughHertzParams rough;
   CD_HD NormalForce operator()(double delta, double R_star, double sqrt_R_star) const {
-    return rough_hertz_normal(delta, R_star, sqrt_R_star, E_star, rough);
+    return rough_hertz_normal<kHertzRegime>(delta, R_star, sqrt_R_star, E_star, rough);
   }
+  CD_HD bool may_reach_hertz(double d2, double rsum) const {
+    return rough_may_reach_hertz(d2, rsum, rough);
+  }
+  CD_HD RoughHertzLawT<false> without_hertz_regime() const { return {E_star, rough}; }
 };
+using RoughHertzLaw = RoughHertzLawT<true>;
 
 }  // namespace crushdem

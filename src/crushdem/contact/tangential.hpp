@@ -44,7 +44,7 @@ inline constexpr double kNeedsExactPath = std::numeric_limits<double>::infinity(
 /// kNeedsExactPath, and the caller evaluates that contact again without kFastPath; elsewhere
 /// both paths give the same bits.
 template <bool kFastPath = false>
-CD_HD inline Vec3 contact_plane_spring(Vec3 h, Vec3 n, Vec3 du, double k, double h_max) {
+CD_HD_INLINE Vec3 contact_plane_spring(Vec3 h, Vec3 n, Vec3 du, double k, double h_max) {
   // Rotate the stored value onto the current tangent plane, keeping its magnitude.
   const double len2 = dot(h, h);
   double h_n = 0.0;  // a double, not a flag set in the branch: vector lanes need one mask width
@@ -71,7 +71,7 @@ CD_HD inline Vec3 contact_plane_spring(Vec3 h, Vec3 n, Vec3 du, double k, double
 /// Returns the new tangential force; du_t is the tangential relative displacement of the first
 /// body with respect to the second over the step, n the unit contact normal.
 template <bool kFastPath = false>
-CD_HD inline Vec3 mindlin_tangential(Vec3 F_t, Vec3 n, Vec3 du_t, double k_t, double mu,
+CD_HD_INLINE Vec3 mindlin_tangential(Vec3 F_t, Vec3 n, Vec3 du_t, double k_t, double mu,
                                      double F_n) {
   return contact_plane_spring<kFastPath>(F_t, n, du_t, k_t, mu * F_n);
 }

@@ -12,6 +12,17 @@
 #define CD_HD
 #endif
 
+// For the per-contact kernels that vector loops call (pair_contact() and what it calls): always
+// inlined. Left to GCC's budget, a translation unit with many instantiations of the pair loop
+// stops inlining some of them, and a loop that calls a function does not vectorise.
+#if defined(__CUDACC__)
+#define CD_HD_INLINE __host__ __device__ __forceinline__
+#elif defined(__GNUC__)
+#define CD_HD_INLINE [[gnu::always_inline]] inline
+#else
+#define CD_HD_INLINE inline
+#endif
+
 namespace crushdem {
 
 /// Stable particle identifier: assigned once, never reused (fragments get fresh ids).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <concepts>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -450,11 +451,11 @@ struct PairBatch {
 // Not inlined: inlined into evaluate_batch() with a fixed-size batch, GCC sees every column as
 // one base plus a constant offset, stops trusting the restrict pointers, and (for the rough
 // law) left the loop scalar.
-template <class Law, bool Rolling, bool kFastPath, class View>
-[[gnu::noinline]] void evaluate_lanes(const PairLoop<Law>& L, View b, std::size_t n) {
-  const Law law = L.law;
-  const ContactParams cp = L.cp;
-  const double h = L.h;
+// `law` is the pair loop's law or a variant of it for this batch (evaluate_batch()); by value,
+// with cp and h, so that the loop reads them from registers.
+template <bool Rolling, bool kFastPath, class LaneLaw, class View>
+[[gnu::noinline]] void evaluate_lanes(const LaneLaw law, const ContactParams cp, const double h,
+                                      View b, std::size_t n) {
   // Named restrict pointers (not an array of them): the compiler must see that the stores
   // into the batch cannot change where its columns are, or it does not vectorise.
   double* __restrict const bDX = b.f(kDX);
@@ -502,7 +503,7 @@ template <class Law, bool Rolling, bool kFastPath, class View>
     // and read (the GPU upload computes the same expressions).
     const double R_star = pair_R_star(bRI[m], bRJ[m]);
     const double m_eff = pair_m_eff(bIMI[m], bIMJ[m]);
-    const PairContact pc = pair_contact<Law, kFastPath>(
+    const PairContact pc = pair_contact<LaneLaw, kFastPath>(
         law, Vec3{bDX[m], bDY[m], bDZ[m]}, bD2[m], bRI[m], bRJ[m], Vec3{bDVX[m], bDVY[m], bDVZ[m]},
         Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, std::sqrt(R_star),
         m_eff, Vec3{bFTX[m], bFTY[m], bFTZ[m]}, cp, h);
@@ -538,8 +539,9 @@ template <class Law, bool Rolling, bool kFastPath, class View>
 // evaluated exactly (also in vector lanes) and copied back. Each contact gets the bits of an
 // exact evaluation either way, so the results do not depend on how contacts fall into batches.
 // (The rolling moment is exact in the first pass and not evaluated again.)
-template <class Law, bool Rolling, std::size_t kCap>
-void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
+template <bool Rolling, std::size_t kCap, class LaneLaw>
+void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, PairBatch& b,
+                         std::size_t n) {
   const BatchView<kCap> main = b.view<kCap>();
   // Where most contacts slide (shearing, a sample out of equilibrium) the fast path only adds a
   // second evaluation: after a batch with more than a quarter of its contacts on the exact path,
@@ -548,10 +550,10 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
   constexpr std::size_t kExactOnly = 64;
   if (b.exact_only > 0) {
     --b.exact_only;
-    evaluate_lanes<Law, Rolling, false>(L, main, n);
+    evaluate_lanes<Rolling, false>(law, cp, h, main, n);
     return;
   }
-  evaluate_lanes<Law, Rolling, true>(L, main, n);
+  evaluate_lanes<Rolling, true>(law, cp, h, main, n);
   // The contacts where a rare step applies (branch-free, as in the collect pass).
   const double* nftx = main.f(kNFTX);
   std::size_t* const lane = b.exact_lane.data();
@@ -572,12 +574,49 @@ void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
     double* to = side.f(f);
     for (std::size_t k = 0; k < ne; ++k) to[k] = from[lane[k]];
   }
-  evaluate_lanes<Law, false, false>(L, side, ne);
+  evaluate_lanes<false, false>(law, cp, h, side, ne);
   for (const BatchField f : kOutputs) {
     const double* from = side.f(f);
     double* to = main.f(f);
     for (std::size_t k = 0; k < ne; ++k) to[lane[k]] = from[k];
   }
+}
+
+// A law whose regimes a batch can rule out: RoughHertzLaw, whose Hertz regime (a square root
+// per lane) no contact of a sample at rest under a few MPa reaches.
+template <class Law>
+concept SplitsHertzRegime = requires(const Law& law, double x) {
+  { law.may_reach_hertz(x, x) } -> std::same_as<bool>;
+  law.without_hertz_regime();
+}
+&&Law::kHertzRegime;
+
+// Whether any of contacts 0 .. n-1 of a batch may be in the law's Hertz regime, from the
+// collected distances and radii: a vector reduction without square roots. (The same test in the
+// collect pass, on scalars, cost more instructions than the regime saves: callgrind.)
+template <class Law, std::size_t kCap>
+bool batch_may_reach_hertz(const Law& law, const BatchView<kCap> b, std::size_t n) {
+  const double* __restrict const d2 = b.f(kD2);
+  const double* __restrict const r_i = b.f(kRI);
+  const double* __restrict const r_j = b.f(kRJ);
+  int any = 0;
+#pragma omp simd reduction(| : any)
+  for (std::size_t m = 0; m < n; ++m) any |= law.may_reach_hertz(d2[m], r_i[m] + r_j[m]) ? 1 : 0;
+  return any != 0;
+}
+
+// Evaluates a batch with the pair loop's law, or, where that law has regimes and none of the
+// batch's contacts can be in one of them, with the law that leaves that regime out (the same
+// bits for every contact, without its cost in every lane).
+template <class Law, bool Rolling, std::size_t kCap>
+void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
+  if constexpr (SplitsHertzRegime<Law>) {
+    if (!batch_may_reach_hertz(L.law, b.view<kCap>(), n)) {
+      evaluate_batch_with<Rolling, kCap>(L.law.without_hertz_regime(), L.cp, L.h, b, n);
+      return;
+    }
+  }
+  evaluate_batch_with<Rolling, kCap>(L.law, L.cp, L.h, b, n);
 }
 
 // The contact load of one contact (crushing): the largest contact stress on each grain, and the
