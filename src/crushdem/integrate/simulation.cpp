@@ -586,10 +586,10 @@ void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, 
 // per lane) no contact of a sample at rest under a few MPa reaches.
 template <class Law>
 concept SplitsHertzRegime = requires(const Law& law, double x) {
+  requires Law::kHertzRegime;
   { law.may_reach_hertz(x, x) } -> std::same_as<bool>;
   law.without_hertz_regime();
-}
-&&Law::kHertzRegime;
+};
 
 // Whether any of contacts 0 .. n-1 of a batch may be in the law's Hertz regime, from the
 // collected distances and radii: a vector reduction without square roots. (The same test in the
