@@ -63,6 +63,29 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 
 namespace crushdem::testing {
 
+/// Grain radius and side of the tight lattice (tight_lattice_config(), add_tight_lattice()).
+inline constexpr double kTightR0 = 0.5e-3;
+inline constexpr int kTightSide = 9;
+
+/// The box, friction and damping of a 9 x 9 x 9 jittered lattice of radii 0.99 to 1.01 kTightR0
+/// pressed into a box that holds it tightly (overlaps of a few um against each other and the
+/// walls, about half the list's pairs touching): friction 0.3, viscous and local damping on.
+/// The caller adds its own keys, builds the simulation and adds the grains (add_tight_lattice()).
+inline SimulationConfig tight_lattice_config(NormalLaw law) {
+  const double a = 2.0 * kTightR0;
+  SimulationConfig cfg = box_config(-0.5 * a, (kTightSide - 0.5) * a, law);
+  cfg.material.friction = 0.3;
+  cfg.contact.restitution = 0.5;
+  cfg.damping.local_alpha = 0.2;
+  return cfg;
+}
+
+/// The grains of tight_lattice_config(), with random velocities and spins from `seed`.
+inline void add_tight_lattice(Simulation& sim, std::uint64_t seed) {
+  add_jittered_lattice(sim, kTightSide, 2.0 * kTightR0, seed, 0.003, kTightR0, 0.995, 0.01, 0.05,
+                       50.0);
+}
+
 /// Sets the team size of the following parallel regions (nothing without OpenMP).
 inline void set_threads(int t) {
 #ifdef CRUSHDEM_HAVE_OPENMP

@@ -13,23 +13,17 @@
 namespace crushdem {
 namespace {
 
-constexpr double kR0 = 0.5e-3;
+constexpr double kR0 = testing::kTightR0;
 
-// A jittered cubic lattice of radii 0.99 to 1.01 r0 in a box that holds it tightly (overlaps of
-// a few um, about half the list's pairs touching), with random velocities and spins, and
-// rolling resistance on (its history follows the list). Skin r0 / 2.
+// The tight lattice (tests/helpers.hpp) with rolling resistance on (its history follows the
+// list). Skin r0 / 2.
 Simulation make_sample(bool prune, NormalLaw law) {
-  const int n = 9;
-  const double a = 2.0 * kR0;
-  SimulationConfig cfg = testing::box_config(-0.5 * a, (n - 0.5) * a, law);
-  cfg.material.friction = 0.3;
-  cfg.contact.restitution = 0.5;
+  SimulationConfig cfg = testing::tight_lattice_config(law);
   cfg.contact.rolling_friction = 0.1;
-  cfg.damping.local_alpha = 0.2;
   cfg.neighbor.prune = prune;
   cfg.neighbor.skin = 0.5 * kR0;
   Simulation sim(cfg);
-  testing::add_jittered_lattice(sim, n, a, 11, 0.003, kR0, 0.995, 0.01, 0.05, 50.0);
+  testing::add_tight_lattice(sim, 11);
   return sim;
 }
 

@@ -13,21 +13,13 @@
 namespace crushdem {
 namespace {
 
-constexpr double kR0 = 0.5e-3;
-
-// A jittered cubic lattice pressed into a box that holds it tightly (overlaps of a few um against
-// each other and the walls), with random velocities and spins; local damping on, the time step
-// automatic and re-evaluated every 7 steps, the contact load tracked.
+// The tight lattice (tests/helpers.hpp) with the time step automatic and re-evaluated every 7
+// steps and the contact load tracked.
 Simulation make_sample(NormalLaw law) {
-  const int n = 9;
-  const double a = 2.0 * kR0;
-  SimulationConfig cfg = testing::box_config(-0.5 * a, (n - 0.5) * a, law);
-  cfg.material.friction = 0.3;
-  cfg.contact.restitution = 0.5;
-  cfg.damping.local_alpha = 0.2;
+  SimulationConfig cfg = testing::tight_lattice_config(law);
   cfg.timestep.update_interval = 7;
   Simulation sim(cfg);
-  testing::add_jittered_lattice(sim, n, a, 23, 0.003, kR0, 0.995, 0.01, 0.05, 50.0);
+  testing::add_tight_lattice(sim, 23);
   sim.track_contact_load(0.5);
   return sim;
 }

@@ -134,16 +134,12 @@ CD_HD inline bool rough_may_reach_hertz(double d2, double rsum, const RoughHertz
 /// Normal-law evaluator for the rough law; `rough` is chosen by the caller (grain-grain or wall).
 /// kHertzRegime: see rough_hertz_normal(); without_hertz_regime() gives the evaluator for a set
 /// of contacts of which rough_may_reach_hertz() is false for every one.
-template <bool kWithHertzRegime = true>
+template <bool kHertzRegime = true>
 struct RoughHertzLawT {
-  static constexpr bool kHertzRegime = kWithHertzRegime;
   double E_star = 0.0;
   RoughHertzParams rough;
   CD_HD NormalForce operator()(double delta, double R_star, double sqrt_R_star) const {
     return rough_hertz_normal<kHertzRegime>(delta, R_star, sqrt_R_star, E_star, rough);
-  }
-  CD_HD bool may_reach_hertz(double d2, double rsum) const {
-    return rough_may_reach_hertz(d2, rsum, rough);
   }
   CD_HD RoughHertzLawT<false> without_hertz_regime() const { return {E_star, rough}; }
 };

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <concepts>
 #include <cstring>
 #include <limits>
 #include <sstream>
 #include <tuple>
+#include <type_traits>
 
 #include "crushdem/contact/contact_kernel.hpp"
 #include "crushdem/contact/contact_stress.hpp"
@@ -582,36 +582,29 @@ void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, 
   }
 }
 
-// A law whose regimes a batch can rule out: RoughHertzLaw, whose Hertz regime (a square root
-// per lane) no contact of a sample at rest under a few MPa reaches.
-template <class Law>
-concept SplitsHertzRegime = requires(const Law& law, double x) {
-  requires Law::kHertzRegime;
-  { law.may_reach_hertz(x, x) } -> std::same_as<bool>;
-  law.without_hertz_regime();
-};
-
-// Whether any of contacts 0 .. n-1 of a batch may be in the law's Hertz regime, from the
-// collected distances and radii: a vector reduction without square roots. (The same test in the
-// collect pass, on scalars, cost more instructions than the regime saves: callgrind.)
-template <class Law, std::size_t kCap>
-bool batch_may_reach_hertz(const Law& law, const BatchView<kCap> b, std::size_t n) {
+// Whether any of contacts 0 .. n-1 of a batch may be in the rough law's Hertz regime (p: its
+// grain-grain constants), from the collected distances and radii: a vector reduction without
+// square roots. (The same test in the collect pass, on scalars, cost more instructions than the
+// regime saves: callgrind.)
+template <std::size_t kCap>
+bool batch_may_reach_hertz(const RoughHertzParams& p, const BatchView<kCap> b, std::size_t n) {
   const double* __restrict const d2 = b.f(kD2);
   const double* __restrict const r_i = b.f(kRI);
   const double* __restrict const r_j = b.f(kRJ);
   int any = 0;
 #pragma omp simd reduction(| : any)
-  for (std::size_t m = 0; m < n; ++m) any |= law.may_reach_hertz(d2[m], r_i[m] + r_j[m]) ? 1 : 0;
+  for (std::size_t m = 0; m < n; ++m)
+    any |= rough_may_reach_hertz(d2[m], r_i[m] + r_j[m], p) ? 1 : 0;
   return any != 0;
 }
 
-// Evaluates a batch with the pair loop's law, or, where that law has regimes and none of the
-// batch's contacts can be in one of them, with the law that leaves that regime out (the same
-// bits for every contact, without its cost in every lane).
+// Evaluates a batch with the pair loop's law, or, for the rough law where none of the batch's
+// contacts can be in its Hertz regime (a sample at rest under a few MPa: none is), with the law
+// that leaves that regime out: the same bits for every contact, without a square root per lane.
 template <class Law, bool Rolling, std::size_t kCap>
 void evaluate_batch(const PairLoop<Law>& L, PairBatch& b, std::size_t n) {
-  if constexpr (SplitsHertzRegime<Law>) {
-    if (!batch_may_reach_hertz(L.law, b.view<kCap>(), n)) {
+  if constexpr (std::is_same_v<Law, RoughHertzLaw>) {
+    if (!batch_may_reach_hertz(L.law.rough, b.view<kCap>(), n)) {
       evaluate_batch_with<Rolling, kCap>(L.law.without_hertz_regime(), L.cp, L.h, b, n);
       return;
     }
