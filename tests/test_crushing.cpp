@@ -276,3 +276,22 @@ TEST(Pattern, ReadFromFileAndRejectOverlaps) {
   }
   fs::remove(f);
 }
+
+TEST(Crushing, LoadedShareCountsCrushableGrainsNearTheirStrength) {
+  // One grain pressed between the z walls, a smaller crushable one free beside it: half the
+  // crushable grains carry a load, at sigma / sigma_lim known from the contact load.
+  const double d = 0.21e-3, R = 0.5 * d, delta = 1e-7;
+  Simulation sim(squeeze_config(1e-3, d - 2.0 * delta));
+  sim.add_particle({0.0, 0.0, R - delta}, R);
+  sim.add_particle({-8e-4, -8e-4, R - delta}, 0.7 * R);
+  Crusher crusher(exact_strength(d), SplitPattern::default14());
+  crusher.begin(sim);
+  sim.step();
+  const std::vector<double>& sigma = sim.contact_load().sigma;  // grains in the store's order
+  const double ratio = *std::max_element(sigma.begin(), sigma.end()) / 3.75e9;
+  ASSERT_GT(ratio, 0.01);
+  ASSERT_GE(0.7 * d, crusher.d_c());
+  EXPECT_EQ(crusher.loaded_share(sim, 0.99 * ratio), 0.5);
+  EXPECT_EQ(crusher.loaded_share(sim, 1.01 * ratio), 0.0);
+  EXPECT_EQ(crusher.loaded_share(sim, 0.0), 1.0);
+}

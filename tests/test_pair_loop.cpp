@@ -63,6 +63,7 @@ Simulation make_sample(NormalLaw law, bool wide_skin = false) {
   SimulationConfig cfg = testing::box_config(-10.0 * a, (n + 10) * a, law);
   cfg.material.friction = 0.05;   // small, so the Coulomb cap binds the viscous tangential force
   cfg.contact.restitution = 0.5;  // viscous damping on
+  cfg.contact.rotation = Rotation::Rolling;
   cfg.contact.rolling_friction = 0.1;
   if (wide_skin) cfg.neighbor.skin = 4.0 * a;
   Simulation sim(cfg);

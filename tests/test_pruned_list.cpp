@@ -19,6 +19,7 @@ constexpr double kR0 = testing::kTightR0;
 // list). Skin r0 / 2.
 Simulation make_sample(bool prune, NormalLaw law) {
   SimulationConfig cfg = testing::tight_lattice_config(law);
+  cfg.contact.rotation = Rotation::Rolling;
   cfg.contact.rolling_friction = 0.1;
   cfg.neighbor.prune = prune;
   cfg.neighbor.skin = 0.5 * kR0;

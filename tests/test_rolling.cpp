@@ -51,6 +51,7 @@ struct CounterRotatingPair {
 
   CounterRotatingPair() {
     cfg = testing::box_config(-1e-3, 1e-3);
+    cfg.contact.rotation = Rotation::Rolling;
     cfg.contact.rolling_friction = mu_r;
     cfg.timestep.dt = dt;
     const double delta_w = delta * std::cbrt(0.5);

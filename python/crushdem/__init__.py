@@ -91,7 +91,8 @@ class Simulation:
     ``contact``
         ``law`` ("hertz" or "rough"), ``roughness_Sq`` [m], ``k1``, ``k2`` [-],
         ``wall_friction`` [-], ``restitution`` [-], ``rolling_friction`` mu_r [-] (grain-grain
-        rolling resistance, 0 = off).
+        rolling resistance, 0 = off), ``rotation`` ("free", "rolling" or "blocked": spins held
+        at zero; "rolling" is implied by ``rolling_friction`` > 0).
     ``damping``
         ``local_alpha`` [-] (0 turns local damping off).
     ``timestep``

@@ -51,11 +51,15 @@ VARIANTS: Dict[str, tuple] = {
                    {"k1": 1.0, "k2": 100.0}, {}),
     "f_uniform": ("f uniform on [1 - var, 1 + var] instead of normal(1, var)", {},
                   {"distribution": "uniform"}),
-    "rolling_0.1": ("rolling resistance mu_r = 0.1 (model-notes 5, item 6; not in Table 1)",
-                    {"rolling_friction": 0.1}, {}),
-    "rolling_0.3": ("rolling resistance mu_r = 0.3 (model-notes 5, item 6; not in Table 1)",
-                    {"rolling_friction": 0.3}, {}),
+    "blocked": ("rotation blocked: spins held at zero, contact moments ignored (Arroyo et al. "
+                "2011; not in Table 1)", {"rotation": "blocked"}, {}),
 }
+# Rolling resistance (model-notes 5, item 6; PFC-style, not in Table 1) at the decision study's
+# mu_r values.
+for _mu_r in ("0.1", "0.2", "0.3", "0.4", "0.6", "1.0"):
+    VARIANTS[f"rolling_{_mu_r}"] = (
+        f"rolling resistance mu_r = {_mu_r} (k_r = k_t R*^2, |M_r| <= mu_r R* F_n)",
+        {"rotation": "rolling", "rolling_friction": float(_mu_r)}, {})
 
 
 def settings(sigma_3: float = 10e6, strain_rate: float = 50.0,

@@ -160,6 +160,7 @@ void test_rebuild_history(GpuStepper::Mode mode, double rolling_friction = 0.0) 
   SimulationConfig cfg = box_config(-1e-3, 1e-3, NormalLaw::Rough);
   cfg.contact.wall_friction = 0.3;
   cfg.contact.rolling_friction = rolling_friction;
+  if (rolling_friction > 0.0) cfg.contact.rotation = Rotation::Rolling;
   cfg.timestep.dt = 5e-10;
   cfg.neighbor.skin = 2e-9;
   Simulation cpu(cfg);

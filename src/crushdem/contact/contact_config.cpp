@@ -36,6 +36,15 @@ void ContactConfig::validate() const {
           "a coefficient of restitution in (0, 1] (1 = no viscous damping)");
   require(rolling_friction >= 0.0 && std::isfinite(rolling_friction), "contact.rolling_friction",
           rolling_friction, "a rolling friction coefficient >= 0 (0 = no rolling resistance)");
+  if (rotation == Rotation::Rolling && !(rolling_friction > 0.0)) {
+    throw ConfigError(bad_value("contact.rolling_friction", show_number(rolling_friction),
+                                "mu_r > 0 with contact.rotation = \"rolling\""));
+  }
+  if (rotation != Rotation::Rolling && rolling_friction != 0.0) {
+    throw ConfigError(bad_value("contact.rolling_friction", show_number(rolling_friction),
+                                std::string("0 with contact.rotation = \"") + to_string(rotation) +
+                                    "\" (rolling resistance needs rotation = \"rolling\")"));
+  }
 }
 
 const char* to_string(NormalLaw law) {
@@ -48,13 +57,30 @@ NormalLaw parse_normal_law(const std::string& s, const std::string& key) {
   throw ConfigError(bad_value(key, "\"" + s + "\"", "\"hertz\" or \"rough\""));
 }
 
+const char* to_string(Rotation r) {
+  switch (r) {
+    case Rotation::Free: return "free";
+    case Rotation::Rolling: return "rolling";
+    case Rotation::Blocked: return "blocked";
+  }
+  return "free";
+}
+
+Rotation parse_rotation(const std::string& s, const std::string& key) {
+  for (Rotation r : {Rotation::Free, Rotation::Rolling, Rotation::Blocked}) {
+    if (s == to_string(r)) return r;
+  }
+  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"free\", \"rolling\" or \"blocked\""));
+}
+
 ContactParams make_contact_params(const MaterialConfig& m, const ContactConfig& c) {
   ContactParams p;
   p.E_star = m.E_star();
   p.tangential_ratio = mindlin_stiffness_ratio(m.poisson_ratio);
   p.mu = m.friction;
   p.mu_wall = c.wall_friction;
-  p.mu_r = c.rolling_friction;
+  p.mu_r = c.rotation == Rotation::Rolling ? c.rolling_friction : 0.0;
+  p.spin_scale = c.rotation == Rotation::Blocked ? 0.0 : 1.0;
   if (c.restitution < 1.0) p.viscous.alpha_n = std::sqrt(2.0) * tsuji_alpha(c.restitution);
   const double Sq = c.law == NormalLaw::Rough ? c.roughness_Sq : 0.0;
   p.rough_pp = make_rough_hertz(std::sqrt(2.0) * Sq, c.k1, c.k2);

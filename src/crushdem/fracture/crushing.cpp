@@ -116,6 +116,20 @@ double Crusher::crack_velocity(const Simulation& sim, std::size_t i) const {
   return crushdem::crack_velocity(cfg_.v0, load.sigma[i], p.field(strength_field_)[i], cfg_.n);
 }
 
+double Crusher::loaded_share(const Simulation& sim, double ratio) const {
+  const ParticleStore& p = sim.particles();
+  const Simulation::ContactLoad& load = sim.contact_load();
+  const std::vector<double>& strength = p.field(strength_field_);
+  std::size_t crushable = 0, above = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (2.0 * p.radius[i] < d_c_) continue;
+    ++crushable;
+    const double sigma = load.sigma.size() == p.size() ? load.sigma[i] : 0.0;
+    if (sigma >= ratio * strength[i]) ++above;
+  }
+  return crushable ? static_cast<double>(above) / static_cast<double>(crushable) : 0.0;
+}
+
 double Crusher::fragment_density(double d) const {
   if (!cfg_.density_scaling || d >= d_ref_) return rho_;
   return rho_ * (d_ref_ / d) * (d_ref_ / d);

@@ -95,6 +95,10 @@ class Crusher {
   /// grain that cannot break or without a crack).
   double crack_velocity(const Simulation& sim, std::size_t i) const;
   std::size_t crack_field() const { return crack_field_; }
+  /// Share of the crushable grains (d >= d_c) whose particle stress sigma is at least `ratio`
+  /// of their strength at the current contact load: at n = 60 the grains above about 0.72 are
+  /// those that can fail by crack growth within a day (model-notes 3).
+  double loaded_share(const Simulation& sim, double ratio) const;
 
   double d0() const { return d0_; }
   double d_c() const { return d_c_; }

@@ -115,13 +115,14 @@ struct WallSum {  // plain (no initialisers): it lives in shared memory
 // --- per-thread bodies (shared by the kernels and the host emulation) -------------------------
 
 CD_HD inline double kick_drift_item(const View& v, Index i) {
-  const double a = v.hh * v.inv_mass[i], b = v.hh * v.inv_inertia[i];
+  const double s = v.cp.spin_scale;  // 0 holds the spins at zero (rotation blocked)
+  const double a = v.hh * v.inv_mass[i], b = s * (v.hh * v.inv_inertia[i]);
   v.vx[i] += a * v.fx[i];
   v.vy[i] += a * v.fy[i];
   v.vz[i] += a * v.fz[i];
-  v.wx[i] += b * v.tx[i];
-  v.wy[i] += b * v.ty[i];
-  v.wz[i] += b * v.tz[i];
+  v.wx[i] = s * v.wx[i] + b * v.tx[i];
+  v.wy[i] = s * v.wy[i] + b * v.ty[i];
+  v.wz[i] = s * v.wz[i] + b * v.tz[i];
   v.x[i] += v.h * v.vx[i];
   v.y[i] += v.h * v.vy[i];
   v.z[i] += v.h * v.vz[i];
@@ -388,13 +389,14 @@ CD_HD inline void gather_item(const View& v, Index j) {
   v.tx[j] = T.x;
   v.ty[j] = T.y;
   v.tz[j] = T.z;
-  const double a = v.hh * v.inv_mass[j], b = v.hh * v.inv_inertia[j];
+  const double s = v.cp.spin_scale;
+  const double a = v.hh * v.inv_mass[j], b = s * (v.hh * v.inv_inertia[j]);
   v.vx[j] += a * F.x;
   v.vy[j] += a * F.y;
   v.vz[j] += a * F.z;
-  v.wx[j] += b * T.x;
-  v.wy[j] += b * T.y;
-  v.wz[j] += b * T.z;
+  v.wx[j] = s * v.wx[j] + b * T.x;
+  v.wy[j] = s * v.wy[j] + b * T.y;
+  v.wz[j] = s * v.wz[j] + b * T.z;
 }
 
 // --- kernels -----------------------------------------------------------------------------------

@@ -27,6 +27,7 @@ using Idx = std::ptrdiff_t;
 // is exact, so the lanes change no bit. Constructing it sizes the packed copies to the store.
 struct KickDrift {
   double h, hh;
+  double spin_scale;  // ContactParams::spin_scale: 0 holds every spin at zero (rotation blocked)
   double *x, *y, *z, *vx, *vy, *vz, *wx, *wy, *wz;
   const double *fx, *fy, *fz, *tx, *ty, *tz, *inv_mass, *inv_inertia, *radius;
   const double *x0, *y0, *z0;  // positions at the last neighbour build
@@ -34,9 +35,10 @@ struct KickDrift {
   detail::PackedVelocity* V;
 
   KickDrift(ParticleStore& p, const NeighborList& nl, std::vector<detail::PackedPosition>& pos,
-            std::vector<detail::PackedVelocity>& vel, double dt)
+            std::vector<detail::PackedVelocity>& vel, double dt, double spin)
       : h(dt),
         hh(0.5 * dt),
+        spin_scale(spin),
         x(p.x.data()),
         y(p.y.data()),
         z(p.z.data()),
@@ -70,13 +72,13 @@ struct KickDrift {
                   double& since_build2, double& step2) const {
     constexpr double kInf = std::numeric_limits<double>::infinity();
     const double im = inv_mass[i];
-    const double a = hh * im, b = hh * inv_inertia[i];
+    const double a = hh * im, b = spin_scale * (hh * inv_inertia[i]);
     const double vx1 = vx[i] + a * Fx;
     const double vy1 = vy[i] + a * Fy;
     const double vz1 = vz[i] + a * Fz;
-    const double wx1 = wx[i] + b * Tx;
-    const double wy1 = wy[i] + b * Ty;
-    const double wz1 = wz[i] + b * Tz;
+    const double wx1 = spin_scale * wx[i] + b * Tx;
+    const double wy1 = spin_scale * wy[i] + b * Ty;
+    const double wz1 = spin_scale * wz[i] + b * Tz;
     const double x1 = x[i] + h * vx1;
     const double y1 = y[i] + h * vy1;
     const double z1 = z[i] + h * vz1;
@@ -1224,7 +1226,7 @@ Simulation::Drift Simulation::gather_grains() {
   // the loop run in vector lanes anyway, each element with the same operations as a scalar
   // loop. kDrift: the next step's first half kick and drift, in the same pass (step() asks for
   // it when nothing changes between the two steps: same dt, no caller in between).
-  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
+  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_, cp_.spin_scale);
   double* const fux = fu_x_.data();
   double* const fuy = fu_y_.data();
   double* const fuz = fu_z_.data();
@@ -1276,13 +1278,14 @@ Simulation::Drift Simulation::gather_grains() {
       pty[j] = T.y;
       ptz[j] = T.z;
       if constexpr (kKick) {  // second half kick of velocity Verlet (one pass over memory)
-        const double a = kd.hh * kd.inv_mass[j], b = kd.hh * kd.inv_inertia[j];
+        const double a = kd.hh * kd.inv_mass[j];
+        const double b = kd.spin_scale * (kd.hh * kd.inv_inertia[j]);
         kd.vx[j] += a * F.x;
         kd.vy[j] += a * F.y;
         kd.vz[j] += a * F.z;
-        kd.wx[j] += b * T.x;
-        kd.wy[j] += b * T.y;
-        kd.wz[j] += b * T.z;
+        kd.wx[j] = kd.spin_scale * kd.wx[j] + b * T.x;
+        kd.wy[j] = kd.spin_scale * kd.wy[j] + b * T.y;
+        kd.wz[j] = kd.spin_scale * kd.wz[j] + b * T.z;
       }
       if constexpr (kDrift) kd(j, F.x, F.y, F.z, T.x, T.y, T.z, m2, step2);
     }
@@ -1446,7 +1449,7 @@ void Simulation::set_friction(double mu) {
 Simulation::Drift Simulation::kick_drift() {
   // First half kick and drift in one pass (KickDrift), with the displacement maxima.
   const std::size_t N = p_.size();
-  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_);
+  const KickDrift kd(p_, nl_, packed_pos_, packed_vel_, dt_, cp_.spin_scale);
   double m2 = 0.0, step2 = 0.0;
 #pragma omp parallel for simd schedule(static) reduction(max : m2, step2) if (worth_threading(N))
   for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {

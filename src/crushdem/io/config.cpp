@@ -155,6 +155,11 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     s.number("wall_friction", c.contact.wall_friction);
     s.number("restitution", c.contact.restitution);
     s.number("rolling_friction", c.contact.rolling_friction);
+    // Without the key, mu_r > 0 means rolling resistance, as it did before the key existed.
+    std::string rotation = to_string(c.contact.rotation);
+    if (!s.has("rotation") && c.contact.rolling_friction > 0.0) rotation = "rolling";
+    s.string("rotation", rotation);
+    c.contact.rotation = parse_rotation(rotation, "contact.rotation");
     s.finish();
   }
   {
@@ -609,6 +614,7 @@ toml::Table to_toml(const SimulationConfig& c) {
   ct["wall_friction"] = num(c.contact.wall_friction);
   ct["restitution"] = num(c.contact.restitution);
   ct["rolling_friction"] = num(c.contact.rolling_friction);
+  ct["rotation"] = Value::make_string(to_string(c.contact.rotation));
   t["contact"] = Value::make_table(ct);
   Table d;
   d["local_alpha"] = num(c.damping.local_alpha);

@@ -367,6 +367,16 @@ JsonObject stage_json(const StageResult& r) {
   return o;
 }
 
+// Shares of the crushable grains loaded to at least a fraction of their strength at the end of a
+// stage (Crusher::loaded_share), keyed by the fraction.
+JsonObject loaded_share_json(const Simulation& sim, const Crusher& crusher) {
+  JsonObject o;
+  for (const char* ratio : {"0.5", "0.6", "0.7", "0.72", "0.75", "0.8", "0.9"}) {
+    o.number(ratio, crusher.loaded_share(sim, std::stod(ratio)));
+  }
+  return o;
+}
+
 // The format tag carries kStateVersion (core/state_io.hpp); older checkpoints still resume.
 std::string checkpoint_tag(int version) {
   return "crushdem-checkpoint-" + std::to_string(version);
@@ -749,7 +759,9 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
             return m;
           },
           cfg.stages[k].label(), {}, cont, st.to_check);
-      st.stage_results.push_back(stage_json(stage.result()));
+      JsonObject result = stage_json(stage.result());
+      if (crusher) result.object("loaded_share", loaded_share_json(sim, *crusher));
+      st.stage_results.push_back(result);
       if (!stage.result().warning.empty()) st.warnings.push_back(stage.result().warning);
       if (opt.progress) {
         std::fprintf(stderr, "[crushdem] stage '%s' ended (%s) after %llu steps\n",
