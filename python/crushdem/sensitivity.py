@@ -30,6 +30,8 @@ import os
 import sys
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
+import numpy as np
+
 from .plot import _num, read_summary
 from .reproduce import (CONTACT, CRUSHING, MATERIAL, _run_step, _timing, set_threads,
                         triaxial_stage)
@@ -128,13 +130,47 @@ def known_runs(out: str) -> List[str]:
     return singles + [n for n in found if n not in VARIANTS]
 
 
-def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
-    """The figures of one finished variant run (NaN where the run has not finished)."""
+def solid_volume(sample: str) -> float:
+    """The grains' volume of a sample file (rows "id x y z r") [m^3]."""
+    volume = 0.0
+    with open(sample) as f:
+        for line in f:
+            fields = line.split()
+            if fields and not fields[0].startswith("#"):
+                volume += 4.0 / 3.0 * math.pi * float(fields[4]) ** 3
+    return volume
+
+
+def shear_end(run_dir: str) -> Dict[str, float]:
+    """q and the volumetric strain of the shear (from its first row) at the end of the
+    triaxial stage, from DIR/timeseries.csv (NaN when it cannot be read)."""
+    from .plot import read_timeseries
+
+    out = {"q_end_MPa": math.nan, "eps_v_shear": math.nan}
+    try:
+        d = read_timeseries(os.path.join(run_dir, "timeseries.csv"))
+    except (OSError, ValueError):
+        return out
+    stage = d.get("stage")
+    if stage is None or not len(stage):
+        return out
+    rows = np.flatnonzero(stage == stage.max())
+    if len(rows):
+        out["q_end_MPa"] = d["deviator_stress_Pa"][rows[-1]] / 1e6
+        out["eps_v_shear"] = d["volumetric_strain"][rows[-1]] - d["volumetric_strain"][rows[0]]
+    return out
+
+
+def read_variant(run_dir: str, sigma_3: float, solids_m3: float = math.nan) -> Dict[str, Any]:
+    """The figures of one finished variant run (NaN where the run has not finished).
+    solids_m3: the sample's grain volume, for the share of it that breakage deleted."""
     nan = math.nan
     row: Dict[str, Any] = {"q_max_MPa": nan, "q_max_over_sigma_3": nan,
                            "axial_strain_at_q_max": nan, "friction_angle_peak_deg": nan,
-                           "breakages": nan, "relative_breakage_Br": nan, "grains_end": nan,
-                           "wall_s": nan, "finished": False}
+                           "q_end_MPa": nan, "eps_v_shear": nan,
+                           "breakages": nan, "relative_breakage_Br": nan,
+                           "removed_volume_share": nan, "loaded_share_072_isotropic": nan,
+                           "grains_end": nan, "wall_s": nan, "finished": False}
     summary = read_summary(run_dir)
     if not summary:
         return row
@@ -145,28 +181,34 @@ def read_variant(run_dir: str, sigma_3: float) -> Dict[str, Any]:
                friction_angle_peak_deg=_num(shear.get("friction_angle_peak_deg")),
                grains_end=summary.get("particles", nan),
                wall_s=_num(_timing(run_dir).get("wall_seconds")))
+    row.update(shear_end(run_dir))
     crushing = summary.get("crushing") or {}
     if crushing:
         row["breakages"] = (crushing.get("breakages_instant", 0) or 0) + (
             crushing.get("breakages_crack", 0) or 0)
         row["relative_breakage_Br"] = crushing.get("relative_breakage_Br", nan)
+        row["removed_volume_share"] = _num(crushing.get("removed_volume_m3")) / solids_m3
+        first = (summary.get("stages") or [{}])[0]
+        row["loaded_share_072_isotropic"] = _num((first.get("loaded_share") or {}).get("0.72"))
     else:
-        row["breakages"], row["relative_breakage_Br"] = 0, 0.0
+        row["breakages"], row["relative_breakage_Br"], row["removed_volume_share"] = 0, 0.0, 0.0
     return row
 
 
 COLUMNS = ("variant", "q_max_MPa", "q_max_over_sigma_3", "axial_strain_at_q_max",
-           "friction_angle_peak_deg", "breakages", "relative_breakage_Br", "grains_end",
-           "wall_s", "changes")
+           "friction_angle_peak_deg", "q_end_MPa", "eps_v_shear", "breakages",
+           "relative_breakage_Br", "removed_volume_share", "loaded_share_072_isotropic",
+           "grains_end", "wall_s", "changes")
 
 
-def table(out: str, names: Sequence[str], sigma_3: float) -> List[Dict[str, Any]]:
+def table(out: str, names: Sequence[str], sigma_3: float,
+          solids_m3: float = math.nan) -> List[Dict[str, Any]]:
     """Reads the runs of ``names`` and of every other variant run under ``out``; writes
-    qmax_sensitivity.csv and .md; returns the rows."""
+    qmax_sensitivity.csv and .md; returns the rows. solids_m3: the sample's grain volume."""
     rows = []
     listed = known_runs(out)
     for name in listed + [n for n in names if n not in listed]:
-        row = read_variant(os.path.join(out, name), sigma_3)
+        row = read_variant(os.path.join(out, name), sigma_3, solids_m3)
         row["variant"], row["changes"] = name, describe(name)
         rows.append(row)
     with open(os.path.join(out, "qmax_sensitivity.csv"), "w", newline="") as f:
@@ -178,15 +220,19 @@ def table(out: str, names: Sequence[str], sigma_3: float) -> List[Dict[str, Any]
     lines = [f"q_max at sigma_3 = {sigma_3 / 1e6:g} MPa, one choice varied at a time "
              f"(study: {STUDY_Q_MAX_PA / 1e6:g} MPa)", "",
              "| variant | q_max [MPa] | q_max / sigma_3 | eps_a at q_max | phi_peak [deg] | "
-             "breakages | B_r | grains | wall [s] |", "|---|---|---|---|---|---|---|---|---|"]
+             "q at end [MPa] | eps_v of the shear | breakages | B_r | volume deleted | "
+             "grains >= 0.72 sigma_lim after isotropic | grains | wall [s] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if not r["finished"]:
-            lines.append(f"| {r['variant']} | (not finished) | | | | | | | |")
+            lines.append(f"| {r['variant']} | (not finished) |" + " |" * 11)
             continue
         lines.append(
             f"| {r['variant']} | {r['q_max_MPa']:.2f} | {r['q_max_over_sigma_3']:.3f} | "
             f"{100 * r['axial_strain_at_q_max']:.1f} % | {r['friction_angle_peak_deg']:.1f} | "
-            f"{r['breakages']} | {r['relative_breakage_Br']:.3f} | {r['grains_end']} | "
+            f"{r['q_end_MPa']:.2f} | {100 * r['eps_v_shear']:.2f} % | {r['breakages']} | "
+            f"{r['relative_breakage_Br']:.3f} | {100 * r['removed_volume_share']:.2f} % | "
+            f"{100 * r['loaded_share_072_isotropic']:.2f} % | {r['grains_end']} | "
             f"{r['wall_s']:.0f} |")
     if done:
         best = min(done, key=lambda r: abs(r["q_max_MPa"] * 1e6 - STUDY_Q_MAX_PA))
@@ -233,6 +279,7 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
                   indent=1)
     if threads:
         set_threads(threads)
+    solids = solid_volume(sample)
     record: Dict[str, Any] = {}
     for n, s in chosen.items():
         run_dir = os.path.join(out, n)
@@ -243,8 +290,8 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
                       axial_strain=tri["axial_strain"], material=s["material"],
                       contact=s["contact"], crushing=s["crushing"], output=s["output"]),
                   log, record, _core.resume)
-        table(out, names, sigma_3)  # after every variant: finished work is never lost
-    return table(out, names, sigma_3)
+        table(out, names, sigma_3, solids)  # after every variant: finished work is never lost
+    return table(out, names, sigma_3, solids)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

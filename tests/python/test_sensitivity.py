@@ -120,3 +120,39 @@ def test_a_directory_is_not_shared_between_samples(tmp_path):
     sample.write_text("# box_xmin=0\n")
     with pytest.raises(ValueError, match="holds variants run on /elsewhere/sample.txt"):
         sensitivity.run_sensitivity(str(out), str(sample), ["base"])
+
+
+def test_the_table_reads_the_shear_end_deleted_volume_and_loaded_share(tmp_path):
+    out = str(tmp_path / "out")
+    run = os.path.join(out, "blocked")
+    _fake_run(run, 20e6, breakages=7)
+    with open(os.path.join(run, "summary.json")) as f:
+        summary = json.load(f)
+    summary["crushing"]["removed_volume_m3"] = 2.5e-12
+    summary["stages"][0]["loaded_share"] = {"0.7": 0.05, "0.72": 0.031}
+    with open(os.path.join(run, "summary.json"), "w") as f:
+        json.dump(summary, f)
+    # Stage 0 (isotropic), then the shear from eps_v = 0.010 to 0.004 ending at q = 18 MPa.
+    with open(os.path.join(run, "timeseries.csv"), "w") as f:
+        f.write("step,stage,deviator_stress_Pa,volumetric_strain\n"
+                "0,0,0,0.000\n10,0,1e5,0.010\n20,1,5e6,0.010\n30,1,2e7,0.012\n40,1,1.8e7,0.004\n")
+    sample = tmp_path / "sample.txt"
+    sample.write_text("# box_xmin=0\n0 0 0 0 1e-4\n1 1 1 1 2e-4\n")
+    solids = sensitivity.solid_volume(str(sample))
+    assert solids == pytest.approx(4.0 / 3.0 * 3.141592653589793 * (1e-12 + 8e-12))
+    row = sensitivity.table(out, ["blocked"], 10e6, solids)[0]
+    assert row["q_end_MPa"] == pytest.approx(18.0)
+    assert row["eps_v_shear"] == pytest.approx(-0.006)
+    assert row["removed_volume_share"] == pytest.approx(2.5e-12 / solids)
+    assert row["loaded_share_072_isotropic"] == pytest.approx(0.031)
+    md = open(os.path.join(out, "qmax_sensitivity.md")).read()
+    assert "| 18.00 | -0.60 % | 7 |" in md
+    assert "| 3.10 % |" in md
+
+
+def test_rotation_variants_cannot_be_combined_with_each_other():
+    base = sensitivity.settings()
+    s = sensitivity.variant_settings(base, "no_crushing+blocked")
+    assert s["contact"]["rotation"] == "blocked" and s["crushing"]["enabled"] is False
+    with pytest.raises(ValueError, match="set contact.rotation differently"):
+        sensitivity.variant_settings(base, "blocked+rolling_0.3")
