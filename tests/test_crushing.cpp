@@ -1,4 +1,4 @@
-// Grain crushing (issue 4, model-notes 2): the 14-fragment pattern, the breaking force of one
+// Grain crushing (issue 4, docs/model.md 2): the 14-fragment pattern, the breaking force of one
 // grain against walls and of two grains, the size effect and spread of strength, conservation
 // in a split, the comminution limit.
 #include <gtest/gtest.h>
@@ -18,7 +18,7 @@ using namespace crushdem;
 
 namespace {
 
-// Table 1 material, smooth Hertz (the closed-form figures of model-notes 2.1 are for Hertz).
+// Table 1 material, smooth Hertz (the closed-form figures of docs/model.md 2.1 are for Hertz).
 SimulationConfig squeeze_config(double half_width, double gap_top) {
   SimulationConfig c = crushdem::testing::box_config(-half_width, half_width, NormalLaw::Hertz);
   c.damping.local_alpha = 0.7;
@@ -92,7 +92,7 @@ TEST(Crushing, GrainBetweenWallsBreaksAtTheHertzForce) {
   const auto ev = squeeze_until_break(sim, crusher, 0.02);
   ASSERT_EQ(ev.size(), 1u);
   const double F_theory = hertz_break_force(3.75e9, R, sim.contact_params().E_star);
-  EXPECT_NEAR(F_theory, 6.5, 0.05);  // model-notes 2.1
+  EXPECT_NEAR(F_theory, 6.5, 0.05);  // docs/model.md 2.1
   // The force on the top wall when the criterion was met (the step before the split).
   const double F = ev[0].sigma / 3.75e9;  // sigma >= sigma_lim at the first crossing
   EXPECT_GE(F, 1.0);

@@ -1,4 +1,4 @@
-// Rough-surface Hertz law (model-notes 1.2) against the constants stated there.
+// Rough-surface Hertz law (docs/model.md 1.2) against the constants stated there.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -20,7 +20,7 @@ std::uint64_t bits(double x) {
   return std::bit_cast<std::uint64_t>(x);
 }
 
-// Grain-grain roughness of the study (S_q = 0.6 um) with both (k1, k2) pairs of model-notes 1.2.
+// Grain-grain roughness of the study (S_q = 0.6 um) with both (k1, k2) pairs of docs/model.md 1.2.
 std::vector<RoughHertzParams> params() {
   return {make_rough_hertz(0.6e-6 * std::sqrt(2.0), 0.05, 5.0),
           make_rough_hertz(0.6e-6 * std::sqrt(2.0), 0.2, 10.0)};

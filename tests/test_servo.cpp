@@ -1,5 +1,5 @@
 // Servo-controlled walls compress a simple-cubic lattice: the wall stress reaches the target and
-// the strain is the one Hertz theory gives for the lattice (model-notes 4.2).
+// the strain is the one Hertz theory gives for the lattice (docs/model.md 4.2).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -3,7 +3,7 @@
 
 ``crushdem plot DIR`` draws the time series of a finished run; ``crushdem reproduce --out DIR``
 runs the reference study's section 3 and draws its figures; ``crushdem sensitivity`` measures
-q_max under each uncertain choice of model-notes section 5; every other command is handed to
+q_max under each uncertain choice of docs/model.md section 5; every other command is handed to
 the same C++ front end as the standalone executable.
 """
 
@@ -16,7 +16,7 @@ _PLOT_USAGE = f"{'  plot DIR':<44}draw DIR/timeseries.csv as PNG figures\n"
 _REPRODUCE_USAGE = (f"{'  reproduce --out DIR [--quick] [--threads N]'}\n"
                     f"{'':<44}run the study's section 3, draw its figures\n")
 _SENSITIVITY_USAGE = (f"{'  sensitivity --out DIR --sample FILE [--only A,B]'}\n"
-                      f"{'':<44}q_max under each uncertain choice (model-notes 5)\n")
+                      f"{'':<44}q_max under each uncertain choice (docs/model.md 5)\n")
 
 
 def main(argv: Optional[List[str]] = None) -> None:

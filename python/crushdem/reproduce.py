@@ -1,7 +1,8 @@
 """``crushdem reproduce --out DIR [--quick] [--threads N]``: the reference study's section 3
 (stress relaxation of a crushable quartz sand) run end to end, with its four figures.
 
-The study (../shared/seeds, section 3; model-notes 4.4 and 4.5) has one sample and three tests:
+The study ("Discrete modelling of stress relaxation in crushable sands based on fracture
+theory", section 3; docs/model.md 4.4 and 4.5) has one sample and three tests:
 
 * an oedometric stress relaxation: load to sigma_v = 7.5 MPa with crushing on, fix the walls,
   age one day with the on-off scheme (dynamic phases of ``min_cycles`` steps alternating with
@@ -70,7 +71,7 @@ T_REF_S = 4.0          # the study normalises sigma_v by its value at 4 s of age
 FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
 RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
 
-# Table 1 of the study (model-notes 1-3); the crushing keys are those of examples/*crushing.toml.
+# Table 1 of the study (docs/model.md 1-3); the crushing keys are those of examples/*crushing.toml.
 MATERIAL = {"density": 2650.0, "shear_modulus": 32e9, "poisson_ratio": 0.19, "friction": 0.275}
 CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
 NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e-3],
@@ -346,7 +347,7 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
         ax.plot([T_REF_S], [1.0], "s", mfc="none", mec="k", ms=7,
                 label=f"$\\sigma_v$(4 s) = {s_ref * MPA:.3g} MPa")
     ax.errorbar([DAY_S], [0.835], yerr=[[0.135], [0.135]], fmt="none", ecolor="tab:blue",
-                capsize=4, lw=1.5, label="plausible band at 1 day (model-notes 4.4)")
+                capsize=4, lw=1.5, label="plausible band at 1 day (docs/model.md 4.4)")
     ax.axhline(1.0, color="0.6", lw=0.8)
     ax.set_xlabel("ageing time $t$ [s] (log scale)")
     ax.set_ylabel("$\\sigma_v(t) / \\sigma_v(4\\,\\mathrm{s})$ [-]")

@@ -1,5 +1,5 @@
 """``crushdem sensitivity --out DIR --sample FILE``: the influence of the uncertain choices of
-model-notes section 5 on the drained triaxial strength q_max (issue 4).
+docs/model.md section 5 on the drained triaxial strength q_max (issue 4).
 
 Each variant changes one choice of the base settings (Table 1 and the documented defaults, as
 ``crushdem reproduce`` uses them for its triaxial shear: crushing on, density scaling, no crack
@@ -39,7 +39,7 @@ from .reproduce import (CONTACT, CRUSHING, MATERIAL, _run_step, _timing, set_thr
 STUDY_Q_MAX_PA = 22.6e6  # the study's q_max at sigma_3 = 10 MPa (section 3.2)
 
 # name: (what it changes, [contact] keys, [crushing] keys). One choice per variant, the rest as
-# in "base"; model-notes section 5 lists the choices.
+# in "base"; docs/model.md section 5 lists the choices.
 VARIANTS: Dict[str, tuple] = {
     "base": ("Table 1 with the documented defaults (r' = R*, d0 = d50, (k1, k2) = (0.05, 5), "
              "f normal)", {}, {}),
@@ -56,7 +56,7 @@ VARIANTS: Dict[str, tuple] = {
     "blocked": ("rotation blocked: spins held at zero, contact moments ignored (Arroyo et al. "
                 "2011; not in Table 1)", {"rotation": "blocked"}, {}),
 }
-# Rolling resistance (model-notes 5, item 6; PFC-style, not in Table 1) at the decision study's
+# Rolling resistance (docs/model.md 1.5; PFC-style, not in Table 1) at the decision study's
 # mu_r values.
 for _mu_r in ("0.1", "0.2", "0.3", "0.4", "0.6", "1.0"):
     VARIANTS[f"rolling_{_mu_r}"] = (

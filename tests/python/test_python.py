@@ -13,7 +13,7 @@ from crushdem import _core
 
 G = 32e9
 NU = 0.19
-E_STAR = G / (1.0 - NU)  # two grains of one material (model-notes 1.1)
+E_STAR = G / (1.0 - NU)  # two grains of one material (docs/model.md 1.1)
 BOX = {"min": [0.0, 0.0, 0.0], "max": [1e-3, 1e-3, 1e-3]}
 
 

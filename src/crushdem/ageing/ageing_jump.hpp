@@ -1,4 +1,4 @@
-// Off-DEM ageing jump (model-notes 3.1; the on-off scheme of the reference study).
+// Off-DEM ageing jump (docs/model.md 3.1; the on-off scheme of the reference study).
 //
 // Between dynamic DEM phases the clock jumps: with every crack velocity frozen at the end of the
 // phase (fracture/crack_growth.hpp), grain i would fail after t_f,i = (0.5 d_i - a_i) / v_i.

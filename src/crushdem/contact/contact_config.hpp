@@ -1,4 +1,4 @@
-// Material and contact-law parameters (model-notes 1, Table 1 of the reference study).
+// Material and contact-law parameters (docs/model.md 1, Table 1 of the reference study).
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-// Contact stress used by the crushing criterion (model-notes 2.1; Ciantia et al. 2015):
+// Contact stress used by the crushing criterion (docs/model.md 2.1; Ciantia et al. 2015):
 //   sigma_c = F_n / (pi r' delta),
 // r' = R* (CHOICE: pi R* delta = pi a^2 is the Hertz contact area) or 2 R* (PFC's effective
 // radius); R* = R against a wall; delta the total overlap. Lives with the contact laws because the

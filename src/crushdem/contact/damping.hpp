@@ -1,4 +1,4 @@
-// Viscous contact damping (optional; off by default, model-notes 1.4 uses local damping).
+// Viscous contact damping (optional; off by default, docs/model.md 1.4 uses local damping).
 //
 // Tsuji et al. (1992), Powder Technol. 71: F_d = -eta v with eta = alpha sqrt(m* F_n / delta)
 // (for Hertz F_n / delta = K sqrt(delta), Tsuji's form), alpha = sqrt(2) alpha_fit(e) where

@@ -1,4 +1,4 @@
-// Smooth Hertz normal contact (model-notes 1.1).
+// Smooth Hertz normal contact (docs/model.md 1.1).
 //
 //   F_n = (4/3) E* sqrt(R*) delta^(3/2),   k_n = dF_n/d delta = 2 E* sqrt(R* delta)
 //

@@ -1,4 +1,4 @@
-// Rolling resistance: an elastic-perfectly-plastic moment spring (model-notes 5, item 6; the
+// Rolling resistance: an elastic-perfectly-plastic moment spring (docs/model.md 1.5; the
 // rolling-resistance linear model of PFC, `rrlinear`; Iwashita & Oda 1998, J. Eng. Mech. 124(3);
 // model C of Ai et al. 2011, Powder Technol. 206, without its dashpot: local damping acts on
 // the torques already).

@@ -1,4 +1,4 @@
-// Rough-surface Hertz normal contact (model-notes 1.2).
+// Rough-surface Hertz normal contact (docs/model.md 1.2).
 //
 // Otsubo, M., O'Sullivan, C., Hanley, K.J., Sim, W.W. (2017), "The influence of particle surface
 // roughness on elastic stiffness and dynamic response", Geotechnique 67(5), restated from the

@@ -1,4 +1,4 @@
-// Incremental Mindlin tangential force with a Coulomb cap (model-notes 1.1; the PFC Hertz model).
+// Incremental Mindlin tangential force with a Coulomb cap (docs/model.md 1.1; the PFC Hertz model).
 //
 //   F_t <- rot(F_t) - k_t du_t,  k_t = 2 (1 - nu) / (2 - nu) k_n,  |F_t| <= mu F_n
 //

@@ -1,4 +1,4 @@
-// Macroscopic measurements of a Simulation at one instant (model-notes 4.3): wall stresses,
+// Macroscopic measurements of a Simulation at one instant (docs/model.md 4.3): wall stresses,
 // Love-Weber stress, p and q, strains from the wall positions, void ratio, coordination number,
 // contact-force statistics and kinetic energy. Compression is positive; the axial direction is z.
 #pragma once
@@ -29,7 +29,7 @@ double mean_resultant_force(const Simulation& sim);
 double unbalanced_force_ratio(const Simulation& sim);
 
 class Crusher;
-/// Crushing measurements (model-notes 4.3): breakages by cause, removed volume and mass, the void
+/// Crushing measurements (docs/model.md 4.3): breakages by cause, removed volume and mass, the void
 /// ratio with the removed volume counted as solid (fines), relative breakage B_r (Einav).
 Measurement crushing_measurements(const Simulation& sim, const Crusher& crusher);
 

@@ -1,4 +1,4 @@
-// Laboratory tests as controllers acting on a Simulation (model-notes 4.1, 4.2, 4.5).
+// Laboratory tests as controllers acting on a Simulation (docs/model.md 4.1, 4.2, 4.5).
 //
 // A test is a sequence of stages; each stage sets the six walls (fixed, moving, or
 // servo-controlled) and says when it is finished. Sample preparation is a controller of the same
@@ -35,7 +35,7 @@ struct SampleConfig {
   std::uint64_t count = 0;       // approximate number of grains (sets the side) instead of side
   double void_ratio = 0.65;      // target e [-] (STUDY)
   double tolerance = 0.005;      // accepted |e - void_ratio| [-]
-  double stress = 100e3;         // isotropic stress of the prepared sample [Pa] (model-notes 4.1)
+  double stress = 100e3;         // isotropic stress of the prepared sample [Pa] (docs/model.md 4.1)
   std::uint64_t seed = 1;        // grain sizes and positions
   double friction_start = 0.5;   // preparation friction to start from [-]
   double friction_factor = 0.6;  // each lowering multiplies it by this [-]
@@ -72,7 +72,7 @@ struct StageConfig {
   double axial_strain = 0.0;  // [-]
   double stop_q = 0.0;        // [Pa], 0 = not used
   // hold: the walls keep still or are servo-controlled, for `steps` or `duration`.
-  // age (off-DEM ageing, model-notes 3.1; needs [crushing] crack_growth): dynamic phases of
+  // age (off-DEM ageing, docs/model.md 3.1; needs [crushing] crack_growth): dynamic phases of
   //   min_cycles steps (walls as `axial` / `lateral` say) alternate with ageing jumps that grow
   //   every crack at its frozen velocity until n_break grains would fail, until the ageing clock
   //   reaches `duration` (ageing time, not DEM time).
@@ -103,7 +103,7 @@ struct StageConfig {
 // Controllers
 // ---------------------------------------------------------------------------------------------
 
-/// Inertial number I = eps_dot d50 sqrt(rho / p) (model-notes 1.4), from the wall velocities
+/// Inertial number I = eps_dot d50 sqrt(rho / p) (docs/model.md 1.4), from the wall velocities
 /// (largest strain rate of the three axes) and the mean wall stress; NaN when p <= 0.
 double inertial_number(const Walls& w, double d50, double density);
 

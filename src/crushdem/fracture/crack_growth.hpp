@@ -1,4 +1,4 @@
-// Time-dependent failure by subcritical crack growth (model-notes 3; stress corrosion after
+// Time-dependent failure by subcritical crack growth (docs/model.md 3; stress corrosion after
 // Charles, as used by the reference study following Lei et al.).
 //
 //   v   = v0 (sigma / sigma_lim)^n      crack velocity at the grain's particle stress sigma

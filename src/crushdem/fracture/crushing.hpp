@@ -1,4 +1,4 @@
-// Grain crushing (model-notes 2; Ciantia et al. 2015, 2019): a strength per grain with a size
+// Grain crushing (docs/model.md 2; Ciantia et al. 2015, 2019): a strength per grain with a size
 // effect and variability, the contact-stress criterion, and splitting into the fragments of a
 // pattern, all inside the engine's topology phase.
 //
@@ -11,7 +11,7 @@
 // omega, a new strength, and no contact history; fragments with d < d_min are removed. The
 // removed volume and mass are accounted exactly.
 //
-// Time-dependent failure (model-notes 3, Lei et al.; crack_growth = true): every crushable grain
+// Time-dependent failure (docs/model.md 3, Lei et al.; crack_growth = true): every crushable grain
 // carries a crack of half-length a, seeded uniform in [0.001 d, 0.5 d] when the grain is created
 // (its own random stream), growing at v = v0 (sigma / sigma_lim)^n; the grain fails (cause
 // "crack") when a >= 0.5 d. During dynamic DEM a grows by v times the time since the last check;
@@ -44,7 +44,7 @@ struct CrushingConfig {
   std::uint64_t interval = 1;      // steps between criterion checks
   std::uint64_t seed = 1;          // strength and orientation streams
   std::string pattern;             // file of "radius_fraction x y z" rows; empty = default 14
-  // Density scaling of small fragments (model-notes 1.4, off by default): a fragment smaller
+  // Density scaling of small fragments (docs/model.md 1.4, off by default): a fragment smaller
   // than the smallest initial grain d_ref gets density rho (d_ref / d)^2, which keeps the time
   // step at the initial sample's. Changes only inertia; keep the inertial number below 1e-3.
   bool density_scaling = false;
@@ -97,7 +97,7 @@ class Crusher {
   std::size_t crack_field() const { return crack_field_; }
   /// Share of the crushable grains (d >= d_c) whose particle stress sigma is at least `ratio`
   /// of their strength at the current contact load: at n = 60 the grains above about 0.72 are
-  /// those that can fail by crack growth within a day (model-notes 3).
+  /// those that can fail by crack growth within a day (docs/model.md 3).
   double loaded_share(const Simulation& sim, double ratio) const;
 
   double d0() const { return d0_; }

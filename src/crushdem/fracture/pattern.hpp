@@ -1,4 +1,4 @@
-// Splitting patterns (model-notes 2.2): a broken grain is replaced by fragments given as data,
+// Splitting patterns (docs/model.md 2.2): a broken grain is replaced by fragments given as data,
 // radius fractions and positions in units of the parent radius in a local frame whose e_z is
 // turned to the normal of the parent's contact with the largest F_n.
 //

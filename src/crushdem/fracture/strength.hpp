@@ -1,4 +1,4 @@
-// Grain crushing criterion and strength (model-notes 2.1; Ciantia et al. 2015, 2019).
+// Grain crushing criterion and strength (docs/model.md 2.1; Ciantia et al. 2015, 2019).
 //
 // Contact stress of a contact:  sigma_c = F_n / (pi r' delta)
 //   r' = R* (CHOICE, pi R* delta = pi a^2 the Hertz contact area) or 2 R* (PFC's effective
@@ -33,7 +33,7 @@ inline double standard_normal(RandomStream& rng) {
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
 }
 
-/// The variability factor f of model-notes 2.1.
+/// The variability factor f of docs/model.md 2.1.
 inline double strength_factor(RandomStream& rng, StrengthDistribution dist, double var) {
   if (dist == StrengthDistribution::Uniform) return rng.uniform(1.0 - var, 1.0 + var);
   for (;;) {

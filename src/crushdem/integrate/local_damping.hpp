@@ -1,5 +1,5 @@
 // Local (non-viscous) damping as in PFC (Itasca), the damping of the reference study
-// (model-notes 1.4): each component of a grain's unbalanced force and moment loses the fraction
+// (docs/model.md 1.4): each component of a grain's unbalanced force and moment loses the fraction
 // alpha of its magnitude against the direction of the matching velocity component,
 //
 //   F_d = F - alpha |F| sign(v),    sign(0) = 0 (a component at rest is not damped).

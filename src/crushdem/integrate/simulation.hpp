@@ -1,6 +1,6 @@
 // The time-stepping engine: particles, neighbour list, contacts, walls and the integrator.
 //
-// One step (velocity Verlet, model-notes 1.4):
+// One step (velocity Verlet, docs/model.md 1.4):
 //   1. half kick   v += dt/2 F/m,  w += dt/2 T/I      (forces of the previous step)
 //   2. drift       x += dt v;  walls move
 //   3. rebuild the neighbour list if anything moved more than half the skin
@@ -131,7 +131,7 @@ class Simulation {
   const std::vector<double>& resultant_force(int axis) const {
     return axis == 0 ? fu_x_ : (axis == 1 ? fu_y_ : fu_z_);
   }
-  /// Per-grain contact load for crushing (model-notes 2.1), filled by each force evaluation once
+  /// Per-grain contact load for crushing (docs/model.md 2.1), filled by each force evaluation once
   /// track_contact_load(k) is on: sigma = max over the grain's contacts (walls included) of
   /// F_n / (pi r' delta) with r' = k R* (R* = R for a wall); the largest F_n and the unit normal
   /// of that contact, pointing from the grain towards the contact.

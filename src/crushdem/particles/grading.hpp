@@ -1,5 +1,5 @@
 // Grading curves (particle-size distributions by mass) and drawing grains from them
-// (model-notes 4.1).
+// (docs/model.md 4.1).
 //
 // A grading curve is piecewise linear in the mass fraction passing P(d) between sieve sizes
 // d_0 < d_1 < ... < d_K with P(d_0) = 0 and P(d_K) = 1. Within a segment the mass is spread
@@ -21,7 +21,7 @@ namespace crushdem {
 struct GradingCurve {
   std::vector<double> diameter;  // sieve sizes [m], strictly increasing
   std::vector<double> passing;   // mass fraction passing at each size [-], 0 ... 1
-  /// The NE34-like curve of model-notes 4.1 (d50 = 0.21 mm), a CHOICE.
+  /// The NE34-like curve of docs/model.md 4.1 (d50 = 0.21 mm), a CHOICE.
   static GradingCurve ne34();
   /// Throws ConfigError naming `prefix`.diameter / `prefix`.passing.
   void validate(const std::string& prefix) const;

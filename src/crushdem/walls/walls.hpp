@@ -1,4 +1,4 @@
-// Six rigid planar walls forming a box (model-notes 1.3, 4.2).
+// Six rigid planar walls forming a box (docs/model.md 1.3, 4.2).
 //
 // Wall k (0..5) is xmin, xmax, ymin, ymax, zmin, zmax: axis k/2, low side when k is even. Each
 // wall is fixed, moves at a prescribed velocity, or is servo-controlled to a target normal
@@ -40,7 +40,7 @@ struct WallConfig {
   double position = 0.0;       // initial plane coordinate along its axis [m]
   double velocity = 0.0;       // Velocity mode: velocity along the coordinate axis [m/s]
   double target_stress = 0.0;  // Servo mode: compressive normal stress [Pa]
-  double servo_alpha = 0.5;    // Servo gain factor alpha [-] (model-notes 4.2)
+  double servo_alpha = 0.5;    // Servo gain factor alpha [-] (docs/model.md 4.2)
   double max_speed = 0.05;     // Servo speed limit [m/s]
   void validate(const std::string& prefix) const;
 };
