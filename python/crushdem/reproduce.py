@@ -711,12 +711,45 @@ def _age_counts(run_dir: str) -> Dict[str, Any]:
     return out
 
 
+# Sections of settings() that --set may change, and whether it may add keys to them (the
+# configuration sections are checked by the engine's reader, which names a bad key).
+SETTABLE = {"material": True, "contact": True, "crushing": True, "age_stage": True,
+            "oedometric": False, "triaxial": False, "relaxation": False, "age": False}
+
+
+def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, Any]:
+    """``cfg`` with each "SECTION.KEY=VALUE" of ``overrides`` set; VALUE is read as a TOML value
+    (``0.3``, ``true``, ``"blocked"``), or taken as a string when it is not one."""
+    import tomllib
+
+    for item in overrides:
+        target, sep, text = item.partition("=")
+        section, dot, key = target.strip().partition(".")
+        if not sep or not dot or not key:
+            raise ValueError(f"--set {item!r}: expected SECTION.KEY=VALUE "
+                             "(e.g. contact.rotation=blocked)")
+        if section not in SETTABLE:
+            raise ValueError(f"--set {item!r}: unknown section '{section}' (expected one of "
+                             f"{', '.join(SETTABLE)})")
+        if not SETTABLE[section] and key not in cfg[section]:
+            raise ValueError(f"--set {item!r}: unknown key '{key}' in '{section}' (expected one "
+                             f"of {', '.join(cfg[section])})")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        cfg[section][key] = value
+    return cfg
+
+
 def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
-              sample: Optional[str] = None, log: Callable[[str], None] = print) -> Dict[str, Any]:
-    """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json."""
+              sample: Optional[str] = None, log: Callable[[str], None] = print,
+              overrides: Sequence[str] = ()) -> Dict[str, Any]:
+    """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json.
+    overrides: "SECTION.KEY=VALUE" changes of the settings (apply_overrides)."""
     from . import lab
 
-    cfg = settings(quick)
+    cfg = apply_overrides(settings(quick), overrides)
     if sample is not None:
         if not os.path.isfile(sample):
             raise ValueError(f"--sample {sample}: no such file")
@@ -914,6 +947,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--sample", default=None, metavar="FILE",
                         help="use this prepared sample.txt (e.g. runs/sample_rev/sample.txt) "
                              "instead of preparing one in DIR/sample")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="change one setting, e.g. --set contact.rotation=free or --set "
+                             "crushing.r_prime=2R_star (repeatable; sections: "
+                             f"{', '.join(SETTABLE)}); recorded in DIR/settings.json")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.threads is not None and args.threads < 1:
         parser.error("--threads must be >= 1")
@@ -923,7 +960,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
-                           log=log)
+                           log=log, overrides=args.set)
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2

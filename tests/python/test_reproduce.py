@@ -343,3 +343,19 @@ def test_reproduce_quick_end_to_end(tmp_path):
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", str(out)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
+
+
+def test_set_overrides_change_settings_and_name_what_is_wrong():
+    cfg = rp.apply_overrides(rp.settings(quick=True),
+                                    ["contact.rotation=blocked", "crushing.r_prime=\"2R_star\"",
+                                     "age.n_break=5", "contact.rolling_friction=0"])
+    assert cfg["contact"]["rotation"] == "blocked"  # a bare word is a string
+    assert cfg["crushing"]["r_prime"] == "2R_star"
+    assert cfg["age"]["n_break"] == 5 and isinstance(cfg["age"]["n_break"], int)
+    assert cfg["contact"]["rolling_friction"] == 0
+    with pytest.raises(ValueError, match="expected SECTION.KEY=VALUE"):
+        rp.apply_overrides(rp.settings(quick=True), ["rotation=blocked"])
+    with pytest.raises(ValueError, match="unknown section 'walls'"):
+        rp.apply_overrides(rp.settings(quick=True), ["walls.x=1"])
+    with pytest.raises(ValueError, match="unknown key 'cycles' in 'age'"):
+        rp.apply_overrides(rp.settings(quick=True), ["age.cycles=1"])
