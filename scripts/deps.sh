@@ -11,7 +11,7 @@ apt_install_missing() {
 
 ensure_build_deps() {
   command -v cmake >/dev/null && command -v g++ >/dev/null && [ -f /usr/include/gtest/gtest.h ] \
-    || apt_install_missing cmake g++ make libgtest-dev
+    && [ -f /usr/include/CLI/CLI.hpp ] || apt_install_missing cmake g++ make libgtest-dev libcli11-dev
 }
 
 # A virtual environment in .venv with the Python build tools (PyPI).

@@ -31,7 +31,7 @@ from typing import Any, Dict, Mapping, Optional, Sequence
 import numpy as np
 
 from . import _core
-from ._core import ConfigError, Interrupted, RuntimeFailure, cli_main
+from ._core import ConfigError, Interrupted, RuntimeFailure, __version__, cli_main
 from . import lab
 from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_test,
                   prepare_sample, triaxial_relaxation, triaxial_test)
@@ -55,7 +55,6 @@ __all__ = [
     "triaxial_relaxation",
 ]
 
-__version__ = "0.1.0"
 
 #: Wall order used by every per-wall array (axis k//2, low side when k is even).
 WALL_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")

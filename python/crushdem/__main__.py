@@ -12,16 +12,15 @@ from __future__ import annotations
 import sys
 from typing import List, Optional
 
-_PLOT_USAGE = f"{'  plot DIR':<44}draw DIR/timeseries.csv as PNG figures\n"
-_REPRODUCE_USAGE = (f"{'  reproduce --out DIR [--quick] [--threads N]'}\n"
-                    f"{'':<44}run the study's section 3, draw its figures\n")
-_SENSITIVITY_USAGE = (f"{'  sensitivity --out DIR --sample FILE [--only A,B]'}\n"
-                      f"{'':<44}q_max under each uncertain choice (docs/model.md 5)\n")
-
 
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point of the console script; exits with the command's status."""
     args = list(sys.argv[1:] if argv is None else argv)
+    if "--version" in args:  # anywhere, for the Python commands as for the C++ ones
+        from . import __version__
+
+        print(f"crushdem {__version__}")
+        sys.exit(0)
     if args and args[0] == "plot":
         from . import plot
 
@@ -47,10 +46,7 @@ def main(argv: Optional[List[str]] = None) -> None:
     # order (_core.cli_main flushes the C streams before it returns).
     sys.stdout.flush()
     sys.stderr.flush()
-    rc = _core.cli_main(args)
-    if not args or args[0] in ("-h", "--help", "help"):
-        (sys.stdout if args else sys.stderr).write(_PLOT_USAGE + _REPRODUCE_USAGE + _SENSITIVITY_USAGE)
-    sys.exit(rc)
+    sys.exit(_core.cli_main(args))
 
 
 if __name__ == "__main__":

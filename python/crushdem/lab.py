@@ -63,9 +63,11 @@ class Result:
 
 
 def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: str = ".",
-        progress: bool = False) -> Result:
-    """Runs a whole configuration dict (the sections of a run file; ``stage`` a list of dicts)."""
-    _core.run(dict(config), os.fspath(out), base_dir, progress)
+        progress: bool = False, overwrite: bool = False) -> Result:
+    """Runs a whole configuration dict (the sections of a run file; ``stage`` a list of dicts).
+    ``out`` must be new or empty; ``overwrite=True`` replaces a crushdem run already there (every
+    laboratory function below takes it too)."""
+    _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite)
     return Result(os.fspath(out))
 
 
@@ -96,7 +98,7 @@ def _stage(kind: str, name: str, common: Mapping[str, Any], **keys: Any) -> Dict
 def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None,
                    count: Optional[int] = None, void_ratio: float = 0.65,
                    grading: Optional[Mapping[str, Any]] = None, seed: int = 1,
-                   stress: float = 100e3, progress: bool = False,
+                   stress: float = 100e3, progress: bool = False, overwrite: bool = False,
                    material: Optional[Mapping[str, Any]] = None,
                    contact: Optional[Mapping[str, Any]] = None,
                    output: Optional[Mapping[str, Any]] = None, **sample_keys: Any) -> Result:
@@ -112,21 +114,23 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
         s["grading"] = dict(grading)
     s.update(sample_keys)
     cfg = _base(s, {"material": material, "contact": contact, "output": output})
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def isotropic_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-                   progress: bool = False, stage: Optional[Mapping[str, Any]] = None,
+                   progress: bool = False, overwrite: bool = False,
+                   stage: Optional[Mapping[str, Any]] = None,
                    **sections: Any) -> Result:
     """All six walls servo-controlled to ``stress`` until equilibrium."""
     cfg = _base(sample, sections)
     cfg["stage"] = [_stage("isotropic", "isotropic", stage or {}, stress=stress)]
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def oedometric_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                     strain_rate: float = 10.0, hold_steps: int = 0,
                     unload_to: Optional[float] = None, progress: bool = False,
+                    overwrite: bool = False,
                     stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Lateral walls fixed; the top loads at ``strain_rate`` to the vertical ``stress``, holds
     for ``hold_steps`` (walls fixed) and unloads to ``unload_to`` when given."""
@@ -139,13 +143,13 @@ def oedometric_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress:
         stages.append(_stage("oedometric", "unloading", common, stress=unload_to,
                              strain_rate=-abs(strain_rate)))
     cfg["stage"] = stages
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def triaxial_test(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
                   strain_rate: float = 50.0, axial_strain: float = 0.30,
                   stop_q: Optional[float] = None, hold_steps: int = 0,
-                  consolidate: bool = True, progress: bool = False,
+                  consolidate: bool = True, progress: bool = False, overwrite: bool = False,
                   stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Drained triaxial shear: isotropic compression to ``sigma_3`` (unless ``consolidate`` is
     False), then axial compression at ``strain_rate`` with the lateral walls servo-controlled at
@@ -162,7 +166,7 @@ def triaxial_test(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: 
         stages.append(_stage("hold", "hold", common, steps=hold_steps, axial="fixed",
                              lateral="servo", lateral_stress=sigma_3))
     cfg["stage"] = stages
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def _crushing_with_cracks(sections: Dict[str, Any]) -> None:
@@ -174,7 +178,8 @@ def _crushing_with_cracks(sections: Dict[str, Any]) -> None:
 def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                           duration: float = 86400.0, strain_rate: float = 10.0,
                           min_cycles: int = 150000, n_break: int = 30,
-                          progress: bool = False, stage: Optional[Mapping[str, Any]] = None,
+                          progress: bool = False, overwrite: bool = False,
+                          stage: Optional[Mapping[str, Any]] = None,
                           age_stage: Optional[Mapping[str, Any]] = None,
                           **sections: Any) -> Result:
     """Oedometric stress relaxation (study section 3.1): load to the vertical ``stress`` with
@@ -189,12 +194,12 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
         _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
                min_cycles=min_cycles, n_break=n_break),
     ]
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                duration: float = 86400.0, strain_rate: float = 10.0, min_cycles: int = 150000,
-               n_break: int = 30, progress: bool = False,
+               n_break: int = 30, progress: bool = False, overwrite: bool = False,
                stage: Optional[Mapping[str, Any]] = None,
                age_stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Oedometric creep: load to the vertical ``stress``, then hold it by servo control of the
@@ -208,13 +213,13 @@ def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: floa
         _stage("age", "creep", {**common, **(age_stage or {})}, duration=duration,
                min_cycles=min_cycles, n_break=n_break, axial="servo", axial_stress=stress),
     ]
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)
 
 
 def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
                         stop_q: float, duration: float = 86400.0, strain_rate: float = 50.0,
                         axial_strain: float = 0.30, min_cycles: int = 150000,
-                        n_break: int = 30, progress: bool = False,
+                        n_break: int = 30, progress: bool = False, overwrite: bool = False,
                         stage: Optional[Mapping[str, Any]] = None,
                         age_stage: Optional[Mapping[str, Any]] = None,
                         **sections: Any) -> Result:
@@ -234,4 +239,4 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
                min_cycles=min_cycles, n_break=n_break, axial="fixed", lateral="servo",
                lateral_stress=sigma_3),
     ]
-    return run(cfg, out, progress=progress)
+    return run(cfg, out, progress=progress, overwrite=overwrite)

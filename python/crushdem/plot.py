@@ -904,7 +904,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(
         prog="crushdem plot",
         description="Draw the time series of a crushdem run (DIR/timeseries.csv) as PNG files.")
-    parser.add_argument("dir", help="run directory containing timeseries.csv")
+    parser.add_argument("dir", metavar="DIR", help="run directory containing timeseries.csv")
     parser.add_argument("--out", default=None, help="directory for the PNGs (default: DIR)")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     try:

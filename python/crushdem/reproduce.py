@@ -58,6 +58,7 @@ import ctypes
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -635,6 +636,9 @@ def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[
         except (ValueError, RuntimeError) as e:
             log(f"{name}: cannot resume ({e}): starting over")
     if not resumed:
+        if os.path.isdir(run_dir):  # unfinished and not resumable: this tool's own directory
+            log(f"{name}: removing the unfinished run in {run_dir} to start it again")
+            shutil.rmtree(run_dir)
         log(f"{name}: running into {run_dir}")
         start()
     wall = time.perf_counter() - t0

@@ -260,6 +260,7 @@ NB_MODULE(_core, m) {
   using namespace crushdem::python;
 
   m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
+  m.attr("__version__") = CRUSHDEM_VERSION;
 
   nb::exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
   nb::exception<RuntimeFailure>(m, "RuntimeFailure", PyExc_RuntimeError);
@@ -514,17 +515,20 @@ NB_MODULE(_core, m) {
         "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code.");
   m.def(
       "run",
-      [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress) {
+      [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress,
+         bool overwrite) {
         const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
         RunOptions opt;
         opt.out_dir = out;
         opt.progress = progress;
+        opt.overwrite = overwrite;
         return run_interruptible([&] { return run_to_directory(cfg, opt); });
       },
-      "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true,
+      "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true, "overwrite"_a = false,
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
-      "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)).");
+      "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)). A directory "
+      "that holds files is refused unless overwrite (then a crushdem run directory is emptied).");
   m.def(
       "resume",
       [](const std::string& out, bool progress) {

@@ -4,7 +4,8 @@
 // then STEPS timed steps with the same contact law and constants as the peers (Hertz-Mindlin,
 // Coulomb, Tsuji viscous damping from the restitution REST, walls with the same friction), and
 // prints particle_steps_per_s=<N*STEPS/seconds> as the last line. Values come from the command
-// line, else from the environment variables the peer harness sets, else from its lib.sh defaults.
+// line, else from the environment variables the peer harness sets (CLI11's envname for the
+// options, env_number for the constants), else from its lib.sh defaults.
 // --backend cuda runs the warm-up and the timed steps on the GPU (GpuStepper, builds with
 // -DCRUSHDEM_CUDA=ON only); the clock stops after the device has finished.
 #include <array>
@@ -79,22 +80,11 @@ std::string settled_state_header(const std::string& law, long settle,
 
 }  // namespace
 
-int bench_main(const std::vector<std::string>& args) {
-  Args a(args, "bench");
-  const char* env_packing = std::getenv("PACKING");
-  const std::string packing_path =
-      a.value("--packing", env_packing ? env_packing : "../shared/bench-peers/common/packing.txt");
-  const long steps = a.integer("--steps", static_cast<long>(env_number("STEPS", 10000)));
-  const long warm = a.integer("--warm", static_cast<long>(env_number("WARM", 500)));
-  const long threads = a.integer("--threads", static_cast<long>(env_number("THREADS", 0)));
-  const std::string law = a.value("--law", "hertz");
-  const char* env_state_out = std::getenv("STATE_OUT");
-  const std::string state_out = a.value("--state-out", env_state_out ? env_state_out : "");
-  const std::string backend = a.value("--backend", "cpu");
-  const long settle = a.integer("--settle", 0);
-  const std::string settled_state = a.value("--settled-state", "");
-  const long prune = a.integer("--prune", static_cast<long>(env_number("PRUNE", 1)));
-  a.finish();
+int bench_main(const BenchArgs& a) {
+  const std::string& packing_path = a.packing;
+  const long steps = a.steps, warm = a.warm, settle = a.settle, prune = a.prune;
+  const std::string &law = a.law, &state_out = a.state_out, &backend = a.backend;
+  const std::string& settled_state = a.settled_state;
   if (prune != 0 && prune != 1) {
     throw ConfigError(bad_value("--prune", std::to_string(prune), "0 (walk the full list) or 1"));
   }
@@ -110,7 +100,7 @@ int bench_main(const std::vector<std::string>& args) {
         "--settled-state '" + settled_state +
         "': needs --settle N (the state it caches is the one after N settling steps)");
   }
-  set_threads(threads);
+  set_threads(a.threads);
 
   if (!std::ifstream(packing_path) && std::ifstream(packing_path + ".gz")) {
     throw ConfigError("--packing '" + packing_path + "' does not exist, but '" + packing_path +

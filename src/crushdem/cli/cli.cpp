@@ -1,8 +1,7 @@
 #include "crushdem/cli/cli.hpp"
 
-#include <algorithm>
+#include <CLI/CLI.hpp>
 #include <cstdio>
-#include <cstdlib>
 #include <exception>
 
 #include "crushdem/core/error.hpp"
@@ -12,74 +11,6 @@
 #endif
 
 namespace crushdem::cli {
-
-Args::Args(const std::vector<std::string>& args, std::string command)
-    : command_(std::move(command)) {
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    const std::string& a = args[k];
-    if (a.rfind("--", 0) == 0) {
-      const auto eq = a.find('=');
-      if (eq != std::string::npos) {
-        options_.emplace_back(a.substr(0, eq), a.substr(eq + 1));
-      } else if (k + 1 < args.size() && args[k + 1].rfind("--", 0) != 0) {
-        options_.emplace_back(a, args[k + 1]);  // may turn out to be a flag + positional
-        ++k;
-      } else {
-        flags_.push_back(a);
-      }
-    } else {
-      positional_.push_back(a);
-    }
-  }
-}
-
-std::string Args::value(const std::string& key, const std::string& fallback) {
-  used_.push_back(key);
-  for (const auto& [k, v] : options_) {
-    if (k == key) return v;
-  }
-  if (std::find(flags_.begin(), flags_.end(), key) != flags_.end()) {
-    throw ConfigError("crushdem " + command_ + ": option " + key + " needs a value");
-  }
-  return fallback;
-}
-
-long Args::integer(const std::string& key, long fallback) {
-  const std::string v = value(key, "");
-  if (v.empty()) return fallback;
-  char* end = nullptr;
-  const long x = std::strtol(v.c_str(), &end, 10);
-  if (end == v.c_str() || *end != '\0') {
-    throw ConfigError(bad_value(key, v, "an integer"));
-  }
-  return x;
-}
-
-bool Args::flag(const std::string& key) {
-  used_.push_back(key);
-  if (std::find(flags_.begin(), flags_.end(), key) != flags_.end()) return true;
-  // "--flag positional" was read as an option; give the positional back.
-  for (auto it = options_.begin(); it != options_.end(); ++it) {
-    if (it->first == key) {
-      positional_.push_back(it->second);
-      options_.erase(it);
-      return true;
-    }
-  }
-  return false;
-}
-
-void Args::finish() const {
-  auto known = [&](const std::string& k) {
-    return std::find(used_.begin(), used_.end(), k) != used_.end();
-  };
-  for (const auto& [k, v] : options_) {
-    if (!known(k)) throw ConfigError("crushdem " + command_ + ": unknown option " + k);
-  }
-  for (const auto& k : flags_) {
-    if (!known(k)) throw ConfigError("crushdem " + command_ + ": unknown option " + k);
-  }
-}
 
 void check_backend(const std::string& backend) {
   if (backend != "cpu" && backend != "cuda") {
@@ -111,37 +42,113 @@ int current_threads() {
 }
 
 namespace {
-const char* kUsage =
-    "usage: crushdem <command> [options]\n"
-    "  run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]\n"
-    "                                            run a simulation described by a TOML file\n"
-    "  resume DIR [--threads N]                  continue an interrupted run from "
-    "DIR/checkpoint.bin\n"
-    "  check CONFIG.toml                         validate a configuration without running\n"
-    "  bench [--packing FILE] [--steps N] [--warm N] [--threads N] [--law hertz|rough]\n"
-    "        [--state-out FILE] [--backend cpu|cuda] [--settle N [--settled-state FILE]]\n"
-    "        [--prune 0|1]\n"
-    "        peer reference benchmark\n";
+
+constexpr const char* kPythonCommands =
+    "\nCommands of the Python package's `crushdem` (pip install .):\n"
+    "  plot DIR                                  draw DIR/timeseries.csv as PNG figures\n"
+    "  reproduce --out DIR [--quick]             run the study's section 3, draw its figures\n"
+    "  sensitivity --out DIR --sample FILE       q_max under each uncertain choice\n"
+    "Each command has its own --help.\n";
+
+void add_threads(CLI::App* c, long& threads) {
+  c->add_option("--threads", threads,
+                "OpenMP threads (default: every core); results do not "
+                "depend on it")
+      ->check(CLI::NonNegativeNumber);
 }
 
+}  // namespace
+
 int cli_main(const std::vector<std::string>& args) {
-  if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
-    std::fputs(kUsage, args.empty() ? stderr : stdout);
-    return args.empty() ? 2 : 0;
-  }
-  const std::string& cmd = args[0];
-  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  CLI::App app("crushdem " CRUSHDEM_VERSION
+               ": discrete element simulation of crushable sand (grains that break over time)",
+               "crushdem");
+  app.set_version_flag("--version", "crushdem " CRUSHDEM_VERSION);
+  app.footer(kPythonCommands);
+  app.fallthrough();  // --version after a subcommand too
+  app.require_subcommand(0, 1);
+
+  RunArgs run;
+  CLI::App* c_run = app.add_subcommand("run", "run a simulation described by a TOML file");
+  c_run->add_option("CONFIG", run.config, "the configuration (docs/configuration.md)")->required();
+  c_run->add_option("--out", run.out, "directory for the results (new or empty)")->required();
+  add_threads(c_run, run.threads);
+  c_run->add_option("--backend", run.backend, "cpu, or cuda in a build with CUDA")
+      ->check(CLI::IsMember({"cpu", "cuda"}));
+  c_run->add_flag("--quiet", run.quiet, "no progress lines");
+  c_run->add_flag("--overwrite", run.overwrite,
+                  "replace the crushdem run already in --out (otherwise refused)");
+
+  ResumeArgs resume;
+  CLI::App* c_resume = app.add_subcommand(
+      "resume",
+      "continue a stopped run from DIR/checkpoint.bin (or start it again when it "
+      "stopped before its first checkpoint)");
+  c_resume->add_option("DIR", resume.dir, "the run directory")->required();
+  add_threads(c_resume, resume.threads);
+  c_resume->add_flag("--quiet", resume.quiet, "no progress lines");
+
+  std::string check_config;
+  CLI::App* c_check = app.add_subcommand("check", "validate a configuration without running it");
+  c_check->add_option("CONFIG", check_config, "the configuration")->required();
+
+  BenchArgs bench;
+  CLI::App* c_bench = app.add_subcommand(
+      "bench",
+      "time the peer reference problem (11,500 spheres at 5 MPa; bench/README.md) and "
+      "print particle_steps_per_s last; options fall back on the peer harness's "
+      "environment variables");
+  c_bench->add_option("--packing", bench.packing, "the packing file")->envname("PACKING");
+  c_bench->add_option("--steps", bench.steps, "timed steps")
+      ->envname("STEPS")
+      ->check(CLI::PositiveNumber);
+  c_bench->add_option("--warm", bench.warm, "untimed steps first")
+      ->envname("WARM")
+      ->check(CLI::NonNegativeNumber);
+  c_bench->add_option("--threads", bench.threads, "OpenMP threads (default: every core)")
+      ->envname("THREADS")
+      ->check(CLI::NonNegativeNumber);
+  c_bench->add_option("--law", bench.law, "contact law")->check(CLI::IsMember({"hertz", "rough"}));
+  c_bench->add_option("--state-out", bench.state_out, "write the final state to this file")
+      ->envname("STATE_OUT");
+  c_bench->add_option("--backend", bench.backend, "cpu, or cuda in a build with CUDA")
+      ->check(CLI::IsMember({"cpu", "cuda"}));
+  c_bench
+      ->add_option("--settle", bench.settle,
+                   "steps at rest under servo walls before timing (the law's own state)")
+      ->check(CLI::NonNegativeNumber);
+  c_bench->add_option("--settled-state", bench.settled_state,
+                      "keep the settled state in this file (needs --settle)");
+  c_bench->add_option("--prune", bench.prune, "1: pruned neighbour list; 0: the full list")
+      ->envname("PRUNE")
+      ->check(CLI::IsMember({0, 1}));
+
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 reads them reversed
   try {
-    if (cmd == "bench") return bench_main(rest);
-    if (cmd == "run") return run_main(rest);
-    if (cmd == "check") return check_main(rest);
-    if (cmd == "resume") return resume_main(rest);
-    if (cmd == "--version") {
-      std::puts("crushdem 0.1.0");
+    if (args.size() == 1 && args[0] == "help") {
+      std::fputs(app.help().c_str(), stdout);
       return 0;
     }
-    std::fprintf(stderr, "crushdem: unknown command '%s'\n%s", cmd.c_str(), kUsage);
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    const std::string where = app.get_subcommands().empty()
+                                  ? std::string("crushdem")
+                                  : "crushdem " + app.get_subcommands().front()->get_name();
+    std::fprintf(stderr, "%s: error: %s\nRun '%s --help' for the options.\n", where.c_str(),
+                 e.what(), where.c_str());
     return 2;
+  }
+  if (app.get_subcommands().empty()) {
+    std::fputs(app.help().c_str(), stderr);
+    return 2;
+  }
+  const std::string cmd = app.get_subcommands().front()->get_name();
+  try {
+    if (c_run->parsed()) return run_main(run);
+    if (c_resume->parsed()) return resume_main(resume);
+    if (c_check->parsed()) return check_main(check_config);
+    return bench_main(bench);
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "crushdem %s: error: %s\n", cmd.c_str(), e.what());
     return 2;

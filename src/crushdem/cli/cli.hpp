@@ -1,5 +1,5 @@
-// The command-line front end: `crushdem run|check|bench|resume ...`. Kept in a library so the
-// Python package's `crushdem` command runs exactly the same code.
+// The command-line front end: `crushdem run|resume|check|bench ...`, parsed by CLI11. Kept in
+// a library so the Python package's `crushdem` command runs exactly the same code.
 #pragma once
 
 #include <string>
@@ -7,13 +7,30 @@
 
 namespace crushdem::cli {
 
-/// Entry point; returns the process exit code (2 for bad input, 1 for a failed run).
+/// Entry point; returns the process exit code (0, 2 for bad input, 1 for a failed run, 128 + the
+/// signal for a run stopped by SIGINT / SIGTERM).
 int cli_main(const std::vector<std::string>& args);
 
-int bench_main(const std::vector<std::string>& args);
-int run_main(const std::vector<std::string>& args);
-int check_main(const std::vector<std::string>& args);
-int resume_main(const std::vector<std::string>& args);
+struct RunArgs {
+  std::string config, out, backend = "cpu";
+  long threads = 0;
+  bool quiet = false, overwrite = false;
+};
+struct ResumeArgs {
+  std::string dir;
+  long threads = 0;
+  bool quiet = false;
+};
+struct BenchArgs {
+  std::string packing = "../shared/bench-peers/common/packing.txt";
+  long steps = 10000, warm = 500, threads = 0, settle = 0, prune = 1;
+  std::string law = "hertz", state_out, backend = "cpu", settled_state;
+};
+
+int run_main(const RunArgs& a);
+int resume_main(const ResumeArgs& a);
+int check_main(const std::string& config);
+int bench_main(const BenchArgs& a);
 
 /// "cpu" or "cuda" (the latter only in a build with CUDA); anything else is a ConfigError.
 void check_backend(const std::string& backend);
@@ -21,24 +38,5 @@ void check_backend(const std::string& backend);
 /// Sets the OpenMP thread count (0 = leave the default).
 void set_threads(long n);
 int current_threads();
-
-/// Minimal option parser: --key value pairs and positionals; unknown options are errors.
-class Args {
- public:
-  Args(const std::vector<std::string>& args, std::string command);
-  std::string value(const std::string& key, const std::string& fallback);
-  long integer(const std::string& key, long fallback);
-  bool flag(const std::string& key);
-  std::vector<std::string> positionals() const { return positional_; }
-  /// Throws ConfigError if an option was given that nobody asked for.
-  void finish() const;
-
- private:
-  std::string command_;
-  std::vector<std::pair<std::string, std::string>> options_;
-  std::vector<std::string> flags_;
-  std::vector<std::string> positional_;
-  std::vector<std::string> used_;
-};
 
 }  // namespace crushdem::cli

@@ -40,31 +40,22 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
 
 }  // namespace
 
-int run_main(const std::vector<std::string>& args) {
-  Args a(args, "run");
-  const std::string out = a.value("--out", "");
-  const long threads = a.integer("--threads", 0);
-  const bool quiet = a.flag("--quiet");
-  const std::string backend = a.value("--backend", "cpu");
-  a.finish();
-  check_backend(backend);
-  const auto pos = a.positionals();
-  if (pos.size() != 1)
-    throw ConfigError(
-        "usage: crushdem run CONFIG.toml --out DIR [--threads N] [--backend cpu|cuda]");
-  if (out.empty()) throw ConfigError("crushdem run: missing --out DIR (where results are written)");
-  const RunConfig cfg = load_run_config(pos[0]);  // validated before anything runs
+int run_main(const RunArgs& a) {
+  check_backend(a.backend);
+  const RunConfig cfg = load_run_config(a.config);  // validated before anything runs
+  const std::string& backend = a.backend;
   if (backend == "cuda" && (cfg.has_sample || !cfg.stages.empty() || cfg.crushing.enabled)) {
     throw ConfigError(
         "--backend cuda: sample preparation, laboratory stages and crushing run on the CPU for "
         "now (the GPU stepper does not switch wall modes or friction, nor change particles); "
         "use --backend cpu");
   }
-  set_threads(threads);
+  set_threads(a.threads);
   RunOptions opt;
-  opt.out_dir = out;
-  opt.progress = !quiet;
+  opt.out_dir = a.out;
+  opt.progress = !a.quiet;
   opt.backend = backend;
+  opt.overwrite = a.overwrite;
 #ifdef CRUSHDEM_HAVE_CUDA
   // The GPU stepper takes over after the set-up; the Simulation is refreshed before each output.
   std::unique_ptr<GpuStepper> gpu;
@@ -79,29 +70,19 @@ int run_main(const std::vector<std::string>& args) {
     };
   }
 #endif
-  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, out, backend == "cpu");
+  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, a.out, backend == "cpu");
 }
 
-int resume_main(const std::vector<std::string>& args) {
-  Args a(args, "resume");
-  const long threads = a.integer("--threads", 0);
-  const bool quiet = a.flag("--quiet");
-  a.finish();
-  const auto pos = a.positionals();
-  if (pos.size() != 1) throw ConfigError("usage: crushdem resume DIR [--threads N] [--quiet]");
-  set_threads(threads);
+int resume_main(const ResumeArgs& a) {
+  set_threads(a.threads);
   RunOptions opt;
-  opt.progress = !quiet;
-  return run_or_resume([&]() { return resume_directory(pos[0], opt); }, pos[0]);
+  opt.progress = !a.quiet;
+  return run_or_resume([&]() { return resume_directory(a.dir, opt); }, a.dir);
 }
 
-int check_main(const std::vector<std::string>& args) {
-  Args a(args, "check");
-  a.finish();
-  const auto pos = a.positionals();
-  if (pos.size() != 1) throw ConfigError("usage: crushdem check CONFIG.toml");
-  const RunConfig cfg = load_run_config(pos[0]);
-  std::printf("%s: configuration is valid\n", pos[0].c_str());
+int check_main(const std::string& config) {
+  const RunConfig cfg = load_run_config(config);
+  std::printf("%s: configuration is valid\n", config.c_str());
   return 0;
 }
 

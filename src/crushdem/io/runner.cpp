@@ -1,5 +1,9 @@
 #include "crushdem/io/runner.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -485,11 +489,96 @@ StopOnSignals::~StopOnSignals() {
   std::signal(SIGTERM, term_);
 }
 
+namespace {
+
+constexpr const char* kLockName = ".lock";
+
+// A new run starts in a new or empty directory: finished or stopped work is never overwritten
+// or mixed with a new run's files unless asked (overwrite), and then only a crushdem run
+// directory (one with config.toml) is emptied.
+void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  if (!fs::is_directory(dir, ec)) {
+    throw ConfigError("--out '" + dir.string() + "': exists and is not a directory");
+  }
+  std::vector<fs::path> entries;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    if (e.path().filename() != kLockName) entries.push_back(e.path());
+  }
+  if (ec) throw ConfigError("--out '" + dir.string() + "': cannot read it: " + ec.message());
+  if (entries.empty()) return;
+  const bool is_run = fs::exists(dir / "config.toml");
+  if (!overwrite) {
+    std::string what;
+    if (fs::exists(dir / "checkpoint.bin")) {
+      what =
+          "holds a run that stopped before its end (checkpoint.bin): continue it with "
+          "`crushdem resume " +
+          dir.string() + "`, or start it again with --overwrite";
+    } else if (fs::exists(dir / "summary.json")) {
+      what =
+          "holds a finished run (summary.json): choose another --out, or replace it with "
+          "--overwrite";
+    } else if (is_run) {
+      what =
+          "holds a run that stopped before its first checkpoint: start it again with "
+          "`crushdem resume " +
+          dir.string() + "` or --overwrite";
+    } else {
+      what =
+          "is not empty and is not a crushdem run directory: choose a new or empty "
+          "directory";
+    }
+    throw ConfigError("--out '" + dir.string() + "' " + what);
+  }
+  if (!is_run) {
+    throw ConfigError("--out '" + dir.string() +
+                      "' is not a crushdem run directory (no config.toml), and --overwrite "
+                      "replaces only crushdem runs: choose a new or empty directory");
+  }
+  for (const fs::path& p : entries) {
+    fs::remove_all(p, ec);
+    if (ec) throw ConfigError("--overwrite: cannot remove '" + p.string() + "': " + ec.message());
+  }
+}
+
+// An exclusive lock on DIR/.lock for the life of the run: a second run or resume into the
+// same directory stops at once instead of splicing its rows into the first one's files.
+class DirectoryLock {
+ public:
+  explicit DirectoryLock(const std::filesystem::path& dir) {
+    const std::string path = (dir / kLockName).string();
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw ConfigError("cannot open the lock file '" + path + "'");
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      ::close(fd_);
+      throw ConfigError("'" + dir.string() +
+                        "' is being written by another crushdem run (its .lock is held); wait "
+                        "for it to end or stop it first");
+    }
+  }
+  ~DirectoryLock() { ::close(fd_); }
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+}  // namespace
+
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   namespace fs = std::filesystem;
   g_stop_signal = 0;
   std::error_code ec;
   const fs::path dir(opt.out_dir);
+  fs::create_directories(dir, ec);
+  if (ec)
+    throw ConfigError("--out '" + opt.out_dir + "': cannot create directory: " + ec.message());
+  const DirectoryLock lock(dir);
+  if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite);
   fs::create_directories(dir / "vtk", ec);
   if (ec)
     throw ConfigError("--out '" + opt.out_dir + "': cannot create directory: " + ec.message());
@@ -787,7 +876,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   const double secs = st.wall_seconds + driver.seconds();
 
   JsonObject summary;
-  summary.string("crushdem_version", "0.1.0");
+  summary.string("crushdem_version", CRUSHDEM_VERSION);
   if (st.has_sample_json) summary.object("sample", st.sample_json);
   summary.integer("steps", static_cast<long long>(sim.step_count()));
   summary.number("time_s", sim.time());
@@ -833,6 +922,18 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
   RunOptions o = opt;
   o.out_dir = dir;
   o.resume = true;
+  const std::filesystem::path d(dir);
+  if (!std::filesystem::exists(d / "checkpoint.bin") &&
+      !std::filesystem::exists(d / "summary.json")) {
+    // Stopped before its first checkpoint (during sample preparation, say): nothing to continue
+    // from, and nothing finished to lose, so the run starts again from its config.toml.
+    if (opt.progress) {
+      std::fprintf(stderr, "[crushdem] %s has no checkpoint yet: starting the run again\n",
+                   dir.c_str());
+    }
+    o.resume = false;
+    o.overwrite = true;
+  }
   return run_to_directory(cfg, o);
 }
 

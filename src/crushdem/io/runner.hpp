@@ -8,6 +8,8 @@
 //                    stages, every output.checkpoint_seconds and on a stop request); removed
 //                    when the run ends. `crushdem resume DIR` continues from it, and the files
 //                    come out identical to those of an uninterrupted run.
+//   .lock            held (flock) while a run or resume writes the directory
+// A new run needs a new or empty directory (RunOptions::overwrite replaces an old run).
 #pragma once
 
 #include <functional>
@@ -28,6 +30,9 @@ struct RunOptions {
   std::function<void(Simulation&)> sync;
   std::string backend = "cpu";  // recorded in timing.json
   bool resume = false;          // continue from out_dir/checkpoint.bin
+  /// A new run refuses a directory that holds files; with overwrite, a crushdem run directory
+  /// (one with config.toml) is emptied first.
+  bool overwrite = false;
 };
 
 /// Asks the running run_to_directory to write a checkpoint and stop at its next chunk boundary

@@ -1,0 +1,210 @@
+// The command line (cli/cli.cpp, CLI11) and the run-directory rules (io/runner.cpp): every
+// command has -h/--help and --version, misuse exits with 2 and names the option, a run never
+// overwrites or mixes with an old run's files without --overwrite, a run stopped before its
+// first checkpoint starts again on resume, and a locked directory is refused.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "crushdem/cli/cli.hpp"
+
+namespace crushdem {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int rc = 0;
+  std::string out, err;
+};
+
+Outcome cli(const std::vector<std::string>& args) {
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  Outcome o;
+  o.rc = cli::cli_main(args);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  o.out = ::testing::internal::GetCapturedStdout();
+  o.err = ::testing::internal::GetCapturedStderr();
+  return o;
+}
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(Cli, EveryCommandHasHelp) {
+  const std::map<std::string, std::vector<std::string>> options = {
+      {"run", {"CONFIG", "--out", "--threads", "--backend", "--overwrite", "--quiet"}},
+      {"resume", {"DIR", "--threads", "--quiet"}},
+      {"check", {"CONFIG"}},
+      {"bench", {"--packing", "--steps", "--warm", "--law", "--settle", "--prune"}}};
+  for (const auto& [command, expected] : options) {
+    for (const char* flag : {"-h", "--help"}) {
+      const Outcome o = cli({command, flag});
+      EXPECT_EQ(o.rc, 0) << command << " " << flag << ": " << o.err;
+      EXPECT_TRUE(has(o.out, "Usage: crushdem " + command)) << o.out;
+      for (const std::string& opt : expected) EXPECT_TRUE(has(o.out, opt)) << command << opt;
+    }
+  }
+  const Outcome top = cli({"--help"});
+  EXPECT_EQ(top.rc, 0);
+  for (const char* c : {"run", "resume", "check", "bench", "plot", "reproduce", "sensitivity"}) {
+    EXPECT_TRUE(has(top.out, c)) << c;
+  }
+  EXPECT_EQ(cli({"help"}).rc, 0);
+  const Outcome bare = cli({});
+  EXPECT_EQ(bare.rc, 2);
+  EXPECT_TRUE(has(bare.err, "Usage: crushdem"));
+}
+
+TEST(Cli, VersionAnywhere) {
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"--version"}, {"run", "x.toml", "--version"}, {"bench", "--version"}}) {
+    const Outcome o = cli(args);
+    EXPECT_EQ(o.rc, 0) << args.size();
+    EXPECT_TRUE(has(o.out, std::string("crushdem ") + CRUSHDEM_VERSION)) << o.out;
+  }
+}
+
+TEST(Cli, MisuseExitsWithTwoAndNamesTheOption) {
+  const Outcome unknown = cli({"run", "a.toml", "--out", "d", "--steps", "5"});
+  EXPECT_EQ(unknown.rc, 2);
+  EXPECT_TRUE(has(unknown.err, "--steps")) << unknown.err;
+  EXPECT_TRUE(has(unknown.err, "crushdem run --help")) << unknown.err;
+  const Outcome missing = cli({"run", "a.toml"});
+  EXPECT_EQ(missing.rc, 2);
+  EXPECT_TRUE(has(missing.err, "--out")) << missing.err;
+  const Outcome threads = cli({"resume", "d", "--threads", "-3"});
+  EXPECT_EQ(threads.rc, 2);
+  EXPECT_TRUE(has(threads.err, "--threads")) << threads.err;
+  const Outcome prune = cli({"bench", "--prune", "3"});
+  EXPECT_EQ(prune.rc, 2);
+  EXPECT_TRUE(has(prune.err, "--prune")) << prune.err;
+  const Outcome command = cli({"frobnicate"});
+  EXPECT_EQ(command.rc, 2);
+  EXPECT_TRUE(has(command.err, "frobnicate")) << command.err;
+  const Outcome file = cli({"check", "no-such-file.toml"});
+  EXPECT_EQ(file.rc, 2);
+  EXPECT_TRUE(has(file.err, "no-such-file.toml")) << file.err;
+}
+
+// --- run directories ---------------------------------------------------------------------------
+
+const char* kTinyRun = R"(
+[box]
+min = [0.0, 0.0, 0.0]
+max = [1e-3, 1e-3, 1e-3]
+[particles.generate]
+count = 10
+diameter_min = 1e-4
+diameter_max = 2e-4
+[run]
+steps = 20
+[output]
+interval = 10
+)";
+
+class RunDirectory : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    base_ = fs::temp_directory_path() /
+            ("crushdem_cli_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(base_);
+    fs::create_directories(base_);
+    config_ = (base_ / "tiny.toml").string();
+    std::ofstream(config_) << kTinyRun;
+    out_ = (base_ / "out").string();
+  }
+  void TearDown() override { fs::remove_all(base_); }
+  static std::string slurp(const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    std::stringstream s;
+    s << f.rdbuf();
+    return s.str();
+  }
+  fs::path base_;
+  std::string config_, out_;
+};
+
+TEST_F(RunDirectory, ASecondRunIsRefusedAndLeavesTheFilesAsTheyWere) {
+  ASSERT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
+  const std::string summary = slurp(fs::path(out_) / "summary.json");
+  const std::string series = slurp(fs::path(out_) / "timeseries.csv");
+  const Outcome again = cli({"run", config_, "--out", out_, "--quiet"});
+  EXPECT_EQ(again.rc, 2);
+  EXPECT_TRUE(has(again.err, "finished run")) << again.err;
+  EXPECT_TRUE(has(again.err, "--overwrite")) << again.err;
+  EXPECT_EQ(slurp(fs::path(out_) / "summary.json"), summary);
+  EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
+  // --overwrite replaces it: a stale file of the old run does not survive.
+  std::ofstream(fs::path(out_) / "grading.csv") << "stale\n";
+  EXPECT_EQ(cli({"run", config_, "--out", out_, "--quiet", "--overwrite"}).rc, 0);
+  EXPECT_FALSE(fs::exists(fs::path(out_) / "grading.csv"));
+  EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
+}
+
+TEST_F(RunDirectory, AStoppedRunPointsToResume) {
+  fs::create_directories(out_);
+  std::ofstream(fs::path(out_) / "config.toml") << kTinyRun;
+  std::ofstream(fs::path(out_) / "checkpoint.bin") << "state";
+  const Outcome o = cli({"run", config_, "--out", out_, "--quiet"});
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_TRUE(has(o.err, "crushdem resume " + out_)) << o.err;
+  EXPECT_EQ(slurp(fs::path(out_) / "checkpoint.bin"), "state");
+}
+
+TEST_F(RunDirectory, OtherFilesAreNeverRemoved) {
+  fs::create_directories(out_);
+  std::ofstream(fs::path(out_) / "notes.txt") << "mine";
+  for (const bool overwrite : {false, true}) {
+    std::vector<std::string> args = {"run", config_, "--out", out_, "--quiet"};
+    if (overwrite) args.push_back("--overwrite");
+    const Outcome o = cli(args);
+    EXPECT_EQ(o.rc, 2);
+    EXPECT_TRUE(has(o.err, "not a crushdem run directory")) << o.err;
+  }
+  EXPECT_EQ(slurp(fs::path(out_) / "notes.txt"), "mine");
+}
+
+TEST_F(RunDirectory, ResumeBeforeTheFirstCheckpointStartsAgain) {
+  ASSERT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
+  const std::string series = slurp(fs::path(out_) / "timeseries.csv");
+  // As a run killed during its set-up leaves it: config.toml and a partial series.
+  fs::remove(fs::path(out_) / "summary.json");
+  std::ofstream(fs::path(out_) / "timeseries.csv") << "partial\n";
+  const Outcome o = cli({"resume", out_});
+  EXPECT_EQ(o.rc, 0) << o.err;
+  EXPECT_TRUE(has(o.err, "starting the run again")) << o.err;
+  EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
+  // A finished run has nothing to resume.
+  const Outcome done = cli({"resume", out_});
+  EXPECT_EQ(done.rc, 2);
+  EXPECT_TRUE(has(done.err, "finished")) << done.err;
+}
+
+TEST_F(RunDirectory, ALockedDirectoryIsRefused) {
+  fs::create_directories(out_);
+  const int fd = ::open((fs::path(out_) / ".lock").c_str(), O_RDWR | O_CREAT, 0644);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  const Outcome o = cli({"run", config_, "--out", out_, "--quiet"});
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_TRUE(has(o.err, "another crushdem run")) << o.err;
+  EXPECT_FALSE(fs::exists(fs::path(out_) / "config.toml"));
+  ::close(fd);
+  EXPECT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
+}
+
+}  // namespace
+}  // namespace crushdem
