@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string_view>
 #include <thread>
@@ -198,6 +199,24 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
   ASSERT_FALSE(fs::exists(base / "stopped" / "summary.json"));
   // An interrupted run already says where its time went.
   EXPECT_EQ(json_number(read_file(base / "stopped" / "timing.json"), "finished"), 0.0);
+  // A copy with one byte of its checkpoint changed (in the state, then in the checksum itself)
+  // is refused and left as it was.
+  for (const double where : {0.5, 1.0}) {
+    const fs::path damaged = base / "damaged";
+    fs::remove_all(damaged);
+    fs::copy(base / "stopped", damaged, fs::copy_options::recursive);
+    std::string bytes = read_file(damaged / "checkpoint.bin");
+    const auto k = static_cast<std::size_t>(where * static_cast<double>(bytes.size() - 1));
+    bytes[k] = static_cast<char>(bytes[k] ^ 0x10);
+    std::ofstream(damaged / "checkpoint.bin", std::ios::binary) << bytes;
+    try {
+      resume_directory(damaged.string(), opt);
+      ADD_FAILURE() << "resumed a checkpoint with byte " << k << " changed";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(read_file(damaged / "checkpoint.bin"), bytes);
+  }
   resume_directory((base / "stopped").string(), opt);
   EXPECT_FALSE(fs::exists(base / "stopped" / "checkpoint.bin")) << "kept after the run ended";
 

@@ -64,10 +64,8 @@ long peak_rss_kib() {
 /// can change), so that a file from another run is refused rather than timed.
 std::string settled_state_header(const std::string& law, long settle,
                                  const std::string& packing_path, const SimulationConfig& cfg) {
-  std::uint64_t hash = 14695981039346656037ULL;
-  for (const char c : read_binary_file(packing_path)) {
-    hash = (hash ^ static_cast<unsigned char>(c)) * 1099511628211ULL;
-  }
+  const std::string packing = read_binary_file(packing_path);
+  const std::uint64_t hash = fnv1a64(packing.data(), packing.size());
   char text[512];
   std::snprintf(text, sizeof text,
                 "crushdem-bench-settled v%d law=%s settle=%ld packing_fnv1a=%016llx rho=%.17g "

@@ -17,8 +17,18 @@
 namespace crushdem {
 
 /// The current checkpoint format: 1 the first; 2 adds the wall-clock seconds by part; 3 the
-/// rolling-resistance history of the contacts.
-constexpr int kStateVersion = 3;
+/// rolling-resistance history of the contacts; 4 ends with the checksum of everything before it
+/// (fnv1a64), so that a damaged file is refused instead of resumed into other results.
+constexpr int kStateVersion = 4;
+
+/// 64-bit FNV-1a hash of the bytes (checkpoint checksums, settled-state headers).
+inline std::uint64_t fnv1a64(const char* data, std::size_t n) {
+  std::uint64_t hash = 14695981039346656037ULL;
+  for (std::size_t i = 0; i < n; ++i) {
+    hash = (hash ^ static_cast<unsigned char>(data[i])) * 1099511628211ULL;
+  }
+  return hash;
+}
 
 class StateWriter {
  public:

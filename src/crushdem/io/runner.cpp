@@ -9,6 +9,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -594,15 +595,34 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
       throw ConfigError("crushdem resume: no checkpoint in '" + opt.out_dir + "'" +
                         (fs::exists(dir / "summary.json") ? " (the run has finished)" : ""));
     }
-    in = std::make_unique<StateReader>(read_binary_file(path), path);
+    std::string bytes = read_binary_file(path);
+    int version = 0;
+    {
+      StateReader head(bytes, path);
+      std::string format;
+      head.get(format);
+      version = checkpoint_version(format);
+      if (version == 0) {
+        throw ConfigError("crushdem resume: '" + path + "' is not a crushdem checkpoint (format '" +
+                          format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
+                          "')");
+      }
+    }
+    if (version >= 4) {  // the last 8 bytes: the checksum of the others
+      std::uint64_t saved = 0;
+      const bool sized = bytes.size() >= sizeof saved;
+      if (sized) std::memcpy(&saved, bytes.data() + bytes.size() - sizeof saved, sizeof saved);
+      if (!sized || saved != fnv1a64(bytes.data(), bytes.size() - sizeof saved)) {
+        throw ConfigError("crushdem resume: '" + path +
+                          "' is damaged (its checksum does not match its contents), so it "
+                          "cannot be resumed; start the run again with `crushdem run ... "
+                          "--overwrite`");
+      }
+      bytes.resize(bytes.size() - sizeof saved);
+    }
+    in = std::make_unique<StateReader>(std::move(bytes), path);
     std::string format;
     in->get(format);
-    const int version = checkpoint_version(format);
-    if (version == 0) {
-      throw ConfigError("crushdem resume: '" + path + "' is not a crushdem checkpoint (format '" +
-                        format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
-                        "')");
-    }
     in->set_version(version);
     std::string saved_config;
     in->get(saved_config);
@@ -698,6 +718,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
     if (running) running->save_state(out);
+    out.put(fnv1a64(out.bytes().data(), out.bytes().size()));
     write_file_atomically((dir / "checkpoint.bin").string(), out.bytes());
     write_timing(st.wall_seconds + driver.seconds(), false);
     driver.checkpoint_written();
