@@ -3,8 +3,10 @@
 
 ``crushdem plot DIR`` draws the time series of a finished run; ``crushdem reproduce --out DIR``
 runs the reference study's section 3 and draws its figures; ``crushdem sensitivity`` measures
-q_max under each uncertain choice of docs/model.md section 5; every other command is handed to
-the same C++ front end as the standalone executable.
+q_max under each uncertain choice of docs/model.md section 5; ``crushdem sweep`` runs many
+variants of one configuration on Dask and ``crushdem calibrate`` fits one or two parameters to
+targets with them; every other command is handed to the same C++ front end as the standalone
+executable.
 """
 
 from __future__ import annotations
@@ -25,13 +27,17 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import plot
 
         sys.exit(plot.main(args[1:]))
-    if args and args[0] in ("reproduce", "sensitivity"):
+    if args and args[0] in ("reproduce", "sensitivity", "sweep", "calibrate"):
         from . import _core
 
         if args[0] == "reproduce":
             from .reproduce import main as command
-        else:
+        elif args[0] == "sensitivity":
             from .sensitivity import main as command
+        elif args[0] == "sweep":
+            from .sweep import main as command
+        else:
+            from .calibrate import main as command
         try:
             sys.exit(command(args[1:]))
         except _core.Interrupted as e:

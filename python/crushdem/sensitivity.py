@@ -131,13 +131,13 @@ def known_runs(out: str) -> List[str]:
 
 
 def solid_volume(sample: str) -> float:
-    """The grains' volume of a sample file (rows "id x y z r") [m^3]."""
+    """The grains' volume of a sample file (rows "id x y z d", d the diameter) [m^3]."""
     volume = 0.0
     with open(sample) as f:
         for line in f:
             fields = line.split()
             if fields and not fields[0].startswith("#"):
-                volume += 4.0 / 3.0 * math.pi * float(fields[4]) ** 3
+                volume += math.pi / 6.0 * float(fields[4]) ** 3
     return volume
 
 

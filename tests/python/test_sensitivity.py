@@ -137,9 +137,9 @@ def test_the_table_reads_the_shear_end_deleted_volume_and_loaded_share(tmp_path)
         f.write("step,stage,deviator_stress_Pa,volumetric_strain\n"
                 "0,0,0,0.000\n10,0,1e5,0.010\n20,1,5e6,0.010\n30,1,2e7,0.012\n40,1,1.8e7,0.004\n")
     sample = tmp_path / "sample.txt"
-    sample.write_text("# box_xmin=0\n0 0 0 0 1e-4\n1 1 1 1 2e-4\n")
+    sample.write_text("# box_xmin=0\n0 0 0 0 1e-4\n1 1 1 1 2e-4\n")  # diameters
     solids = sensitivity.solid_volume(str(sample))
-    assert solids == pytest.approx(4.0 / 3.0 * 3.141592653589793 * (1e-12 + 8e-12))
+    assert solids == pytest.approx(3.141592653589793 / 6.0 * (1e-12 + 8e-12))
     row = sensitivity.table(out, ["blocked"], 10e6, solids)[0]
     assert row["q_end_MPa"] == pytest.approx(18.0)
     assert row["eps_v_shear"] == pytest.approx(-0.006)

@@ -48,6 +48,8 @@ constexpr const char* kPythonCommands =
     "  plot DIR                                  draw DIR/timeseries.csv as PNG figures\n"
     "  reproduce --out DIR [--quick]             run the study's section 3, draw its figures\n"
     "  sensitivity --out DIR --sample FILE       q_max under each uncertain choice\n"
+    "  sweep SWEEP.toml --out DIR                many variants of one configuration on Dask\n"
+    "  calibrate CALIBRATION.toml --out DIR      fit parameters to targets with sweep runs\n"
     "Each command has its own --help.\n";
 
 void add_threads(CLI::App* c, long& threads) {

@@ -1,0 +1,495 @@
+"""``crushdem sweep SWEEP.toml --out DIR``: many runs of one base configuration on Dask.
+
+A sweep file names a base configuration and the values to vary::
+
+    base = "triaxial_small.toml"        # relative to the sweep file
+    [vary]                              # combined as a product
+    "contact.rolling_friction" = [0.1, 0.3]
+    "crushing.seed" = [1, 2, 3]
+    [zip]                               # optional: varied together (equal lengths), one factor
+    "crushing.r_prime" = ["R_star", "2R_star"]
+    "crushing.d0" = [0.0, 2e-3]
+
+A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
+and a key: ``stage.1.strain_rate`` (by index) or ``stage.shear.strain_rate`` (by name). Each
+variant is one task: ``crushdem run`` in a subprocess with ``--threads-per-run`` threads, on a
+local Dask cluster of ``--workers`` processes (default: the cores divided by the threads per
+run), or on the cluster at ``--scheduler ADDRESS``. Its configuration is written to
+``DIR/configs/NAME.toml`` and its run to ``DIR/runs/NAME``. A finished variant is not run again
+and an interrupted one resumes from its checkpoint, so the command can be repeated until every
+variant is done; a variant that fails (a bad value, a blow-up) fails alone, its error in the
+table. ``DIR/results.csv`` and ``DIR/results.parquet`` hold one row per variant: its values (a
+column per dotted key), status, error, run directory, wall-clock and the summary figures of each
+stage; ``DIR/results.png`` draws each figure against each varied key.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .plot import read_events, read_summary
+from .reproduce import value_at
+
+HOUR_S, DAY_S, REF_S = 3600.0, 86400.0, 4.0
+# How long a task waits for the lock of its run directory: a run killed with its worker takes a
+# moment to write its checkpoint and let go.
+LOCK_WAIT_S = 120.0
+
+
+# --- the sweep file ----------------------------------------------------------------------------
+
+
+def read_sweep(path: str) -> Dict[str, Any]:
+    """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]]};
+    every problem named by file and key."""
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read the sweep file ({e.strerror})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{path}: not valid TOML ({e})") from None
+    unknown = set(doc) - {"base", "vary", "zip"}
+    if unknown:
+        raise ValueError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (expected base, "
+                         "[vary], [zip])")
+    if not isinstance(doc.get("base"), str):
+        raise ValueError(f"{path}: base = \"CONFIG.toml\" (the base configuration, relative to "
+                         "the sweep file) is missing")
+    base_path = os.path.join(os.path.dirname(os.path.abspath(path)), doc["base"])
+    try:
+        with open(base_path, "rb") as f:
+            base = tomllib.load(f)
+    except OSError as e:
+        raise ValueError(f"{path}: base '{doc['base']}': cannot read {base_path} "
+                         f"({e.strerror})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{base_path}: not valid TOML ({e})") from None
+    factors: List[List[Dict[str, Any]]] = []
+    for key, values in (doc.get("vary") or {}).items():
+        _check_values(path, "vary", key, values)
+        factors.append([{key: v} for v in values])
+    zipped = doc.get("zip") or {}
+    if zipped:
+        lengths = set()
+        for key, values in zipped.items():
+            _check_values(path, "zip", key, values)
+            lengths.add(len(values))
+        if len(lengths) != 1:
+            raise ValueError(f"{path}: [zip] lists must have one length (got "
+                             f"{', '.join(str(n) for n in sorted(lengths))})")
+        n = lengths.pop()
+        factors.append([{k: v[i] for k, v in zipped.items()} for i in range(n)])
+    if not factors:
+        raise ValueError(f"{path}: nothing to vary ([vary] or [zip] with at least one key)")
+    keys = [k for f in factors for k in f[0]]
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"{path}: a key is varied twice")
+    for k in keys:
+        set_dotted(copy.deepcopy(base), k, None, check_only=True)
+    return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
+            "factors": factors, "keys": keys}
+
+
+def _check_values(path: str, table: str, key: str, values: Any) -> None:
+    if not isinstance(values, list) or not values:
+        raise ValueError(f"{path}: [{table}] \"{key}\" must be a list of values")
+
+
+def set_dotted(cfg: Dict[str, Any], key: str, value: Any, check_only: bool = False) -> None:
+    """Sets ``section.key`` or ``stage.INDEX|NAME.key`` of a configuration dict."""
+    parts = key.split(".")
+    if parts[0] == "stage":
+        stages = cfg.get("stage")
+        if len(parts) != 3 or not isinstance(stages, list):
+            raise ValueError(f"'{key}': a stage key is stage.INDEX.KEY or stage.NAME.KEY, and the "
+                             "base configuration needs [[stage]] tables")
+        which = parts[1]
+        if which.isdigit() and int(which) < len(stages):
+            target = stages[int(which)]
+        else:
+            named = [st for st in stages if st.get("name") == which]
+            if not named:
+                raise ValueError(f"'{key}': no stage '{which}' (stages: "
+                                 f"{', '.join(str(st.get('name', i)) for i, st in enumerate(stages))})")
+            target = named[0]
+        if not check_only:
+            target[parts[2]] = value
+        return
+    if len(parts) < 2:
+        raise ValueError(f"'{key}': expected SECTION.KEY (e.g. crushing.seed)")
+    table = cfg
+    for p in parts[:-1]:
+        nxt = table.setdefault(p, {}) if not check_only else table.get(p, {})
+        if not isinstance(nxt, dict):
+            raise ValueError(f"'{key}': '{p}' is not a table in the base configuration")
+        table = nxt
+    if not check_only:
+        table[parts[-1]] = value
+
+
+def variants(sweep: Mapping[str, Any]) -> List[Dict[str, Any]]:
+    """Every combination: [{"name", "values": {key: value}, "config": dict}] in product order."""
+    out = []
+    for combo in itertools.product(*sweep["factors"]):
+        values: Dict[str, Any] = {}
+        for part in combo:
+            values.update(part)
+        cfg = copy.deepcopy(sweep["base"])
+        for k, v in values.items():
+            set_dotted(cfg, k, v)
+        out.append({"name": variant_name(values), "values": values, "config": cfg})
+    return out
+
+
+def variant_name(values: Mapping[str, Any]) -> str:
+    """A directory name from the values (the same values give the same name on every call)."""
+    text = "__".join(f"{k}={_show(v)}" for k, v in values.items())
+    text = re.sub(r"[^A-Za-z0-9._=+-]", "-", text)
+    if len(text) > 120:
+        text = text[:100] + "-" + hashlib.sha1(text.encode()).hexdigest()[:12]
+    return text
+
+
+def _show(v: Any) -> str:
+    return json.dumps(v) if not isinstance(v, str) else v
+
+
+# --- one task ----------------------------------------------------------------------------------
+
+
+def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
+    """The run gets SIGTERM (checkpoint and stop) when the worker that started it dies."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+def run_variant(config_path: str, run_dir: str, threads: int) -> Dict[str, Any]:
+    """Runs (or resumes) one variant with the crushdem command; returns {"resumed", "wall_s"}.
+    Raises RuntimeError with the end of the run's error output when it fails."""
+    if os.path.isfile(os.path.join(run_dir, "summary.json")):
+        return {"resumed": False, "skipped": True}
+    crushdem = [sys.executable, "-m", "crushdem"]
+    resumed = os.path.isdir(run_dir) and bool(os.listdir(run_dir))
+    if resumed:
+        cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"]
+    else:
+        cmd = crushdem + ["run", config_path, "--out", run_dir, "--threads", str(threads),
+                          "--quiet"]
+    t0 = time.perf_counter()
+    deadline = t0 + LOCK_WAIT_S
+    while True:
+        p = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=_die_with_parent)
+        if p.returncode == 2 and "another crushdem run" in p.stderr and time.perf_counter() < deadline:
+            time.sleep(1.0)
+            continue
+        break
+    if p.returncode != 0:
+        tail = "\n".join((p.stderr or p.stdout).strip().splitlines()[-5:])
+        raise RuntimeError(f"exit status {p.returncode}: {tail}")
+    return {"resumed": resumed, "skipped": False, "wall_s": time.perf_counter() - t0}
+
+
+# --- the results -------------------------------------------------------------------------------
+
+
+def summary_figures(run_dir: str) -> Dict[str, float]:
+    """The summary figures of a finished run: per stage (named by the stage's name) q_max, the
+    peak friction angle, K0, and for age stages sigma_v and q at 1 h and 1 day over their value
+    at 4 s of ageing and the axial strain at 1 day; breakages, B_r, the final void ratio,
+    coordination number, stresses and volumetric strain, grains and steps."""
+    s = read_summary(run_dir)
+    out: Dict[str, float] = {}
+    if not s:
+        return out
+    ev = read_events(run_dir)
+    for k, st in enumerate(s.get("stages") or []):
+        name = st.get("name") or f"stage{k}"
+        kind = st.get("type")
+        if kind == "triaxial":
+            out[f"{name}.q_max_MPa"] = _f(st.get("q_max_Pa")) / 1e6
+            out[f"{name}.friction_angle_peak_deg"] = _f(st.get("friction_angle_peak_deg"))
+        if kind in ("oedometric", "isotropic", "triaxial", "age"):
+            out[f"{name}.K0_end"] = _f(st.get("K0_end"))
+        if kind == "age" and ev is not None and "ageing_time_s" in ev:
+            rows = np.arange(len(ev["ageing_time_s"]))
+            if "stage" in ev:
+                rows = rows[ev["stage"][rows] == k]
+            t = ev["ageing_time_s"][rows]
+            series = {}
+            walls = [ev[c][rows] for c in ("wall_zmin_stress_Pa", "wall_zmax_stress_Pa") if c in ev]
+            if walls:
+                series["sigma_v"] = np.mean(np.vstack(walls), axis=0)
+            if "deviator_stress_Pa" in ev:
+                series["q"] = ev["deviator_stress_Pa"][rows]
+            for label, y in series.items():
+                y_ref, _ = value_at(t, y, REF_S)
+                for tag, t_at in (("1h", HOUR_S), ("1day", DAY_S)):
+                    y_at, _ = value_at(t, y, t_at)
+                    out[f"{name}.{label}_ratio_{tag}"] = y_at / y_ref if y_ref else math.nan
+            if "axial_strain" in ev:
+                out[f"{name}.axial_strain_1day"] = value_at(t, ev["axial_strain"][rows], DAY_S)[0]
+    crushing = s.get("crushing") or {}
+    if crushing:
+        out["breakages"] = _f(crushing.get("breakages_instant", 0)) + _f(
+            crushing.get("breakages_crack", 0))
+        out["relative_breakage_Br"] = _f(crushing.get("relative_breakage_Br"))
+    final = s.get("final") or {}
+    for k in ("void_ratio", "coordination_number", "mean_stress_Pa", "deviator_stress_Pa",
+              "volumetric_strain"):
+        if k in final:
+            out[f"final.{k}"] = _f(final[k])
+    out["grains_end"] = _f(s.get("particles"))
+    out["steps"] = _f(s.get("steps"))
+    return out
+
+
+def _f(x: Any) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _wall_seconds(run_dir: str) -> float:
+    try:
+        with open(os.path.join(run_dir, "timing.json")) as f:
+            return _f(json.load(f).get("wall_seconds"))
+    except (OSError, ValueError):
+        return math.nan
+
+
+def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str],
+                  errors: Mapping[str, str]):
+    """The pandas DataFrame of the sweep (one row per variant), written to results.csv and
+    results.parquet."""
+    import pandas as pd
+
+    rows = []
+    for v in listed:
+        run_dir = os.path.join(out, "runs", v["name"])
+        row: Dict[str, Any] = {"variant": v["name"]}
+        row.update({k: v["values"][k] for k in keys})
+        figures = summary_figures(run_dir)
+        done = os.path.isfile(os.path.join(run_dir, "summary.json"))
+        row["status"] = "done" if done else ("failed" if v["name"] in errors else "not run")
+        row["error"] = errors.get(v["name"], "") if not done else ""
+        row["run_dir"] = run_dir
+        row["wall_s"] = _wall_seconds(run_dir)
+        row.update(figures)
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    df.to_csv(os.path.join(out, "results.csv"), index=False)
+    try:
+        df.astype({k: str for k in keys if df[k].dtype == object}).to_parquet(
+            os.path.join(out, "results.parquet"), index=False)
+    except ImportError:  # pragma: no cover (pyarrow is a dependency of the sweep extra)
+        pass
+    return df
+
+
+def figure(df, keys: Sequence[str], path: str) -> Optional[str]:
+    """Each summary figure against each varied key (numeric keys only), one panel each."""
+    from matplotlib.figure import Figure  # no pyplot: no backend is chosen for the caller
+
+    skip = {"variant", "status", "error", "run_dir", "wall_s", *keys}
+    done = df[df["status"] == "done"] if "status" in df else df
+    figures = [c for c in df.columns if c not in skip and np.issubdtype(df[c].dtype, np.number)
+               and np.isfinite(done[c].to_numpy(dtype=float)).any()] if len(done) else []
+    numeric = [k for k in keys if np.issubdtype(df[k].dtype, np.number)]
+    if not figures or not numeric:
+        return None
+    fig = Figure(figsize=(3.6 * len(numeric), 2.6 * len(figures)))
+    axes = fig.subplots(len(figures), len(numeric), squeeze=False)
+    for i, f in enumerate(figures):
+        for j, k in enumerate(numeric):
+            ax = axes[i, j]
+            ax.plot(done[k], done[f], "o")
+            ax.set_xlabel(k)
+            ax.set_ylabel(f, fontsize=8)
+            ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+# --- the driver --------------------------------------------------------------------------------
+
+
+class _Stop(Exception):
+    pass
+
+
+def _raise_stop(signum, _frame):
+    raise _Stop(signum)
+
+
+def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: int = 1,
+          scheduler: Optional[str] = None, progress: Optional[bool] = None,
+          log: Callable[[str], None] = print):
+    """Runs (or completes) the sweep of ``path`` into ``out``; returns the results DataFrame."""
+    from . import _core
+
+    if threads_per_run < 1:
+        raise ValueError(f"--threads-per-run {threads_per_run}: expected a count >= 1")
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers {workers}: expected a count >= 1")
+    sw = read_sweep(path)
+    listed = variants(sw)
+    os.makedirs(os.path.join(out, "configs"), exist_ok=True)
+    os.makedirs(os.path.join(out, "runs"), exist_ok=True)
+    errors: Dict[str, str] = {}
+    todo = []
+    for v in listed:
+        cfg_path = os.path.join(out, "configs", v["name"] + ".toml")
+        try:
+            text = _core.resolved_run_config(v["config"], sw["base_dir"])
+        except (ValueError, RuntimeError) as e:  # ConfigError: a bad value fails this variant
+            errors[v["name"]] = str(e)
+            continue
+        if os.path.isfile(cfg_path):
+            with open(cfg_path) as f:
+                if f.read() != text:
+                    errors[v["name"]] = (f"{cfg_path} holds another configuration for this "
+                                         "variant (the base configuration changed): use "
+                                         "another --out")
+                    continue
+        else:
+            with open(cfg_path, "w") as f:
+                f.write(text)
+        run_dir = os.path.join(out, "runs", v["name"])
+        if not os.path.isfile(os.path.join(run_dir, "summary.json")):
+            todo.append((v["name"], cfg_path, run_dir))
+    with open(os.path.join(out, "sweep.json"), "w") as f:
+        json.dump({"sweep": os.path.abspath(path), "base": sw["base_path"], "keys": sw["keys"],
+                   "variants": [{"name": v["name"], "values": v["values"]} for v in listed]},
+                  f, indent=1)
+    log(f"{len(listed)} variants: {len(listed) - len(todo) - len(errors)} finished before, "
+        f"{len(todo)} to run, {len(errors)} refused")
+    if todo:
+        _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log)
+    df = results_table(out, listed, sw["keys"], errors)
+    figure(df, sw["keys"], os.path.join(out, "results.png"))
+    return df
+
+
+def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log) -> None:
+    from distributed import Client, LocalCluster
+
+    previous = signal.signal(signal.SIGTERM, _raise_stop)
+    cluster = None
+    try:
+        if scheduler:
+            client = Client(scheduler)
+        else:
+            n = workers or max(1, (os.cpu_count() or 1) // threads_per_run)
+            cluster = LocalCluster(n_workers=min(n, len(todo)), threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            client = Client(cluster)
+        try:
+            futures = {client.submit(run_variant, cfg, run_dir, threads_per_run, key=name,
+                                     pure=False): name for name, cfg, run_dir in todo}
+            _follow(client, futures, errors, progress, log)
+        finally:
+            client.close()
+    except (_Stop, KeyboardInterrupt):
+        log("stopped: the runs in progress save their checkpoints; run the same command again "
+            "to go on")
+        raise
+    finally:
+        if cluster is not None:
+            cluster.close()
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _follow(client, futures, errors, progress, log) -> None:
+    """Waits for every task, with a progress display (done, running, failed, ETA)."""
+    from distributed import as_completed
+
+    show_bar = sys.stderr.isatty() if progress is None else progress
+    bar = None
+    if show_bar:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(futures), unit="variant", desc="sweep")
+    done = failed = 0
+    t0 = time.perf_counter()
+    for fut in as_completed(list(futures)):
+        name = futures[fut]
+        try:
+            fut.result()
+            done += 1
+            what = "done"
+        except Exception as e:  # noqa: BLE001 - one failed variant does not stop the others
+            errors[name] = str(e)
+            failed += 1
+            what = f"FAILED ({str(e).splitlines()[-1] if str(e) else type(e).__name__})"
+        left = len(futures) - done - failed
+        running = sum(len(v) for v in client.processing().values()) if left else 0
+        elapsed = time.perf_counter() - t0
+        eta = elapsed / (done + failed) * left
+        if bar is not None:
+            bar.set_postfix(running=running, failed=failed)
+            bar.update(1)
+        else:
+            log(f"{name}: {what}  [{done} done, {running} running, {failed} failed, {left} left, "
+                f"ETA {eta:.0f} s]")
+    if bar is not None:
+        bar.close()
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
+    [--scheduler ADDRESS]``."""
+    parser = argparse.ArgumentParser(prog="crushdem sweep", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("sweep", metavar="SWEEP.toml")
+    parser.add_argument("--out", required=True, metavar="DIR")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="local worker processes (default: cores / threads per run)")
+    parser.add_argument("--threads-per-run", type=int, default=1, metavar="T")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="an existing Dask scheduler (tcp://host:port) instead of a local "
+                             "cluster")
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+
+    def log(msg: str) -> None:
+        print(f"crushdem sweep: {msg}", flush=True)
+
+    try:
+        df = sweep(args.sweep, args.out, args.workers, args.threads_per_run, args.scheduler,
+                   log=log)
+    except _Stop as e:
+        return 128 + int(e.args[0])
+    except KeyboardInterrupt:
+        return 128 + signal.SIGINT
+    except (OSError, ValueError) as e:
+        print(f"crushdem sweep: error: {e}", file=sys.stderr)
+        return 2
+    failed = int((df["status"] != "done").sum())
+    log(f"results: {os.path.join(args.out, 'results.csv')} ({len(df) - failed} done, "
+        f"{failed} not done)")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,216 @@
+"""``crushdem sweep`` (python/crushdem/sweep.py) on a local Dask cluster of 2 workers, with the
+64-grain lattice of tests/data (a run takes a second or two): the table equals the runs made one
+by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again completes with the same
+results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
+and a worker started here."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+pytest.importorskip("distributed")
+pytest.importorskip("pandas")
+
+from crushdem import lab, sweep  # noqa: E402
+
+DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
+BASE = os.path.join(DATA, "isotropic_lattice.toml")
+# Figures compared between runs (wall-clock is not).
+COMPARED = ("isotropic.K0_end", "final.void_ratio", "final.coordination_number",
+            "final.mean_stress_Pa", "steps")
+
+
+def _write_sweep(tmp_path, vary, base=BASE, extra=""):
+    text = f'base = "{base}"\n{extra}\n[vary]\n'
+    for k, v in vary.items():
+        text += f'"{k}" = {json.dumps(v)}\n'
+    path = tmp_path / "sweep.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def _long_base(tmp_path, hold_steps):
+    """The lattice base with a hold stage after the compression, to make each run last."""
+    text = open(BASE).read().replace('file = "lattice_64.txt"',
+                                     f'file = "{os.path.join(DATA, "lattice_64.txt")}"')
+    text += f'\n[[stage]]\ntype = "hold"\nname = "hold"\nsteps = {hold_steps}\n'
+    path = tmp_path / "long.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def _figures(df):
+    return {row["variant"]: tuple(row[c] for c in COMPARED) for _, row in df.iterrows()}
+
+
+def test_read_sweep_names_what_is_wrong(tmp_path):
+    with pytest.raises(ValueError, match="base"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"material.friction": [0.2]}, base="nope.toml"))
+    with pytest.raises(ValueError, match="must be a list"):
+        p = tmp_path / "s.toml"
+        p.write_text(f'base = "{BASE}"\n[vary]\n"material.friction" = 0.2\n')
+        sweep.read_sweep(str(p))
+    with pytest.raises(ValueError, match="no stage 'shear'"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.shear.stress": [1e6]}))
+    with pytest.raises(ValueError, match="one length"):
+        p = tmp_path / "z.toml"
+        p.write_text(f'base = "{BASE}"\n[zip]\n"a.b" = [1, 2]\n"c.d" = [1]\n')
+        sweep.read_sweep(str(p))
+    with pytest.raises(ValueError, match="unknown key"):
+        p = tmp_path / "u.toml"
+        p.write_text(f'base = "{BASE}"\nvaries = 1\n[vary]\n"a.b" = [1]\n')
+        sweep.read_sweep(str(p))
+    s = sweep.read_sweep(_write_sweep(tmp_path, {"stage.isotropic.stress": [5e5, 1e6],
+                                                 "material.friction": [0.2, 0.4]}))
+    names = [v["name"] for v in sweep.variants(s)]
+    assert len(names) == 4 and len(set(names)) == 4
+    assert names[0] == "stage.isotropic.stress=500000.0__material.friction=0.2"
+
+
+def test_a_sweep_gives_the_table_of_the_runs_made_one_by_one(tmp_path):
+    vary = {"stage.isotropic.stress": [5e5, 1e6], "material.friction": [0.2, 0.4]}
+    df = sweep.sweep(_write_sweep(tmp_path, vary), str(tmp_path / "out"), workers=2,
+                     progress=False, log=lambda m: None)
+    assert list(df["status"]) == ["done"] * 4
+    assert set(df.columns) >= {"stage.isotropic.stress", "material.friction", "run_dir",
+                               "wall_s", *COMPARED}
+    assert os.path.isfile(tmp_path / "out" / "results.csv")
+    assert os.path.isfile(tmp_path / "out" / "results.parquet")
+    assert os.path.isfile(tmp_path / "out" / "results.png")
+    import tomllib
+
+    with open(BASE, "rb") as f:
+        base = tomllib.load(f)
+    for _, row in df.iterrows():
+        cfg = json.loads(json.dumps(base))
+        cfg["stage"][0]["stress"] = row["stage.isotropic.stress"]
+        cfg.setdefault("material", {})["friction"] = row["material.friction"]
+        alone = tmp_path / "alone" / row["variant"]
+        lab.run(cfg, alone, base_dir=DATA)
+        mine = sweep.summary_figures(str(alone))
+        assert tuple(mine[c] for c in COMPARED) == tuple(row[c] for c in COMPARED)
+    # Run again: everything is finished, nothing runs, the same table.
+    again = sweep.sweep(_write_sweep(tmp_path, vary), str(tmp_path / "out"), workers=2,
+                        progress=False, log=lambda m: None)
+    assert _figures(again) == _figures(df)
+
+
+def test_a_bad_value_fails_alone_with_its_error(tmp_path):
+    df = sweep.sweep(_write_sweep(tmp_path, {"material.friction": [0.3, -1.0]}),
+                     str(tmp_path / "out"), workers=2, progress=False, log=lambda m: None)
+    by = {row["material.friction"]: row for _, row in df.iterrows()}
+    assert by[0.3]["status"] == "done"
+    assert by[-1.0]["status"] == "failed"
+    assert "material.friction" in by[-1.0]["error"]
+
+
+def _sweep_process(path, out, workers):
+    return subprocess.Popen([sys.executable, "-m", "crushdem", "sweep", path, "--out", out,
+                             "--workers", str(workers)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+
+
+def _children(pid):
+    kids = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        kids.append(int(entry))
+            except (OSError, IndexError, ValueError):
+                pass
+    return kids
+
+
+def _runs_under(pid):
+    """(worker pid, run pid) of the crushdem runs started below process pid."""
+    found, stack = [], [pid]
+    while stack:
+        p = stack.pop()
+        for c in _children(p):
+            try:
+                cmd = open(f"/proc/{c}/cmdline").read().split("\0")
+            except OSError:
+                continue
+            if "crushdem" in cmd and ("run" in cmd or "resume" in cmd) and "sweep" not in cmd:
+                found.append((p, c))
+            stack.append(c)
+    return found
+
+
+def _wait_for_runs(proc, n=1, timeout=60.0):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        runs = _runs_under(proc.pid)
+        if len(runs) >= n:
+            return runs
+        time.sleep(0.2)
+    raise AssertionError("no crushdem run started")
+
+
+@pytest.mark.parametrize("stop", ["sigterm", "sigkill_worker"])
+def test_a_stopped_sweep_run_again_completes_with_the_same_results(tmp_path, stop):
+    base = _long_base(tmp_path, hold_steps=150000)
+    vary = {"stage.isotropic.stress": [5e5, 1e6, 2e6, 4e6]}
+    path = _write_sweep(tmp_path, vary, base=base)
+    reference = sweep.sweep(path, str(tmp_path / "whole"), workers=2, progress=False,
+                            log=lambda m: None)
+    out = str(tmp_path / "stopped")
+    proc = _sweep_process(path, out, 2)
+    runs = _wait_for_runs(proc, 2)
+    time.sleep(1.0)  # well inside the runs (each takes a few seconds)
+    if stop == "sigterm":
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=120)
+        assert proc.returncode == 128 + signal.SIGTERM, proc.stdout.read()
+        done = [d for d in os.listdir(os.path.join(out, "runs"))
+                if os.path.isfile(os.path.join(out, "runs", d, "summary.json"))]
+        assert len(done) < 4  # it really stopped mid-way
+    else:
+        worker, _run = runs[0]
+        os.kill(worker, signal.SIGKILL)  # the run gets SIGTERM, saves its checkpoint, stops
+        proc.wait(timeout=300)
+    df = sweep.sweep(path, out, workers=2, progress=False, log=lambda m: None)
+    assert list(df["status"]) == ["done"] * 4
+    assert _figures(df) == {k: v for k, v in _figures(reference).items()}
+    for name in df["variant"]:  # byte-identical results, as an uninterrupted run's
+        for f in ("timeseries.csv", "summary.json"):
+            a = open(os.path.join(tmp_path, "whole", "runs", name, f)).read()
+            b = open(os.path.join(out, "runs", name, f)).read()
+            assert a == b, (name, f)
+
+
+def test_scheduler_option_reaches_an_existing_cluster(tmp_path):
+    dask = shutil.which("dask", path=os.path.dirname(sys.executable))
+    if dask is None:
+        pytest.skip("the dask command is not installed beside this Python")
+    file = str(tmp_path / "scheduler.json")
+    sched = subprocess.Popen([dask, "scheduler", "--scheduler-file", file, "--port", "0",
+                              "--dashboard-address", ":0"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        t0 = time.time()
+        while not os.path.isfile(file) and time.time() - t0 < 60:
+            time.sleep(0.2)
+        worker = subprocess.Popen([dask, "worker", "--scheduler-file", file, "--nthreads", "1",
+                                   "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL)
+        with open(file) as f:
+            address = json.load(f)["address"]
+        df = sweep.sweep(_write_sweep(tmp_path, {"material.friction": [0.2, 0.4]}),
+                         str(tmp_path / "out"), scheduler=address, progress=False,
+                         log=lambda m: None)
+        assert list(df["status"]) == ["done", "done"]
+    finally:
+        for p in (worker, sched):
+            if p is not None:
+                p.terminate()
+                p.wait(timeout=30)
