@@ -7,6 +7,7 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -204,6 +205,114 @@ TEST_F(RunDirectory, ALockedDirectoryIsRefused) {
   EXPECT_FALSE(fs::exists(fs::path(out_) / "config.toml"));
   ::close(fd);
   EXPECT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
+}
+
+}  // namespace
+}  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+// Branches (crushdem run --from DIR:STAGE): the lattice of tests/data compressed, then held.
+std::string staged_config(const std::string& data, long hold_steps, double friction = 0.275) {
+  return "[material]\nfriction = " + std::to_string(friction) +
+         "\n[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" + data +
+         "/lattice_64.txt\"\n[[stage]]\ntype = \"isotropic\"\nname = \"compress\"\nstress = "
+         "1e6\n[[stage]]\ntype = \"hold\"\nname = \"hold\"\nsteps = " +
+         std::to_string(hold_steps) +
+         "\n[output]\ninterval = 2000\nvtk_interval = 20000\nprogress_seconds = 0\n";
+}
+
+double timing_number(const std::string& text, const std::string& key) {
+  const std::size_t k = text.find("\"" + key + "\":");
+  return k == std::string::npos ? -1.0 : std::strtod(text.c_str() + k + key.size() + 3, nullptr);
+}
+
+class Branch : public RunDirectory {
+ protected:
+  std::string write(const std::string& name, const std::string& text) {
+    const std::string p = (base_ / name).string();
+    std::ofstream(p) << text;
+    return p;
+  }
+  const std::string data_ = CRUSHDEM_TEST_DATA_DIR;
+};
+
+TEST_F(Branch, AnUnchangedBranchGivesTheOriginalsFiles) {
+  const std::string cfg = write("a.toml", staged_config(data_, 30000));
+  const std::string orig = (base_ / "orig").string(), br = (base_ / "branch").string();
+  ASSERT_EQ(cli({"run", cfg, "--out", orig, "--quiet"}).rc, 0);
+  EXPECT_TRUE(fs::exists(fs::path(orig) / "stages" / "stage_1.bin"));
+  const Outcome o = cli({"run", cfg, "--out", br, "--quiet", "--from", orig + ":hold"});
+  ASSERT_EQ(o.rc, 0) << o.err;
+  std::size_t compared = 0;
+  for (const auto& e : fs::recursive_directory_iterator(orig)) {
+    const std::string rel = fs::relative(e.path(), orig).string();
+    // timing.json and the saved states (which record this run's own timing) are not results.
+    if (!e.is_regular_file() || rel == "timing.json" || rel == ".lock" ||
+        rel.rfind("stages", 0) == 0) {
+      continue;
+    }
+    ASSERT_TRUE(fs::exists(fs::path(br) / rel)) << rel;
+    const std::string a = slurp(e.path());
+    std::string b = slurp(fs::path(br) / rel);
+    if (rel == "summary.json") {  // the branch says where it started, and is otherwise the same
+      const std::size_t k = b.find("\"branched_from\"");
+      ASSERT_NE(k, std::string::npos);
+      const std::size_t end = b.find('}', k);
+      EXPECT_NE(b.substr(k, end - k).find("\"stage\": 1"), std::string::npos)
+          << b.substr(k, end - k);
+      const std::size_t line = b.rfind('\n', k) + 1;
+      b.erase(line, b.find('\n', end) + 1 - line);
+    }
+    EXPECT_TRUE(a == b) << rel << " differs";
+    ++compared;
+  }
+  EXPECT_GE(compared, 5u);
+}
+
+TEST_F(Branch, AChangedStageRunsOnlyFromThere) {
+  const std::string orig = (base_ / "orig").string(), br = (base_ / "branch").string();
+  ASSERT_EQ(cli({"run", write("a.toml", staged_config(data_, 30000)), "--out", orig, "--quiet"}).rc,
+            0);
+  // A longer hold: the branch point is found (the first stage that changed).
+  ASSERT_EQ(cli({"run", write("b.toml", staged_config(data_, 50000)), "--out", br, "--quiet",
+                 "--from", orig})
+                .rc,
+            0);
+  const std::string timing = slurp(fs::path(br) / "timing.json");
+  const double particle_steps =
+      timing_number(timing, "particle_steps_per_second") * timing_number(timing, "wall_seconds");
+  EXPECT_NEAR(particle_steps / (64.0 * 50000.0), 1.0, 0.01) << timing;  // the hold only
+  const std::string a = slurp(fs::path(orig) / "timeseries.csv");
+  const std::string b = slurp(fs::path(br) / "timeseries.csv");
+  const std::size_t held = a.find("\n", a.find(",1,"));  // compare through the first hold row
+  ASSERT_NE(held, std::string::npos);
+  EXPECT_EQ(a.substr(0, a.rfind('\n', a.find(",1,"))), b.substr(0, a.rfind('\n', a.find(",1,"))));
+}
+
+TEST_F(Branch, ChangesBeforeTheBranchAreRefusedNamingTheKey) {
+  const std::string orig = (base_ / "orig").string();
+  ASSERT_EQ(cli({"run", write("a.toml", staged_config(data_, 2000)), "--out", orig, "--quiet"}).rc,
+            0);
+  const Outcome friction = cli({"run", write("f.toml", staged_config(data_, 2000, 0.5)), "--out",
+                                (base_ / "f").string(), "--quiet", "--from", orig + ":1"});
+  EXPECT_EQ(friction.rc, 2);
+  EXPECT_TRUE(has(friction.err, "material.friction")) << friction.err;
+  std::string text = staged_config(data_, 2000);
+  text.replace(text.find("stress = 1e6"), 12, "stress = 2e6");
+  const Outcome stage0 = cli({"run", write("s.toml", text), "--out", (base_ / "s").string(),
+                              "--quiet", "--from", orig + ":hold"});
+  EXPECT_EQ(stage0.rc, 2);
+  EXPECT_TRUE(has(stage0.err, "stage[0].stress")) << stage0.err;
+  const Outcome none = cli({"run", write("n.toml", staged_config(data_, 2000)), "--out",
+                            (base_ / "n").string(), "--quiet", "--from", orig});
+  EXPECT_EQ(none.rc, 2);
+  EXPECT_TRUE(has(none.err, "name the stage")) << none.err;
+  const Outcome bad = cli({"run", write("x.toml", staged_config(data_, 2000)), "--out",
+                           (base_ / "x").string(), "--quiet", "--from", orig + ":shear"});
+  EXPECT_EQ(bad.rc, 2);
+  EXPECT_TRUE(has(bad.err, "compress, hold")) << bad.err;
 }
 
 }  // namespace

@@ -63,11 +63,18 @@ class Result:
 
 
 def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: str = ".",
-        progress: bool = False, overwrite: bool = False) -> Result:
+        progress: bool = False, overwrite: bool = False,
+        branch_from: Union[str, os.PathLike, None] = None,
+        branch_stage: Union[int, str, None] = None) -> Result:
     """Runs a whole configuration dict (the sections of a run file; ``stage`` a list of dicts).
     ``out`` must be new or empty; ``overwrite=True`` replaces a crushdem run already there (every
-    laboratory function below takes it too)."""
-    _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite)
+    laboratory function below takes it too). ``branch_from``: a run directory whose state at the
+    start of stage ``branch_stage`` (index or name; default: the first stage ``config``
+    changes) this run starts from, as ``crushdem run --from DIR:STAGE`` (the stages before it
+    and the grains must be the original's)."""
+    _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite,
+              os.fspath(branch_from) if branch_from is not None else "",
+              "" if branch_stage is None else str(branch_stage))
     return Result(os.fspath(out))
 
 

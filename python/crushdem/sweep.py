@@ -2,7 +2,9 @@
 
 A sweep file names a base configuration and the values to vary::
 
-    base = "triaxial_small.toml"        # relative to the sweep file
+    base = "relaxation_small.toml"      # relative to the sweep file
+    from = "runs/loaded:relaxation"     # optional: every variant branches from this run's
+                                        # state at the start of that stage (crushdem run --from)
     [vary]                              # combined as a product
     "contact.rolling_friction" = [0.1, 0.3]
     "crushing.seed" = [1, 2, 3]
@@ -64,10 +66,15 @@ def read_sweep(path: str) -> Dict[str, Any]:
         raise ValueError(f"{path}: cannot read the sweep file ({e.strerror})") from None
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"{path}: not valid TOML ({e})") from None
-    unknown = set(doc) - {"base", "vary", "zip"}
+    unknown = set(doc) - {"base", "from", "vary", "zip"}
     if unknown:
         raise ValueError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (expected base, "
-                         "[vary], [zip])")
+                         "from, [vary], [zip])")
+    branch = doc.get("from")
+    if branch is not None:
+        if not isinstance(branch, str):
+            raise ValueError(f"{path}: from = \"DIR[:STAGE]\" (a finished run to branch from)")
+        branch = os.path.join(os.path.dirname(os.path.abspath(path)), branch)
     if not isinstance(doc.get("base"), str):
         raise ValueError(f"{path}: base = \"CONFIG.toml\" (the base configuration, relative to "
                          "the sweep file) is missing")
@@ -103,7 +110,7 @@ def read_sweep(path: str) -> Dict[str, Any]:
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
-            "factors": factors, "keys": keys}
+            "factors": factors, "keys": keys, "from": branch}
 
 
 def _check_values(path: str, table: str, key: str, values: Any) -> None:
@@ -183,9 +190,11 @@ def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
         pass
 
 
-def run_variant(config_path: str, run_dir: str, threads: int) -> Dict[str, Any]:
-    """Runs (or resumes) one variant with the crushdem command; returns {"resumed", "wall_s"}.
-    Raises RuntimeError with the end of the run's error output when it fails."""
+def run_variant(config_path: str, run_dir: str, threads: int,
+                branch: Optional[str] = None) -> Dict[str, Any]:
+    """Runs (or resumes) one variant with the crushdem command, branching from ``branch``
+    (DIR[:STAGE]) when given; returns {"resumed", "wall_s"}. Raises RuntimeError with the end of
+    the run's error output when it fails."""
     if os.path.isfile(os.path.join(run_dir, "summary.json")):
         return {"resumed": False, "skipped": True}
     crushdem = [sys.executable, "-m", "crushdem"]
@@ -194,7 +203,7 @@ def run_variant(config_path: str, run_dir: str, threads: int) -> Dict[str, Any]:
         cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"]
     else:
         cmd = crushdem + ["run", config_path, "--out", run_dir, "--threads", str(threads),
-                          "--quiet"]
+                          "--quiet"] + (["--from", branch] if branch else [])
     t0 = time.perf_counter()
     deadline = t0 + LOCK_WAIT_S
     while True:
@@ -386,13 +395,14 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
     log(f"{len(listed)} variants: {len(listed) - len(todo) - len(errors)} finished before, "
         f"{len(todo)} to run, {len(errors)} refused")
     if todo:
-        _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log)
+        _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"])
     df = results_table(out, listed, sw["keys"], errors)
     figure(df, sw["keys"], os.path.join(out, "results.png"))
     return df
 
 
-def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log) -> None:
+def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
+               branch=None) -> None:
     from distributed import Client, LocalCluster
 
     previous = signal.signal(signal.SIGTERM, _raise_stop)
@@ -406,8 +416,8 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log)
                                    processes=True, dashboard_address=None)
             client = Client(cluster)
         try:
-            futures = {client.submit(run_variant, cfg, run_dir, threads_per_run, key=name,
-                                     pure=False): name for name, cfg, run_dir in todo}
+            futures = {client.submit(run_variant, cfg, run_dir, threads_per_run, branch,
+                                     key=name, pure=False): name for name, cfg, run_dir in todo}
             _follow(client, futures, errors, progress, log)
         finally:
             client.close()

@@ -516,19 +516,24 @@ NB_MODULE(_core, m) {
   m.def(
       "run",
       [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress,
-         bool overwrite) {
+         bool overwrite, const std::string& branch_dir, const std::string& branch_stage) {
         const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
         RunOptions opt;
         opt.out_dir = out;
         opt.progress = progress;
         opt.overwrite = overwrite;
+        opt.branch_dir = branch_dir;
+        opt.branch_stage = branch_stage;
         return run_interruptible([&] { return run_to_directory(cfg, opt); });
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true, "overwrite"_a = false,
+      "branch_dir"_a = "", "branch_stage"_a = "",
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
       "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)). A directory "
-      "that holds files is refused unless overwrite (then a crushdem run directory is emptied).");
+      "that holds files is refused unless overwrite (then a crushdem run directory is emptied). "
+      "branch_dir (and branch_stage, index or name): start from that run's state at the start of "
+      "the stage, as `crushdem run --from DIR:STAGE`.");
   m.def(
       "resume",
       [](const std::string& out, bool progress) {

@@ -214,3 +214,24 @@ def test_scheduler_option_reaches_an_existing_cluster(tmp_path):
             if p is not None:
                 p.terminate()
                 p.wait(timeout=30)
+
+
+def test_a_sweep_branches_from_a_loaded_state(tmp_path):
+    """Every variant starts from the original's state at the start of its hold stage: the
+    compression is not repeated, and the unchanged part of the results is the original's."""
+    base = _long_base(tmp_path, hold_steps=20000)
+    original = tmp_path / "original"
+    import tomllib
+
+    with open(base, "rb") as f:
+        lab.run(tomllib.load(f), original)
+    path = _write_sweep(tmp_path, {"stage.hold.steps": [10000, 30000]}, base=base,
+                        extra=f'from = "{original}:hold"')
+    df = sweep.sweep(path, str(tmp_path / "out"), workers=2, progress=False, log=lambda m: None)
+    assert list(df["status"]) == ["done", "done"]
+    orig = sweep.summary_figures(str(original))
+    for _, row in df.iterrows():
+        assert row["steps"] == orig["steps"] - 20000 + row["stage.hold.steps"]
+        assert row["isotropic.K0_end"] == orig["isotropic.K0_end"]
+        summary = json.load(open(os.path.join(row["run_dir"], "summary.json")))
+        assert summary["branched_from"]["stage"] == 1

@@ -78,6 +78,11 @@ int cli_main(const std::vector<std::string>& args) {
   c_run->add_option("--backend", run.backend, "cpu, or cuda in a build with CUDA")
       ->check(CLI::IsMember({"cpu", "cuda"}));
   c_run->add_flag("--quiet", run.quiet, "no progress lines");
+  c_run
+      ->add_option("--from", run.from,
+                   "branch: start from the run in DIR at the start of its stage STAGE (index "
+                   "or name; default: the first stage CONFIG changes)")
+      ->type_name("DIR[:STAGE]");
   c_run->add_flag("--overwrite", run.overwrite,
                   "replace the crushdem run already in --out (otherwise refused)");
 

@@ -12,7 +12,7 @@ namespace crushdem::cli {
 int cli_main(const std::vector<std::string>& args);
 
 struct RunArgs {
-  std::string config, out, backend = "cpu";
+  std::string config, out, backend = "cpu", from;
   long threads = 0;
   bool quiet = false, overwrite = false;
 };

@@ -1,6 +1,7 @@
 // `crushdem run CONFIG.toml --out DIR [--threads N]`, `crushdem resume DIR [--threads N]` and
 // `crushdem check CONFIG.toml`.
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <optional>
 
@@ -17,6 +18,21 @@
 namespace crushdem::cli {
 
 namespace {
+
+/// --from DIR[:STAGE]: the directory, and the stage when a ':' follows a directory that exists.
+void split_branch(const std::string& from, std::string& dir, std::string& stage) {
+  const std::size_t colon = from.rfind(':');
+  if (std::filesystem::is_directory(from) || colon == std::string::npos) {
+    dir = from;
+    stage.clear();
+  } else {
+    dir = from.substr(0, colon);
+    stage = from.substr(colon + 1);
+  }
+  if (!std::filesystem::is_directory(dir)) {
+    throw ConfigError(bad_value("--from", from, "DIR[:STAGE], DIR a crushdem run directory"));
+  }
+}
 
 /// Runs (or resumes) with the stop handlers installed; an interrupted run says how to go on.
 int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
@@ -56,6 +72,7 @@ int run_main(const RunArgs& a) {
   opt.progress = !a.quiet;
   opt.backend = backend;
   opt.overwrite = a.overwrite;
+  if (!a.from.empty()) split_branch(a.from, opt.branch_dir, opt.branch_stage);
 #ifdef CRUSHDEM_HAVE_CUDA
   // The GPU stepper takes over after the set-up; the Simulation is refreshed before each output.
   std::unique_ptr<GpuStepper> gpu;

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
@@ -85,7 +86,7 @@ namespace {
 volatile std::sig_atomic_t g_stop_signal = 0;
 
 std::string stamp(std::size_t k) {
-  char b[16];
+  char b[24];  // any size_t
   std::snprintf(b, sizeof b, "%06zu", k);
   return b;
 }
@@ -276,6 +277,11 @@ class Driver {
   double particle_steps() const { return particle_steps_; }
   void add_particle_steps(double earlier) { particle_steps_ += earlier; }
   std::size_t snapshots() const { return snapshots_; }
+  std::vector<std::string> file_names() const {
+    std::vector<std::string> names;
+    for (const auto& [name, f] : files_) names.push_back(name);
+    return names;
+  }
 
   void save_state(StateWriter& out) const {
     out.tag("files");
@@ -568,6 +574,172 @@ class DirectoryLock {
   int fd_ = -1;
 };
 
+// A checkpoint or stage state: its bytes without the checksum (checked) and its format version.
+std::pair<std::string, int> read_state_file(const std::string& path) {
+  std::string bytes = read_binary_file(path);
+  int version = 0;
+  {
+    StateReader head(bytes, path);
+    std::string format;
+    head.get(format);
+    version = checkpoint_version(format);
+    if (version == 0) {
+      throw ConfigError("'" + path + "' is not a crushdem checkpoint (format '" +
+                        format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
+                        "')");
+    }
+  }
+  if (version >= 4) {  // the last 8 bytes: the checksum of the others
+    std::uint64_t saved = 0;
+    const bool sized = bytes.size() >= sizeof saved;
+    if (sized) std::memcpy(&saved, bytes.data() + bytes.size() - sizeof saved, sizeof saved);
+    if (!sized || saved != fnv1a64(bytes.data(), bytes.size() - sizeof saved)) {
+      throw ConfigError("'" + path +
+                        "' is damaged (its checksum does not match its contents), so it cannot "
+                        "be resumed; start the run again with `crushdem run ... --overwrite`");
+    }
+    bytes.resize(bytes.size() - sizeof saved);
+  }
+  return {std::move(bytes), version};
+}
+
+// One value as TOML text (for comparing two configurations key by key).
+std::string toml_text(const toml::Value& v) {
+  toml::Table t;
+  t["v"] = v;
+  return toml::serialize(t);
+}
+
+// The first key under `prefix` where two values differ ("" when they are equal).
+std::string first_difference(const toml::Value* a, const toml::Value* b, const std::string& prefix,
+                             const std::set<std::string>& ignored = {}) {
+  if (!a || !b) return prefix;
+  if (a->type == toml::Type::Table && b->type == toml::Type::Table) {
+    std::set<std::string> keys;
+    for (const auto& [k, v] : *a->table) keys.insert(k);
+    for (const auto& [k, v] : *b->table) keys.insert(k);
+    for (const std::string& k : keys) {
+      if (ignored.count(k)) continue;
+      const auto ia = a->table->find(k), ib = b->table->find(k);
+      const std::string d =
+          first_difference(ia == a->table->end() ? nullptr : &ia->second,
+                           ib == b->table->end() ? nullptr : &ib->second, prefix + "." + k);
+      if (!d.empty()) return d;
+    }
+    return "";
+  }
+  return toml_text(*a) == toml_text(*b) ? "" : prefix;
+}
+
+// Where a branch starts (the stage index) and whether its configuration may start there: the
+// stages before it, the grains and the material must be the original's.
+std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
+                         const std::string& spec, const std::filesystem::path& from) {
+  const std::string src = (from / "config.toml").string();
+  const RunConfig old = run_config_from_toml(toml::parse(original_text, src), src, from.string());
+  const toml::Table a = to_toml(old), b = to_toml(cfg);
+  const auto stages_of = [](const toml::Table& t) {
+    const auto it = t.find("stage");
+    return it == t.end() ? std::vector<toml::Value>{} : it->second.array;
+  };
+  const std::vector<toml::Value> sa = stages_of(a), sb = stages_of(b);
+  if (sa.empty()) throw ConfigError("--from '" + from.string() + "': the run has no [[stage]]");
+  std::size_t k = 0;
+  if (spec.empty()) {
+    while (k < sa.size() && k < sb.size() && toml_text(sa[k]) == toml_text(sb[k])) ++k;
+    if (k == sa.size()) {
+      throw ConfigError("--from '" + from.string() +
+                        "': the stages are the original's; name the stage to branch from "
+                        "(--from DIR:STAGE, its index or name)");
+    }
+  } else if (std::all_of(spec.begin(), spec.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    k = std::stoul(spec);
+  } else {
+    k = sa.size();
+    for (std::size_t i = 0; i < old.stages.size(); ++i) {
+      if (old.stages[i].name == spec) k = std::min(k, i);
+    }
+    if (k == sa.size()) {
+      std::string names;
+      for (const auto& st : old.stages) names += (names.empty() ? "" : ", ") + st.name;
+      throw ConfigError(bad_value("--from", spec, "a stage of the original run (" + names + ")"));
+    }
+  }
+  if (k >= sa.size()) {
+    throw ConfigError(
+        bad_value("--from", spec, "a stage index below " + std::to_string(sa.size())));
+  }
+  for (std::size_t i = 0; i < k; ++i) {
+    const std::string d = i < sb.size()
+                              ? first_difference(&sa[i], &sb[i], "stage[" + std::to_string(i) + "]")
+                              : "stage[" + std::to_string(i) + "]";
+    if (!d.empty()) {
+      throw ConfigError(d + ": differs from the original run, but a branch at stage " +
+                        std::to_string(k) + " keeps the stages before it as they ran");
+    }
+  }
+  // Crushing keys that act at run time only (the strengths and cracks already drawn stay).
+  const std::set<std::string> runtime = {"crack_growth", "v0",       "n",
+                                         "r_prime",      "interval", "density_scaling"};
+  std::set<std::string> sections;
+  for (const auto& [key, v] : a) sections.insert(key);
+  for (const auto& [key, v] : b) sections.insert(key);
+  for (const std::string& key : sections) {
+    if (key == "stage" || key == "output") continue;
+    const auto ia = a.find(key), ib = b.find(key);
+    const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
+                                           ib == b.end() ? nullptr : &ib->second, key,
+                                           key == "crushing" ? runtime : std::set<std::string>{});
+    if (!d.empty()) {
+      throw ConfigError(d +
+                        ": cannot change in a branch (it sets the grains, the material or a "
+                        "state drawn before the branch; a branch may change the stages from its "
+                        "own on, [output] and crushing's " +
+                        "crack_growth, v0, n, r_prime, interval, density_scaling)");
+    }
+  }
+  return k;
+}
+
+// Copies the original run's result files (CSV) into a branch's directory.
+void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  for (const fs::directory_entry& e : fs::directory_iterator(from)) {
+    if (e.is_regular_file() && e.path().extension() == ".csv") {
+      fs::copy_file(e.path(), dir / e.path().filename(), fs::copy_options::overwrite_existing);
+    }
+  }
+}
+
+// After the state is loaded: the CSVs it does not list are removed (the original wrote them
+// later), its snapshots and the states of the stages before the branch are copied.
+void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
+                       const std::vector<std::string>& listed, std::size_t snapshots,
+                       std::size_t stage) {
+  namespace fs = std::filesystem;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() == ".csv" &&
+        std::find(listed.begin(), listed.end(), name) == listed.end()) {
+      fs::remove(e.path());
+    }
+  }
+  fs::create_directories(dir / "vtk");
+  for (std::size_t k = 0; k < snapshots; ++k) {
+    for (const char* kind : {"particles_", "box_"}) {
+      const fs::path f = from / "vtk" / (kind + stamp(k) + ".vtk");
+      if (fs::exists(f))
+        fs::copy_file(f, dir / "vtk" / f.filename(), fs::copy_options::overwrite_existing);
+    }
+  }
+  fs::create_directories(dir / "stages");
+  for (std::size_t k = 0; k < stage; ++k) {
+    const fs::path f = from / "stages" / ("stage_" + std::to_string(k) + ".bin");
+    if (fs::exists(f))
+      fs::copy_file(f, dir / "stages" / f.filename(), fs::copy_options::overwrite_existing);
+  }
+}
+
 }  // namespace
 
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
@@ -586,53 +758,52 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   const std::string config_text = toml::serialize(to_toml(cfg));
   if (!opt.resume) write_text_file((dir / "config.toml").string(), config_text);
 
-  // Resuming: the checkpoint says where the run stood; the state is read part by part below.
+  // Resuming: the checkpoint says where the run stood; the state is read part by part below. A
+  // branch reads the original run's state at the start of its branch stage the same way.
   Progress st;
   std::unique_ptr<StateReader> in;
-  if (opt.resume) {
-    const std::string path = (dir / "checkpoint.bin").string();
-    if (!fs::exists(path)) {
+  const bool branching = !opt.branch_dir.empty();
+  std::size_t branch_k = 0;
+  const fs::path from = branching ? fs::absolute(opt.branch_dir) : fs::path();
+  if (opt.resume || branching) {
+    std::string path = (dir / "checkpoint.bin").string();
+    if (branching) {
+      const std::string original = read_binary_file((from / "config.toml").string());
+      branch_k = branch_stage(original, cfg, opt.branch_stage, from);
+      path = (from / "stages" / ("stage_" + std::to_string(branch_k) + ".bin")).string();
+      if (!fs::exists(path)) {
+        throw ConfigError("--from '" + opt.branch_dir + "': no saved state at the start of stage " +
+                          std::to_string(branch_k) + " (" + path +
+                          "; runs keep one per stage they reached)");
+      }
+    } else if (!fs::exists(path)) {
       throw ConfigError("crushdem resume: no checkpoint in '" + opt.out_dir + "'" +
                         (fs::exists(dir / "summary.json") ? " (the run has finished)" : ""));
     }
-    std::string bytes = read_binary_file(path);
-    int version = 0;
-    {
-      StateReader head(bytes, path);
-      std::string format;
-      head.get(format);
-      version = checkpoint_version(format);
-      if (version == 0) {
-        throw ConfigError("crushdem resume: '" + path + "' is not a crushdem checkpoint (format '" +
-                          format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
-                          "')");
-      }
-    }
-    if (version >= 4) {  // the last 8 bytes: the checksum of the others
-      std::uint64_t saved = 0;
-      const bool sized = bytes.size() >= sizeof saved;
-      if (sized) std::memcpy(&saved, bytes.data() + bytes.size() - sizeof saved, sizeof saved);
-      if (!sized || saved != fnv1a64(bytes.data(), bytes.size() - sizeof saved)) {
-        throw ConfigError("crushdem resume: '" + path +
-                          "' is damaged (its checksum does not match its contents), so it "
-                          "cannot be resumed; start the run again with `crushdem run ... "
-                          "--overwrite`");
-      }
-      bytes.resize(bytes.size() - sizeof saved);
-    }
+    auto [bytes, version] = read_state_file(path);
     in = std::make_unique<StateReader>(std::move(bytes), path);
     std::string format;
     in->get(format);
     in->set_version(version);
     std::string saved_config;
     in->get(saved_config);
-    if (saved_config != config_text && !same_resolved_config(saved_config, config_text, dir)) {
+    if (!branching && saved_config != config_text &&
+        !same_resolved_config(saved_config, config_text, dir)) {
       throw ConfigError("crushdem resume: " + (dir / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
     st.load(*in);
+    if (branching) {  // timing.json describes the branch's own work
+      st.wall_seconds = 0.0;
+      st.part_seconds = {};
+      st.particle_steps = 0.0;
+      JsonObject b;
+      b.string("run", from.string());
+      b.integer("stage", static_cast<long long>(branch_k));
+      write_text_file((dir / "branch.json").string(), b.dump() + "\n");
+    }
   }
-  const bool resumed = opt.resume;
+  const bool resumed = opt.resume || branching;
 
   // The sample: prepared here from a grading curve, or read / generated as configured.
   SimulationConfig sim_cfg = cfg.simulation;
@@ -653,7 +824,12 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
                                                    : SplitPattern::from_file(cfg.crushing.pattern));
   };
   if (resumed) {
+    // A branch starts with the original's result files as they stood at its state: each file
+    // the state lists (cut to its length there by load_state), the snapshots before it, and the
+    // states of the stages before it.
+    if (branching) copy_run_files(from, dir);
     driver.load_state(*in);
+    if (branching) keep_branch_files(from, dir, driver.file_names(), driver.snapshots(), branch_k);
     sim.load_state(*in);
     if (st.has_crusher) {
       make_crusher();
@@ -734,6 +910,12 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   auto boundary = [&](std::uint32_t part) {
     st.part = part;
     if (checkpoints) save_checkpoint(nullptr, 0);
+    if (checkpoints && part >= kPartFirstStage) {  // kept for branches
+      fs::create_directories(dir / "stages");
+      fs::copy_file(dir / "checkpoint.bin",
+                    dir / "stages" / ("stage_" + std::to_string(part - kPartFirstStage) + ".bin"),
+                    fs::copy_options::overwrite_existing);
+    }
     if (checkpoints && driver.stop_requested()) {
       throw Interrupted(static_cast<int>(g_stop_signal), opt.out_dir);
     }
@@ -899,6 +1081,11 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   JsonObject summary;
   summary.string("crushdem_version", CRUSHDEM_VERSION);
   if (st.has_sample_json) summary.object("sample", st.sample_json);
+  if (fs::exists(dir / "branch.json")) {
+    std::string b = read_binary_file((dir / "branch.json").string());
+    while (!b.empty() && (b.back() == '\n' || b.back() == ' ')) b.pop_back();
+    summary.fields.emplace_back("branched_from", b);
+  }
   summary.integer("steps", static_cast<long long>(sim.step_count()));
   summary.number("time_s", sim.time());
   summary.integer("particles", static_cast<long long>(sim.particles().size()));
@@ -954,6 +1141,18 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
     }
     o.resume = false;
     o.overwrite = true;
+    if (std::filesystem::exists(d / "branch.json")) {  // a branch starts again from its state
+      const std::string b = read_binary_file((d / "branch.json").string());
+      const auto field = [&b](const std::string& key) {
+        const std::size_t k = b.find("\"" + key + "\"");
+        const std::size_t q0 = b.find_first_not_of(" :", k + key.size() + 2);
+        if (k == std::string::npos || q0 == std::string::npos) return std::string();
+        if (b[q0] == '"') return b.substr(q0 + 1, b.find('"', q0 + 1) - q0 - 1);
+        return b.substr(q0, b.find_first_of(",}\n", q0) - q0);
+      };
+      o.branch_dir = field("run");
+      o.branch_stage = field("stage");
+    }
   }
   return run_to_directory(cfg, o);
 }

@@ -8,6 +8,8 @@
 //                    stages, every output.checkpoint_seconds and on a stop request); removed
 //                    when the run ends. `crushdem resume DIR` continues from it, and the files
 //                    come out identical to those of an uninterrupted run.
+//   stages/stage_K.bin  the state at the start of stage K, kept for branches (RunOptions)
+//   branch.json      where a branch started (run directory and stage)
 //   .lock            held (flock) while a run or resume writes the directory
 // A new run needs a new or empty directory (RunOptions::overwrite replaces an old run).
 #pragma once
@@ -33,6 +35,12 @@ struct RunOptions {
   /// A new run refuses a directory that holds files; with overwrite, a crushdem run directory
   /// (one with config.toml) is emptied first.
   bool overwrite = false;
+  /// A branch: start from the state of the finished (or stopped) run in branch_dir at the start
+  /// of stage branch_stage (its index or name; empty: the first stage the configuration
+  /// changes), with this run's configuration. What may differ from the original run: the stages
+  /// from that one on, the crushing keys that act at run time (crack_growth, v0, n, r_prime,
+  /// interval, density_scaling) and [output]; anything else is refused, naming the key.
+  std::string branch_dir, branch_stage;
 };
 
 /// Asks the running run_to_directory to write a checkpoint and stop at its next chunk boundary
