@@ -876,25 +876,39 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   };
   // The whole state at this point of the run: the part, the files, the simulation, the crusher
   // and the running controller (none between two parts).
-  auto save_checkpoint = [&](const Controller* running, std::uint64_t to_check) {
+  // stage_state: the copy kept for branches (stages/stage_K.bin), without the wall-clock times
+  // (a branch starts its own), so that it is a result like the others: the same bytes for any
+  // thread count and after any resume.
+  auto save_checkpoint = [&](const Controller* running, std::uint64_t to_check,
+                             const std::string& stage_state = "") {
     const PartScope timed(sim.part_clock(), Part::Output);
     st.begun = running != nullptr;
     st.to_check = to_check;
     st.has_crusher = crusher != nullptr;
-    st.part_seconds = sim.part_clock().seconds();
-    st.particle_steps = driver.particle_steps();
-    const double wall_before = st.wall_seconds;
-    st.wall_seconds += driver.seconds();
+    const Progress saved_st = st;
+    if (stage_state.empty()) {
+      st.part_seconds = sim.part_clock().seconds();
+      st.particle_steps = driver.particle_steps();
+      st.wall_seconds += driver.seconds();
+    } else {
+      st.part_seconds = {};
+      st.particle_steps = 0.0;
+      st.wall_seconds = 0.0;
+    }
     StateWriter out;
     out.tag(checkpoint_tag(kStateVersion).c_str());
     out.put(config_text);
     st.save(out);
-    st.wall_seconds = wall_before;
+    st = saved_st;
     driver.save_state(out);
     sim.save_state(out);
     if (crusher) crusher->save_state(out);
     if (running) running->save_state(out);
     out.put(fnv1a64(out.bytes().data(), out.bytes().size()));
+    if (!stage_state.empty()) {
+      write_file_atomically(stage_state, out.bytes());
+      return;
+    }
     write_file_atomically((dir / "checkpoint.bin").string(), out.bytes());
     write_timing(st.wall_seconds + driver.seconds(), false);
     driver.checkpoint_written();
@@ -912,9 +926,9 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     if (checkpoints) save_checkpoint(nullptr, 0);
     if (checkpoints && part >= kPartFirstStage) {  // kept for branches
       fs::create_directories(dir / "stages");
-      fs::copy_file(dir / "checkpoint.bin",
-                    dir / "stages" / ("stage_" + std::to_string(part - kPartFirstStage) + ".bin"),
-                    fs::copy_options::overwrite_existing);
+      save_checkpoint(
+          nullptr, 0,
+          (dir / "stages" / ("stage_" + std::to_string(part - kPartFirstStage) + ".bin")).string());
     }
     if (checkpoints && driver.stop_requested()) {
       throw Interrupted(static_cast<int>(g_stop_signal), opt.out_dir);
