@@ -49,6 +49,9 @@ VARIANTS: Dict[str, tuple] = {
                         {"r_prime": "2R_star"}),
     "d0_2mm": ("d0 = 2 mm instead of d50 (a d50 grain (0.21 / 2)^(-3/m) = 1.76 times stronger)",
                {}, {"d0": 2e-3}),
+    "d0_1mm": ("d0 = 1 mm instead of d50: a d50 grain breaks between platens at F / d^2 = "
+               "0.47 GPa, near the top of the 0.05-0.5 GPa of real quartz grains (d50: 0.15 GPa)",
+               {}, {"d0": 1e-3}),
     "k1k2_1_100": ("(k1, k2) = (1, 100), the original rough-law code's, instead of (0.05, 5)",
                    {"k1": 1.0, "k2": 100.0}, {}),
     "f_uniform": ("f uniform on [1 - var, 1 + var] instead of normal(1, var)", {},

@@ -260,6 +260,7 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
 
     def start():
         calls.append("start")
+        run.mkdir(exist_ok=True)  # as a run does: into a new directory
 
     def resume(d, progress):
         calls.append(("resume", d, progress))
@@ -275,6 +276,7 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     rp._run_step("r", str(run), start, log.append, record, failing_resume)
     assert calls[-1] == "start" and record["r"]["resumed"] is False
     assert any("starting over" in m for m in log)
+    assert not (run / "checkpoint.bin").exists()  # the unfinished run was removed first
     rp._run_step("r", str(run), start, log.append, record, None)  # no resume in this build
     assert calls[-1] == "start"
     (run / "summary.json").write_text("{}")

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 
 #include "crushdem/core/error.hpp"
@@ -119,7 +120,19 @@ void WallContacts::resize(std::size_t n) {
 
 void Walls::save_state(StateWriter& out) const {
   out.tag("walls");
-  for (const WallConfig& c : cfg_) out.put(c);
+  for (const WallConfig& c : cfg_) {
+    // Written as the struct's bytes (the format since version 1) with its padding zeroed, so
+    // that equal states give equal files (saved stage states are compared as results).
+    WallConfig z;
+    std::memset(static_cast<void*>(&z), 0, sizeof z);
+    z.mode = c.mode;
+    z.position = c.position;
+    z.velocity = c.velocity;
+    z.target_stress = c.target_stress;
+    z.servo_alpha = c.servo_alpha;
+    z.max_speed = c.max_speed;
+    out.put(z);
+  }
   for (const WallState& st : st_) out.put(st);
 }
 
