@@ -15,6 +15,22 @@
 
 namespace crushdem::testing {
 
+/// The smallest whole run configuration: 10 generated grains in a 1 mm box, 20 steps (every
+/// section ends, so a test may append a table such as [contact]).
+inline constexpr const char* kTinyRunToml = R"(
+[box]
+min = [0.0, 0.0, 0.0]
+max = [1e-3, 1e-3, 1e-3]
+[particles.generate]
+count = 10
+diameter_min = 1e-4
+diameter_max = 2e-4
+[run]
+steps = 20
+[output]
+interval = 10
+)";
+
 /// A configuration with a cubic box [lo, hi]^3 of fixed walls and no damping.
 inline SimulationConfig box_config(double lo, double hi, NormalLaw law = NormalLaw::Hertz) {
   SimulationConfig c;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "crushdem/cli/cli.hpp"
+#include "helpers.hpp"
 
 namespace crushdem {
 namespace {
@@ -101,19 +102,7 @@ TEST(Cli, MisuseExitsWithTwoAndNamesTheOption) {
 
 // --- run directories ---------------------------------------------------------------------------
 
-const char* kTinyRun = R"(
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1e-3, 1e-3, 1e-3]
-[particles.generate]
-count = 10
-diameter_min = 1e-4
-diameter_max = 2e-4
-[run]
-steps = 20
-[output]
-interval = 10
-)";
+const char* const kTinyRun = testing::kTinyRunToml;
 
 class RunDirectory : public ::testing::Test {
  protected:

@@ -118,18 +118,7 @@ TEST(Rotation, FragmentsOfABlockedGrainKeepZeroSpin) {
 
 // --- the configuration key --------------------------------------------------------------------
 
-const std::string kBase = R"(
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1e-3, 1e-3, 1e-3]
-[particles.generate]
-count = 10
-diameter_min = 1e-4
-diameter_max = 2e-4
-[run]
-steps = 10
-[contact]
-)";
+const std::string kBase = std::string(testing::kTinyRunToml) + "[contact]\n";
 
 RunConfig parse(const std::string& contact_keys) {
   return run_config_from_toml(toml::parse(kBase + contact_keys, "cfg.toml"), "cfg.toml", ".");

@@ -30,10 +30,9 @@ import json
 import math
 import os
 import sys
-import tomllib
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from .sweep import run_variant, set_dotted, summary_figures, variant_name
+from .sweep import read_file_and_base, run_variant, set_dotted, summary_figures, variant_name
 
 
 class _Converged(Exception):
@@ -43,24 +42,8 @@ class _Converged(Exception):
 def read_calibration(path: str) -> Dict[str, Any]:
     """The calibration file, checked: base (dict and its directory), parameters (key: bounds),
     targets (figure: value), tolerance, max_evaluations."""
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as e:
-        raise ValueError(f"{path}: cannot read the calibration file ({e.strerror})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{path}: not valid TOML ({e})") from None
-    unknown = set(doc) - {"base", "tolerance", "max_evaluations", "parameters", "targets"}
-    if unknown:
-        raise ValueError(f"{path}: unknown key(s) {', '.join(sorted(unknown))}")
-    if not isinstance(doc.get("base"), str):
-        raise ValueError(f"{path}: base = \"CONFIG.toml\" is missing")
-    base_path = os.path.join(os.path.dirname(os.path.abspath(path)), doc["base"])
-    try:
-        with open(base_path, "rb") as f:
-            base = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise ValueError(f"{path}: base '{doc['base']}': cannot read {base_path} ({e})") from None
+    doc, base, base_path = read_file_and_base(
+        path, "calibration", ("base", "tolerance", "max_evaluations", "parameters", "targets"))
     params = doc.get("parameters") or {}
     targets = doc.get("targets") or {}
     if not 1 <= len(params) <= 2:

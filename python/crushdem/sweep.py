@@ -56,28 +56,23 @@ LOCK_WAIT_S = 120.0
 # --- the sweep file ----------------------------------------------------------------------------
 
 
-def read_sweep(path: str) -> Dict[str, Any]:
-    """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]]};
-    every problem named by file and key."""
+def read_file_and_base(path: str, what: str, keys: Sequence[str]) -> Tuple[Dict, Dict, str]:
+    """A sweep or calibration file (its top-level ``keys`` only) and the base configuration it
+    names (relative to it): (file, base, base path); every problem named by file and key."""
     try:
         with open(path, "rb") as f:
             doc = tomllib.load(f)
     except OSError as e:
-        raise ValueError(f"{path}: cannot read the sweep file ({e.strerror})") from None
+        raise ValueError(f"{path}: cannot read the {what} file ({e.strerror})") from None
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"{path}: not valid TOML ({e})") from None
-    unknown = set(doc) - {"base", "from", "vary", "zip"}
+    unknown = set(doc) - set(keys)
     if unknown:
-        raise ValueError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (expected base, "
-                         "from, [vary], [zip])")
-    branch = doc.get("from")
-    if branch is not None:
-        if not isinstance(branch, str):
-            raise ValueError(f"{path}: from = \"DIR[:STAGE]\" (a finished run to branch from)")
-        branch = os.path.join(os.path.dirname(os.path.abspath(path)), branch)
+        raise ValueError(f"{path}: unknown key(s) {', '.join(sorted(unknown))} (expected "
+                         f"{', '.join(keys)})")
     if not isinstance(doc.get("base"), str):
         raise ValueError(f"{path}: base = \"CONFIG.toml\" (the base configuration, relative to "
-                         "the sweep file) is missing")
+                         f"the {what} file) is missing")
     base_path = os.path.join(os.path.dirname(os.path.abspath(path)), doc["base"])
     try:
         with open(base_path, "rb") as f:
@@ -87,6 +82,18 @@ def read_sweep(path: str) -> Dict[str, Any]:
                          f"({e.strerror})") from None
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"{base_path}: not valid TOML ({e})") from None
+    return doc, base, base_path
+
+
+def read_sweep(path: str) -> Dict[str, Any]:
+    """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]],
+    "keys", "from"}; every problem named by file and key."""
+    doc, base, base_path = read_file_and_base(path, "sweep", ("base", "from", "vary", "zip"))
+    branch = doc.get("from")
+    if branch is not None:
+        if not isinstance(branch, str):
+            raise ValueError(f"{path}: from = \"DIR[:STAGE]\" (a finished run to branch from)")
+        branch = os.path.join(os.path.dirname(os.path.abspath(path)), branch)
     factors: List[List[Dict[str, Any]]] = []
     for key, values in (doc.get("vary") or {}).items():
         _check_values(path, "vary", key, values)
