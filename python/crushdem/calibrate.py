@@ -130,11 +130,15 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
         client = Client(cluster)
     best: Dict[str, Any] = {}
     converged = False
+    seen: Dict[tuple, List[float]] = {}  # an optimiser may ask for a point twice (brentq: bounds)
     try:
         def evaluate(x) -> List[float]:
+            point = tuple(float(v) for v in np.atleast_1d(x))
+            if point in seen:
+                return seen[point]
             if len(evaluations) >= cal["max_evaluations"]:
                 raise StopIteration
-            errors = record(*submit(client, x))
+            errors = seen[point] = record(*submit(client, x))
             if max(abs(e) for e in errors) <= tol:
                 raise _Converged
             return errors
@@ -144,6 +148,7 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
                 lo, hi = cal["parameters"][keys[0]]
                 first = [submit(client, [lo]), submit(client, [hi])]  # both bounds at once
                 e_lo, e_hi = (record(*s)[0] for s in first)
+                seen[(float(lo),)], seen[(float(hi),)] = [e_lo], [e_hi]
                 if min(abs(e_lo), abs(e_hi)) <= tol:
                     raise _Converged
                 if e_lo * e_hi > 0:
