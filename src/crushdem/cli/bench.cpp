@@ -1,4 +1,4 @@
-// `crushdem bench`: the peer reference problem (../shared/bench-peers/README.md).
+// `crushdem bench`: the peer reference problem (bench/README.md).
 //
 // Loads the reference packing (11,500 spheres in a box of 6 walls at 5 MPa), runs WARM untimed
 // then STEPS timed steps with the same contact law and constants as the peers (Hertz-Mindlin,

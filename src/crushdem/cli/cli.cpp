@@ -105,7 +105,11 @@ int cli_main(const std::vector<std::string>& args) {
       "time the peer reference problem (11,500 spheres at 5 MPa; bench/README.md) and "
       "print particle_steps_per_s last; options fall back on the peer harness's "
       "environment variables");
-  c_bench->add_option("--packing", bench.packing, "the packing file")->envname("PACKING");
+  c_bench
+      ->add_option("--packing", bench.packing,
+                   "the packing file (bench/README.md: the reference one)")
+      ->envname("PACKING")
+      ->required();
   c_bench->add_option("--steps", bench.steps, "timed steps")
       ->envname("STEPS")
       ->check(CLI::PositiveNumber);

@@ -22,7 +22,7 @@ struct ResumeArgs {
   bool quiet = false;
 };
 struct BenchArgs {
-  std::string packing = "../shared/bench-peers/common/packing.txt";
+  std::string packing;  // required (--packing or PACKING)
   long steps = 10000, warm = 500, threads = 0, settle = 0, prune = 1;
   std::string law = "hertz", state_out, backend = "cpu", settled_state;
 };
