@@ -11,7 +11,8 @@ apt_install_missing() {
 
 ensure_build_deps() {
   command -v cmake >/dev/null && command -v g++ >/dev/null && [ -f /usr/include/gtest/gtest.h ] \
-    && [ -f /usr/include/CLI/CLI.hpp ] || apt_install_missing cmake g++ make libgtest-dev libcli11-dev
+    && [ -f /usr/include/CLI/CLI.hpp ] && [ -f /usr/include/toml++/toml.h ] \
+    || apt_install_missing cmake g++ make libgtest-dev libcli11-dev libtomlplusplus-dev
 }
 
 # A virtual environment in .venv with the Python build tools (PyPI).

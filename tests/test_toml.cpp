@@ -1,5 +1,5 @@
-// Tests for the TOML reader/writer: every supported feature, every error class (message must
-// carry source, line and key), the line field, and parse(serialize(x)) == x.
+// Tests for the TOML reader (toml++ converted to Values) and writer: every feature a config uses,
+// every class of error located by source and line, the line field, and parse(serialize(x)) == x.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -330,132 +330,54 @@ TEST(TomlParse, ByteOrderMarkAndCrlf) {
 
 // ---- errors ----
 
-TEST(TomlErrors, ExactMessageFormat) {
-  EXPECT_EQ(parse_error("[p]\nradius = 1\n\n\nradius = 2\n")
-                .rfind("cfg.toml:5: duplicate key 'radius'", 0),
-            0u);
+TEST(TomlErrors, MessageIsSourceLineAndWhat) {
+  EXPECT_EQ(parse_error("[p]\nradius = 1\n\n\nradius = 2\n").rfind("cfg.toml:5: ", 0), 0u);
+  EXPECT_NE(parse_error("[p]\nradius = 1\n\n\nradius = 2\n").find("'radius'"), std::string::npos);
   try {
     parse("x = ", "<string>");
+    ADD_FAILURE() << "expected a ConfigError";
   } catch (const ConfigError& e) {
     EXPECT_EQ(std::string(e.what()).rfind("<string>:1: ", 0), 0u) << e.what();
   }
 }
 
-TEST(TomlErrors, DuplicateKeys) {
-  expect_error("a = 1\nb = 2\na = 3\n", 3, {"duplicate key 'a'", "line 1"});
-  expect_error("x.y = 1\nx.y = 2\n", 2, {"duplicate key 'x.y'"});
-  expect_error("x = 1\nx.y = 2\n", 2, {"'x.y'", "integer"});
-  expect_error("t = { a = 1, a = 2 }\n", 1, {"duplicate key 'a'"});
-  expect_error("[s]\nk = 1\n[s.k]\n", 3, {"'s.k'", "integer"});
-  expect_error("\"a\" = 1\na = 2\n", 2, {"duplicate key 'a'"});
+// One document per class of error toml++ must catch; each is located on its line. (The grammar
+// itself is toml++'s and its own test suite's; these check that every class reaches the user as
+// a ConfigError with the source and line.)
+TEST(TomlErrors, EveryClassIsLocated) {
+  expect_error("a = 1\nb = 2\na = 3\n", 3, {"'a'"});               // duplicate key
+  expect_error("t = { a = 1, a = 2 }\n", 1, {"'a'"});              // duplicate in inline table
+  expect_error("[s]\nk = 1\n[s.k]\n", 3, {"'s.k'"});               // value redefined as table
+  expect_error("[a]\nx = 1\n[b]\n[a]\n", 4, {"'a'"});              // table defined twice
+  expect_error("t = { a = 1 }\n[t.b]\n", 2, {"'t.b'", "inline"});  // inline tables are closed
+  expect_error("arr = [1]\n[[arr]]\n", 2, {"'arr'"});              // array, then [[array]]
+  expect_error("ok = 1\ns = \"abc\n", 2, {});                      // unterminated string
+  expect_error("s = \"\\q\"\n", 1, {"\\q"});                       // unknown escape
+  expect_error("s = \"\\uD800\"\n", 1, {"surrogate"});             // not a Unicode scalar
+  expect_error("# bad \x7f comment\n", 1, {"comment"});            // control character
+  expect_error("a = 1\ns = \"\xC3\"\n", 2, {"utf-8"});             // truncated UTF-8
+  expect_error("n = 012\n", 1, {"leading zero"});                  // numbers
+  expect_error("x = 1\nn = 1.\n", 2, {});
+  expect_error("n = 1__0\n", 1, {"underscore"});
+  expect_error("n = 9223372036854775808\n", 1, {"64 bits"});
+  expect_error("n = 1e400\n", 1, {"1e400"});
+  expect_error("s = hello\n", 1, {});  // unquoted string
+  expect_error("b = True\n", 1, {});
+  expect_error("x = 1\ny =\n", 2, {"expected value"});  // missing value
+  expect_error("a = [1 2]\n", 1, {"']'"});              // arrays
+  expect_error("t = { a = 1, }\n", 1, {"'}'"});         // trailing comma
+  expect_error("a = 1\nb = 2 3\n", 2, {"'3'"});         // garbage after a value
+  expect_error("[t\nx = 1\n", 1, {"']'"});              // unterminated header
+  expect_error("a = 1\nradius 5\n", 2, {"'='"});        // missing '='
+  expect_error("\"\"\"k\"\"\" = 1\n", 1, {"keys"});     // multi-line key
 }
 
-TEST(TomlErrors, TableRedefinition) {
-  expect_error("[a]\nx = 1\n[b]\n[a]\n", 4, {"'a'", "already"});
-  expect_error("[a.b]\n[a.b]\n", 2, {"'a.b'", "already"});
-  expect_error("[a.b]\n[a]\n[a]\n", 3, {"'a'", "already"});  // implicit, then defined twice
-  expect_error("a.b = 1\n[a]\n", 2, {"'a'", "already"});
-  expect_error("[fruit]\napple.color = 'red'\n[fruit.apple]\n", 3, {"'fruit.apple'"});
-  expect_error("[a.b.c]\nz = 9\n[a]\nb.c.t = 1\n", 4, {"'b.c.t'", "'b' is a table"});
-  expect_error("t = { a = 1 }\n[t]\n", 2, {"'t'", "inline"});
-  expect_error("t = { a = 1 }\n[t.b]\n", 2, {"'t.b'", "inline"});
-  expect_error("t = { a = 1 }\nt.b = 2\n", 2, {"'t.b'", "inline"});
-  expect_error("t = { a.b = 1 }\n[t.a.c]\n", 2, {"'t.a.c'", "inline"});
-  expect_error("arr = [1]\n[[arr]]\n", 2, {"'arr'", "array"});
-  expect_error("[[arr]]\n[arr]\n", 2, {"'arr'", "already"});
-  expect_error("[t]\n[[t]]\n", 2, {"'t'", "already"});
-  expect_error("x = 1\n[x.y]\n", 2, {"'x.y'", "integer"});
-}
-
-TEST(TomlErrors, UnterminatedStrings) {
-  expect_error("ok = 1\ns = \"abc\n", 2, {"unterminated string"});
-  expect_error("s = 'abc\nt = 1\n", 1, {"unterminated string"});
-  expect_error("s = \"abc", 1, {"unterminated string"});
-  expect_error("a = 1\ns = \"\"\"abc\n\ndef\n", 2, {"unterminated multi-line string"});
-  expect_error("s = '''abc''\n", 1, {"unterminated multi-line string"});
-  expect_error("s = \"a\\", 1, {"unterminated string"});
-}
-
-TEST(TomlErrors, BadEscapesAndControlCharacters) {
-  expect_error("s = \"\\q\"\n", 1, {"invalid escape", "\\q"});
-  expect_error("s = \"\\u12\"\n", 1, {"hex digits"});
-  expect_error("s = \"\\uD800\"\n", 1, {"Unicode scalar"});
-  expect_error("s = \"\\U00110000\"\n", 1, {"Unicode scalar"});
-  expect_error("s = \"a\x01\"\n", 1, {"control character"});
-  expect_error("# bad \x7f comment\n", 1, {"control character", "comment"});
-  expect_error("s = \"\"\"a\\ b\"\"\"\n", 1, {"line-ending backslash"});
-  expect_error("s = '''a''''''\n", 1, {"too many quotes"});
-  expect_error("a = 1\rb = 2\n", 1, {"carriage return"});
-}
-
-TEST(TomlErrors, InvalidUtf8) {
-  expect_error("a = 1\ns = \"\xC3\"\n", 2, {"UTF-8"});           // truncated sequence
-  expect_error("s = 'x'\n# \xC0\xAF overlong\n", 2, {"UTF-8"});  // overlong '/'
-  expect_error("s = \"\xED\xA0\x80\"\n", 1, {"UTF-8"});          // encoded surrogate
-  expect_error("s = \"\xF8\x88\x80\x80\"\n", 1, {"UTF-8"});      // 5-byte lead byte
-  EXPECT_EQ(at(parse("s = \"\xF0\x9F\x98\x80\"\n"), "s").str, "\xF0\x9F\x98\x80");
-}
-
-TEST(TomlErrors, InvalidNumbers) {
-  expect_error("n = 012\n", 1, {"'012'", "leading zeros"});
-  expect_error("x = 1\nn = 1.\n", 2, {"'1.'", "digit must follow"});
-  expect_error("n = .5\n", 1, {"'.5'", "digit must come before"});
-  expect_error("n = 00.5\n", 1, {"leading zeros"});
-  expect_error("n = 1__0\n", 1, {"'1__0'"});
-  expect_error("n = _1\n", 1, {"'_1'"});
-  expect_error("n = 1_\n", 1, {"'1_'"});
-  expect_error("n = 1e\n", 1, {"exponent"});
-  expect_error("n = 1.2.3\n", 1, {"'1.2.3'"});
-  expect_error("n = 0x\n", 1, {"'0x'"});
-  expect_error("n = 0xG1\n", 1, {"'0xG1'"});
-  expect_error("n = 0b102\n", 1, {"'0b102'"});
-  expect_error("n = +0x10\n", 1, {"sign"});
-  expect_error("n = 0X10\n", 1, {"'0X10'"});
-  expect_error("n = 9223372036854775808\n", 1, {"range"});
-  expect_error("n = -9223372036854775809\n", 1, {"range"});
-  expect_error("n = 0x8000000000000000\n", 1, {"range"});
-  expect_error("n = 1e400\n", 1, {"range"});
-  expect_error("n = Inf\n", 1, {"'Inf'"});
-  expect_error("n = +\n", 1, {"'+'"});
-}
-
-TEST(TomlErrors, InvalidValues) {
-  expect_error("s = hello\n", 1, {"'hello'", "quoted"});
-  expect_error("b = True\n", 1, {"'True'"});
-  expect_error("b = truex\n", 1, {"'truex'"});
-  expect_error("x = 1\ny =\n", 2, {"missing value", "'y'"});
-  expect_error("y = # c\n", 1, {"missing value"});
-  expect_error("a = [1,,2]\n", 1, {"expected a value"});
-  expect_error("a = [1 2]\n", 1, {"expected ',' or ']'"});
-  expect_error("k = 1\na = [1,\n2\n", 2, {"unterminated array"});
-  expect_error("t = { a = 1, }\n", 1, {"trailing comma"});
-  expect_error("t = { a = 1\n}\n", 1, {"inline table"});
-  expect_error("t = { a = 1 b = 2 }\n", 1, {"expected ',' or '}'"});
-}
-
-TEST(TomlErrors, GarbageAfterValue) {
-  expect_error("a = 1\nb = 2 3\n", 2, {"unexpected '3' after value"});
-  expect_error("s = \"x\" y\n", 1, {"'y'", "after value"});
-  expect_error("a = [1] ]\n", 1, {"after value"});
-  expect_error("[t] x = 1\n", 1, {"after table header"});
-  expect_error("[t\nx = 1\n", 1, {"']'"});
-  expect_error("[[t]\n", 1, {"']]'"});
-  expect_error("[]\n", 1, {"expected a key"});
-}
-
-TEST(TomlErrors, MissingEquals) {
-  expect_error("a = 1\nradius 5\n", 2, {"expected '='", "'radius'"});
-  expect_error("radius\n", 1, {"expected '='", "'radius'"});
-  expect_error("a.b: 1\n", 1, {"expected '='", "'a.b'"});
-  expect_error("= 1\n", 1, {"expected a key"});
-  expect_error("\"\"\"k\"\"\" = 1\n", 1, {"multi-line strings cannot be used as keys"});
-}
-
+// No key takes a date; toml++ reads them, crushdem refuses them with the key and line.
 TEST(TomlErrors, DatesRejected) {
-  expect_error("d = 1979-05-27\n", 1, {"dates are not supported"});
-  expect_error("x = 1\nd = 1979-05-27T07:32:00Z\n", 2, {"dates are not supported"});
-  expect_error("d = 1979-05-27 07:32:00\n", 1, {"dates are not supported"});
-  expect_error("t = 07:32:00\n", 1, {"dates are not supported"});
+  expect_error("d = 1979-05-27\n", 1, {"'d'", "dates and times are not supported"});
+  expect_error("x = 1\n[s]\nd = 1979-05-27T07:32:00Z\n", 3, {"'s.d'", "not supported"});
+  expect_error("d = 1979-05-27 07:32:00\n", 1, {"not supported"});
+  expect_error("t = [1, 07:32:00]\n", 1, {"'t[1]'", "not supported"});
 }
 
 // ---- files ----
@@ -488,7 +410,7 @@ TEST(TomlFile, ReadsFileAndUsesPathInErrors) {
     crushdem::toml::parse_file(path);
     ADD_FAILURE() << "expected ConfigError";
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()).rfind(path + ":2: duplicate key 'a'", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind(path + ":2: ", 0), 0u) << e.what();
   }
   std::remove(path.c_str());
 }

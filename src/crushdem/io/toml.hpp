@@ -1,6 +1,8 @@
-// A small, strict TOML 1.0 reader and writer for configuration files. It exists because no TOML
-// library is available to the build; it covers everything a config file needs except dates and
-// times, which are rejected with a clear error instead of being misread.
+// TOML for configuration files and run directories: toml++ reads (TOML 1.0, errors with source
+// and line), and the tree is handed on as plain Values that carry the line each value came from,
+// so that config readers can point at the offending line. Dates and times are rejected with a
+// clear error: no key takes one. The writer is crushdem's own: deterministic (sorted keys) and
+// with floats in their shortest form that reads back to the same double.
 //
 // Values are plain data: copying a Value copies the whole subtree (the shared_ptr only exists to
 // make the recursive type legal), so a copied table never aliases the original.
