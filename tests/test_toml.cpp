@@ -372,6 +372,21 @@ TEST(TomlErrors, EveryClassIsLocated) {
   expect_error("\"\"\"k\"\"\" = 1\n", 1, {"keys"});     // multi-line key
 }
 
+// Nesting is bounded (toml++ stops at 256 levels), so a hostile file cannot exhaust the stack
+// of the reader or of the conversion to Values.
+TEST(TomlErrors, DeepNestingIsAnErrorNotACrash) {
+  const std::string deep = "a = " + std::string(20000, '[') + std::string(20000, ']') + "\n";
+  expect_error(deep, 1, {"nest"});
+  const std::string tables = "a = " + [] {
+    std::string s;
+    for (int i = 0; i < 20000; ++i) s += "{ b = ";
+    s += "1";
+    for (int i = 0; i < 20000; ++i) s += " }";
+    return s;
+  }() + "\n";
+  expect_error(tables, 1, {"nest"});
+}
+
 // No key takes a date; toml++ reads them, crushdem refuses them with the key and line.
 TEST(TomlErrors, DatesRejected) {
   expect_error("d = 1979-05-27\n", 1, {"'d'", "dates and times are not supported"});

@@ -72,27 +72,47 @@ T_REF_S = 4.0          # the study normalises sigma_v by its value at 4 s of age
 FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
 RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
 
-# Table 1 of the study (docs/model.md 1-3); the crushing keys are those of examples/*crushing.toml.
+# Table 1 of the study (docs/model.md 1-3) with the first reconstruction choices: free rotation
+# (no key: the engine's default) and d0 = d50 (no key). The crushing keys are those of
+# examples/*crushing.toml.
 MATERIAL = {"density": 2650.0, "shear_modulus": 32e9, "poisson_ratio": 0.19, "friction": 0.275}
-CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
+TABLE1_CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
 NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e-3],
         "passing": [0.0, 0.10, 0.30, 0.50, 0.70, 0.90, 1.0]}
 # density_scaling as in examples/relaxation_small.toml and the runs of docs/crushing.md: the
 # fragments keep the initial time step (14-fragment splitting would lower it about five times,
 # which a one-day relaxation of 150,000-cycle phases cannot afford); only inertia changes, and the
 # inertial number is reported per stage.
-CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distribution": "normal",
-            "r_prime": "R_star", "dc_ratio": 0.55, "d_min": 0.01e-3, "crack_growth": True,
-            "v0": 0.1, "n": 60.0, "density_scaling": True}
+TABLE1_CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distribution": "normal",
+                   "r_prime": "R_star", "dc_ratio": 0.55, "d_min": 0.01e-3, "crack_growth": True,
+                   "v0": 0.1, "n": 60.0, "density_scaling": True}
+# crushdem's parameter set for the study, chosen by the decision study of docs/crushing.md
+# ("Which rotation model and which grain strength"): Table 1 with rotation blocked (Table 1 lists
+# no rotation model; free spheres cannot reach the study's strength) and d0 = 1 mm (a d50 grain
+# breaks between platens at F / d^2 = 0.47 GPa, inside the 0.05-0.5 GPa of real quartz grains).
+CONTACT = {**TABLE1_CONTACT, "rotation": "blocked"}
+CRUSHING = {**TABLE1_CRUSHING, "d0": 1e-3}
+# Named parameter sets of `crushdem reproduce --parameters`: (contact, crushing, what it is).
+PARAMETER_SETS: Dict[str, Tuple[Dict[str, Any], Dict[str, Any], str]] = {
+    "crushdem": (CONTACT, CRUSHING,
+                 "Table 1 with rotation blocked and d0 = 1 mm (the decision study's choice)"),
+    "table1": (TABLE1_CONTACT, TABLE1_CRUSHING,
+               "Table 1 with free rotation and d0 = d50 (the earlier defaults: q_max 8.5 MPa)"),
+}
 
 
-def settings(quick: bool) -> Dict[str, Any]:
-    """The parameters of every run, study scale or ``--quick``, as one JSON-able dict."""
+def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
+    """The parameters of every run, study scale or ``--quick``, with the named parameter set
+    ``parameters`` (PARAMETER_SETS), as one JSON-able dict."""
+    if parameters not in PARAMETER_SETS:
+        raise ValueError(f"--parameters {parameters!r}: expected one of "
+                         f"{', '.join(PARAMETER_SETS)}")
+    contact, crushing, _ = PARAMETER_SETS[parameters]
     s: Dict[str, Any] = {
         "mode": "quick" if quick else "study",
         "material": dict(MATERIAL),
-        "contact": dict(CONTACT),
-        "crushing": dict(CRUSHING),
+        "contact": dict(contact),
+        "crushing": dict(crushing),
         "sample": {"side": 4e-3, "void_ratio": 0.65, "seed": 1, "stress": 100e3,
                    "grading": NE34},
         "oedometric": {"stress": 7.5e6, "strain_rate": 10.0},
@@ -104,6 +124,8 @@ def settings(quick: bool) -> Dict[str, Any]:
         "record_interval": None,  # phases.csv rows: the C++ default (1000 steps)
         "output": {"interval": 20000, "progress_seconds": 60},
     }
+    if parameters != "crushdem":
+        s["parameters"] = parameters
     if quick:
         s["sample"] = {"count": 500, "void_ratio": 0.75, "seed": 3, "stress": 100e3,
                        "grading": NE34}
@@ -748,12 +770,13 @@ def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, 
 
 def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
               sample: Optional[str] = None, log: Callable[[str], None] = print,
-              overrides: Sequence[str] = ()) -> Dict[str, Any]:
+              overrides: Sequence[str] = (), parameters: str = "crushdem") -> Dict[str, Any]:
     """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json.
-    overrides: "SECTION.KEY=VALUE" changes of the settings (apply_overrides)."""
+    parameters: a named parameter set (PARAMETER_SETS); overrides: "SECTION.KEY=VALUE" changes
+    of the settings on top of it (apply_overrides)."""
     from . import lab
 
-    cfg = apply_overrides(settings(quick), overrides)
+    cfg = apply_overrides(settings(quick, parameters), overrides)
     if sample is not None:
         if not os.path.isfile(sample):
             raise ValueError(f"--sample {sample}: no such file")
@@ -926,11 +949,13 @@ Restarting: a run whose directory already has summary.json (written when it fini
 run again; its results are read back. So after an interruption the same command goes on with
 the first unfinished run: from its checkpoint.bin when it left one,
 otherwise from its beginning. To redo a run, delete its directory. DIR/settings.json records
-the settings; a call with other settings (--quick or not, --sample) into the same DIR stops
+the settings; a call with other settings (--quick or not, --sample, --parameters, --set) into
+the same DIR stops
 with an error instead of mixing results.
 
 Study scale (default): the 4 mm REV of examples/sample_rev.toml (about 11,400 grains,
-e = 0.65), Table 1 crushing with crack growth (density scaling of small fragments), dynamic
+e = 0.65), Table 1 with rotation blocked and d0 = 1 mm (--parameters crushdem; --parameters
+table1 for free rotation and d0 = d50), crushing with crack growth (density scaling of small fragments), dynamic
 phases of 150,000 cycles, N_break = 30, triaxial shear at 50 /s to 30 %: many hours to days
 on a 2-core workstation.
 --quick: 500 grains at e = 0.75, 10,000-cycle phases, N_break = 3, shear at 100 /s to 15 %:
@@ -951,6 +976,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--sample", default=None, metavar="FILE",
                         help="use this prepared sample.txt (e.g. runs/sample_rev/sample.txt) "
                              "instead of preparing one in DIR/sample")
+    parser.add_argument("--parameters", default="crushdem", choices=list(PARAMETER_SETS),
+                        help="named parameter set: " + "; ".join(
+                            f"{k}: {v[2]}" for k, v in PARAMETER_SETS.items()) +
+                        " (default: crushdem)")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="change one setting, e.g. --set contact.rotation=free or --set "
                              "crushing.r_prime=2R_star (repeatable; sections: "
@@ -964,7 +993,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
-                           log=log, overrides=args.set)
+                           log=log, overrides=args.set, parameters=args.parameters)
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2

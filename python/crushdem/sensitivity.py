@@ -33,8 +33,8 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 import numpy as np
 
 from .plot import _num, read_summary
-from .reproduce import (CONTACT, CRUSHING, MATERIAL, _run_step, _timing, set_threads,
-                        triaxial_stage)
+from .reproduce import (MATERIAL, TABLE1_CONTACT, TABLE1_CRUSHING, _run_step, _timing,
+                        set_threads, triaxial_stage)
 
 STUDY_Q_MAX_PA = 22.6e6  # the study's q_max at sigma_3 = 10 MPa (section 3.2)
 
@@ -70,9 +70,9 @@ for _mu_r in ("0.1", "0.2", "0.3", "0.4", "0.6", "1.0"):
 def settings(sigma_3: float = 10e6, strain_rate: float = 50.0,
              axial_strain: float = 0.30) -> Dict[str, Any]:
     """The base settings of every variant, as one JSON-able dict."""
-    crushing = dict(CRUSHING)
+    crushing = dict(TABLE1_CRUSHING)
     crushing["crack_growth"] = False  # q_max is a short-term strength
-    return {"material": dict(MATERIAL), "contact": dict(CONTACT), "crushing": crushing,
+    return {"material": dict(MATERIAL), "contact": dict(TABLE1_CONTACT), "crushing": crushing,
             "triaxial": {"sigma_3": sigma_3, "strain_rate": strain_rate,
                          "axial_strain": axial_strain},
             "output": {"interval": 20000, "progress_seconds": 60}}

@@ -361,3 +361,21 @@ def test_set_overrides_change_settings_and_name_what_is_wrong():
         rp.apply_overrides(rp.settings(quick=True), ["walls.x=1"])
     with pytest.raises(ValueError, match="unknown key 'cycles' in 'age'"):
         rp.apply_overrides(rp.settings(quick=True), ["age.cycles=1"])
+
+
+def test_parameter_sets_are_table1_plus_the_decision_study_choice():
+    chosen = rp.settings(quick=False)
+    table1 = rp.settings(quick=False, parameters="table1")
+    assert chosen["contact"]["rotation"] == "blocked" and chosen["crushing"]["d0"] == 1e-3
+    # The earlier defaults: the engine's free rotation and d0 = d50 (no key), recorded by name.
+    assert "rotation" not in table1["contact"] and "d0" not in table1["crushing"]
+    assert table1["parameters"] == "table1" and "parameters" not in chosen
+    # Apart from those two choices the sets are the same Table 1.
+    for section in ("contact", "crushing"):
+        rest = {k: v for k, v in chosen[section].items() if k not in ("rotation", "d0")}
+        assert rest == table1[section]
+    with pytest.raises(ValueError, match="expected one of crushdem, table1"):
+        rp.settings(quick=True, parameters="pfc")
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",
+                          "--parameters", "pfc"], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "--parameters" in res.stderr
