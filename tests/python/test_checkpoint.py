@@ -194,3 +194,36 @@ def test_sigterm_stops_a_python_run_with_a_checkpoint_and_resume_completes_it(tm
     assert sorted(a) == sorted(b)
     different = [k for k in a if a[k] != b[k]]
     assert not different, f"files differ after resume: {different}"
+
+
+def test_a_format_4_checkpoint_of_release_0_1_0_still_resumes(tmp_path):
+    """tests/data/run_format4: stopped by release 0.1.0 during its hold stage. The current code
+    resumes it to the end; its legacy .vtk snapshot stays, and the new snapshots are .vtp files
+    listed in the .pvd collections."""
+    import json
+    import shutil
+
+    src = os.path.join(os.path.dirname(__file__), "..", "data", "run_format4")
+    run = tmp_path / "run"
+    shutil.copytree(src, run)
+    with open(run / "checkpoint.bin", "rb") as f:
+        assert b"crushdem-checkpoint-4" in f.read(64)
+    res = subprocess.run([sys.executable, "-m", "crushdem", "resume", str(run)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    assert not (run / "checkpoint.bin").exists()
+    with open(run / "summary.json") as f:
+        summary = json.load(f)
+    assert summary["steps"] == 1_093_600  # isotropic (93,600) + the hold's 1,000,000
+    assert [st["name"] for st in summary["stages"]] == ["isotropic", "hold"]
+    assert (run / "vtk" / "particles_000000.vtk").is_file()
+    assert summary["snapshots"] == 2  # the legacy first one and the final .vtp
+    pvd = (run / "vtk" / "particles.pvd").read_text()
+    assert pvd.count("<DataSet ") == 1 and "particles_0001093600.vtp" in pvd
+    # The time series goes on from the checkpoint's row to the end, every 10,000 steps, with no
+    # row repeated but the stage boundary's (the end of one stage, the start of the next).
+    with open(run / "timeseries.csv") as f:
+        steps = [int(row["step"]) for row in csv.DictReader(f)]
+    assert steps == sorted(steps) and steps[-1] == 1_093_600
+    assert len(steps) == len(set(steps)) + 1 and steps.count(93_600) == 2
+    assert set(range(0, 1_093_600, 10_000)) <= set(steps)

@@ -18,8 +18,9 @@ namespace crushdem {
 
 /// The current checkpoint format: 1 the first; 2 adds the wall-clock seconds by part; 3 the
 /// rolling-resistance history of the contacts; 4 ends with the checksum of everything before it
-/// (fnv1a64), so that a damaged file is refused instead of resumed into other results.
-constexpr int kStateVersion = 4;
+/// (fnv1a64), so that a damaged file is refused instead of resumed into other results; 5 lists
+/// the ParaView snapshots by step and time (for the .pvd collections).
+constexpr int kStateVersion = 5;
 
 /// 64-bit FNV-1a hash of the bytes (checkpoint checksums, settled-state headers).
 inline std::uint64_t fnv1a64(const char* data, std::size_t n) {

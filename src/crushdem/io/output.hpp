@@ -1,6 +1,6 @@
-// Result files: CSV time series, JSON summaries and legacy-VTK particle snapshots (ParaView
-// opens them directly). Numbers are written with 17 significant digits so that files round-trip
-// exactly and runs can be compared byte for byte.
+// Result files: CSV time series and JSON summaries (the ParaView files: vtk.hpp). Numbers are
+// written with 17 significant digits so that files round-trip exactly and runs can be compared
+// byte for byte.
 #pragma once
 
 #include <cstdio>
@@ -55,14 +55,6 @@ std::string read_binary_file(const std::string& path);
 /// Writes PATH.tmp and renames it onto PATH, so that a crash while writing leaves the previous
 /// file intact (checkpoints, cached states).
 void write_file_atomically(const std::string& path, const std::string& bytes);
-
-/// Particle snapshot: positions, radius, id, parent id, velocity, angular velocity, the force
-/// given as three arrays (the resultant before damping when the caller has it), extra fields.
-void write_vtk_particles(const std::string& path, const ParticleStore& p,
-                         const std::vector<double>& fx, const std::vector<double>& fy,
-                         const std::vector<double>& fz);
-/// The six walls as quadrilaterals, for display with the particles.
-void write_vtk_box(const std::string& path, const double box[6]);
 
 std::string format_double(double v);
 

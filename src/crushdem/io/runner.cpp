@@ -23,6 +23,7 @@
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/io/packing.hpp"
+#include "crushdem/io/vtk.hpp"
 #include "crushdem/particles/generate.hpp"
 #include "crushdem/particles/grading.hpp"
 
@@ -90,6 +91,20 @@ std::string stamp(std::size_t k) {
   std::snprintf(b, sizeof b, "%06zu", k);
   return b;
 }
+
+/// Snapshot file names carry the step, zero-padded so that they sort in order.
+std::string step_stamp(std::uint64_t step) {
+  char b[24];  // any uint64
+  std::snprintf(b, sizeof b, "%010llu", static_cast<unsigned long long>(step));
+  return b;
+}
+
+/// A ParaView snapshot: the step (its files' names) and the simulated time (the .pvd's).
+struct Snapshot {
+  std::uint64_t step = 0;
+  double time = 0.0;
+};
+constexpr const char* kSnapshotKinds[] = {"particles", "contacts", "box"};
 
 /// The plain [run]: the walls as configured, for a number of steps or a duration.
 class FixedLengthController final : public Controller {
@@ -176,14 +191,34 @@ class Driver {
     return *f;
   }
 
+  /// The state as ParaView files named by step (vtk/particles_, contacts_ and box_STEP.vtp),
+  /// listed with their times in vtk/particles.pvd, contacts.pvd and box.pvd.
   void snapshot() {
     const PartScope timed(sim_.part_clock(), Part::Output);
-    const std::string k = stamp(snapshots_++);
-    write_vtk_particles((dir_ / "vtk" / ("particles_" + k + ".vtk")).string(), sim_.particles(),
+    const Snapshot now{sim_.step_count(), sim_.time()};
+    if (!snapshots_.empty() && snapshots_.back().step == now.step) return;  // written already
+    const std::filesystem::path vtk = dir_ / "vtk";
+    const std::string k = step_stamp(now.step);
+    write_vtp_particles((vtk / ("particles_" + k + ".vtp")).string(), sim_.particles(),
                         sim_.resultant_force(0), sim_.resultant_force(1), sim_.resultant_force(2));
+    write_vtp_contacts((vtk / ("contacts_" + k + ".vtp")).string(), sim_.particles(),
+                       sim_.contacts());
     double b[6];
     for (int w = 0; w < kNumWalls; ++w) b[w] = sim_.walls().position(w);
-    write_vtk_box((dir_ / "vtk" / ("box_" + k + ".vtk")).string(), b);
+    write_vtp_box((vtk / ("box_" + k + ".vtp")).string(), b);
+    snapshots_.push_back(now);
+    write_collections();
+  }
+
+  /// vtk/KIND.pvd for each kind of snapshot file, from the snapshots written so far.
+  void write_collections() const {
+    for (const char* kind : kSnapshotKinds) {
+      std::vector<PvdEntry> entries;
+      for (const Snapshot& s : snapshots_) {
+        entries.push_back({s.time, std::string(kind) + "_" + step_stamp(s.step) + ".vtp"});
+      }
+      write_pvd((dir_ / "vtk" / (std::string(kind) + ".pvd")).string(), entries);
+    }
   }
 
   /// Grains break from now on: the criterion is checked every crushing.interval steps (counted
@@ -276,7 +311,10 @@ class Driver {
   /// starts from the total its checkpoint holds.
   double particle_steps() const { return particle_steps_; }
   void add_particle_steps(double earlier) { particle_steps_ += earlier; }
-  std::size_t snapshots() const { return snapshots_; }
+  /// Snapshots written, by older releases' checkpoints (legacy .vtk, counted only) included.
+  std::size_t snapshots() const { return legacy_snapshots_ + snapshots_.size(); }
+  const std::vector<Snapshot>& snapshot_list() const { return snapshots_; }
+  std::size_t legacy_snapshots() const { return legacy_snapshots_; }
   std::vector<std::string> file_names() const {
     std::vector<std::string> names;
     for (const auto& [name, f] : files_) names.push_back(name);
@@ -285,7 +323,12 @@ class Driver {
 
   void save_state(StateWriter& out) const {
     out.tag("files");
-    out.put(static_cast<std::uint64_t>(snapshots_));
+    out.put(static_cast<std::uint64_t>(legacy_snapshots_));
+    out.put(static_cast<std::uint64_t>(snapshots_.size()));
+    for (const Snapshot& snap : snapshots_) {
+      out.put(snap.step);
+      out.put(snap.time);
+    }
     out.put(static_cast<std::uint64_t>(files_.size()));
     for (const auto& [name, f] : files_) {
       out.put(name);
@@ -295,7 +338,18 @@ class Driver {
   }
   void load_state(StateReader& in) {
     in.tag("files");
-    snapshots_ = static_cast<std::size_t>(in.value<std::uint64_t>());
+    // Format 4 and older: a count of legacy .vtk snapshots only.
+    legacy_snapshots_ = static_cast<std::size_t>(in.value<std::uint64_t>());
+    snapshots_.clear();
+    if (in.version() >= 5) {
+      const auto count = in.value<std::uint64_t>();
+      for (std::uint64_t k = 0; k < count; ++k) {
+        Snapshot snap;
+        in.get(snap.step);
+        in.get(snap.time);
+        snapshots_.push_back(snap);
+      }
+    }
     const auto n = in.value<std::uint64_t>();
     for (std::uint64_t k = 0; k < n; ++k) {
       std::string name;
@@ -352,7 +406,8 @@ class Driver {
   Crusher* crusher_ = nullptr;
   std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
   std::filesystem::path dir_;
-  std::size_t snapshots_ = 0;
+  std::vector<Snapshot> snapshots_;
+  std::size_t legacy_snapshots_ = 0;
   bool checkpoint_requested_ = false;
   double particle_steps_ = 0.0;
   clock::time_point t0_, last_, last_checkpoint_;
@@ -621,7 +676,7 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
     for (const std::string& k : keys) {
       if (ignored.count(k)) continue;
       const auto ia = a->table->find(k), ib = b->table->find(k);
-      const std::string d =
+      std::string d =
           first_difference(ia == a->table->end() ? nullptr : &ia->second,
                            ib == b->table->end() ? nullptr : &ib->second, prefix + "." + k);
       if (!d.empty()) return d;
@@ -714,7 +769,7 @@ void copy_run_files(const std::filesystem::path& from, const std::filesystem::pa
 // After the state is loaded: the CSVs it does not list are removed (the original wrote them
 // later), its snapshots and the states of the stages before the branch are copied.
 void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
-                       const std::vector<std::string>& listed, std::size_t snapshots,
+                       const std::vector<std::string>& listed, const Driver& driver,
                        std::size_t stage) {
   namespace fs = std::filesystem;
   for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
@@ -725,13 +780,19 @@ void keep_branch_files(const std::filesystem::path& from, const std::filesystem:
     }
   }
   fs::create_directories(dir / "vtk");
-  for (std::size_t k = 0; k < snapshots; ++k) {
-    for (const char* kind : {"particles_", "box_"}) {
-      const fs::path f = from / "vtk" / (kind + stamp(k) + ".vtk");
-      if (fs::exists(f))
-        fs::copy_file(f, dir / "vtk" / f.filename(), fs::copy_options::overwrite_existing);
+  const auto keep = [&](const std::string& file) {
+    const fs::path f = from / "vtk" / file;
+    if (fs::exists(f)) fs::copy_file(f, dir / "vtk" / file, fs::copy_options::overwrite_existing);
+  };
+  for (std::size_t k = 0; k < driver.legacy_snapshots(); ++k) {
+    for (const char* kind : {"particles_", "box_"}) keep(kind + stamp(k) + ".vtk");
+  }
+  for (const Snapshot& snap : driver.snapshot_list()) {
+    for (const char* kind : kSnapshotKinds) {
+      keep(std::string(kind) + "_" + step_stamp(snap.step) + ".vtp");
     }
   }
+  driver.write_collections();
   fs::create_directories(dir / "stages");
   for (std::size_t k = 0; k < stage; ++k) {
     const fs::path f = from / "stages" / ("stage_" + std::to_string(k) + ".bin");
@@ -829,7 +890,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     // states of the stages before it.
     if (branching) copy_run_files(from, dir);
     driver.load_state(*in);
-    if (branching) keep_branch_files(from, dir, driver.file_names(), driver.snapshots(), branch_k);
+    if (branching) keep_branch_files(from, dir, driver.file_names(), driver, branch_k);
     sim.load_state(*in);
     if (st.has_crusher) {
       make_crusher();

@@ -1,0 +1,42 @@
+// ParaView files: VTK XML PolyData (.vtp) with the arrays in one appended block of raw binary
+// (little-endian, 64-bit sizes), and the .pvd collection that lists the snapshots of a run with
+// their times, so that ParaView opens the run as one time series.
+//   particles: one vertex per grain; id, parent id (-1: none), radius, velocity, angular
+//              velocity, force and every per-grain field (strength, crack length, ...);
+//   contacts:  one line per touching contact from the centre of grain i to the centre of grain
+//              j (to the contact point for a wall); normal force, tangential force, overlap;
+//   box:       the six walls as quadrilaterals.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "crushdem/integrate/simulation.hpp"
+#include "crushdem/particles/particle_store.hpp"
+
+namespace crushdem {
+
+/// The grains of `p`; the force as three arrays (the resultant before damping when the caller
+/// has it; left out when empty).
+void write_vtp_particles(const std::string& path, const ParticleStore& p,
+                         const std::vector<double>& fx, const std::vector<double>& fy,
+                         const std::vector<double>& fz);
+
+/// The contact network: `contacts` as lines between the grains of `p` they join.
+void write_vtp_contacts(const std::string& path, const ParticleStore& p,
+                        const std::vector<ContactRecord>& contacts);
+
+/// The walls at positions `box` (xmin, xmax, ymin, ymax, zmin, zmax).
+void write_vtp_box(const std::string& path, const double box[6]);
+
+/// One entry of a .pvd collection: a file (relative to the .pvd) at a time.
+struct PvdEntry {
+  double time = 0.0;
+  std::string file;
+};
+
+/// The collection file of `entries`, written atomically (a reader never sees half of it).
+void write_pvd(const std::string& path, const std::vector<PvdEntry>& entries);
+
+}  // namespace crushdem

@@ -1,0 +1,136 @@
+"""The ParaView files of a run directory (src/crushdem/io/vtk.cpp), read back with VTK's own
+XML reader: the particles, the contact network and the walls of every snapshot, and the .pvd
+collections that list them with their times."""
+
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+vtk = pytest.importorskip("vtk")
+from vtk.util.numpy_support import vtk_to_numpy  # noqa: E402
+
+DATA = os.path.join(os.path.dirname(__file__), "..", "data")
+
+
+def _read(path):
+    reader = vtk.vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    assert reader.GetErrorCode() == 0, path
+    return reader.GetOutput()
+
+
+def _array(data, name):
+    arr = data.GetArray(name)
+    assert arr is not None, name
+    return vtk_to_numpy(arr)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    pytest.importorskip("crushdem._core")
+    tmp = tmp_path_factory.mktemp("paraview")
+    particles = os.path.abspath(os.path.join(DATA, "lattice_64.txt"))
+    config = tmp / "iso.toml"
+    config.write_text(f"""[contact]
+law = "hertz"
+[particles]
+file = "{particles}"
+[[stage]]
+type = "isotropic"
+name = "isotropic"
+stress = 1e6
+[output]
+interval = 2000
+vtk_interval = 20000
+progress_seconds = 0
+""")
+    out = tmp / "run"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+                          str(out)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    return out
+
+
+def _collection(path):
+    entries = ET.parse(path).getroot().find("Collection").findall("DataSet")
+    return [(float(e.get("timestep")), e.get("file")) for e in entries]
+
+
+def test_pvd_lists_every_snapshot_by_step_with_increasing_times(run_dir):
+    with open(run_dir / "summary.json") as f:
+        summary = json.load(f)
+    for kind in ("particles", "contacts", "box"):
+        entries = _collection(run_dir / "vtk" / f"{kind}.pvd")
+        assert len(entries) == summary["snapshots"] >= 3
+        times = [t for t, _ in entries]
+        assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:]))
+        assert times[-1] == pytest.approx(summary["time_s"], rel=1e-12)
+        for _, name in entries:
+            assert name.startswith(kind + "_") and (run_dir / "vtk" / name).is_file()
+        steps = [int(name[len(kind) + 1:-4]) for _, name in entries]
+        assert steps[0] == 0 and steps[-1] == summary["steps"]
+        assert all(s % 20000 == 0 for s in steps[:-1])
+
+
+def test_particles_hold_the_grains_with_their_fields(run_dir):
+    sample = np.loadtxt(os.path.join(DATA, "lattice_64.txt"), comments="#")
+    first = _read(run_dir / "vtk" / "particles_0000000000.vtp")
+    assert first.GetNumberOfPoints() == len(sample) == first.GetNumberOfVerts()
+    pd = first.GetPointData()
+    ids = _array(pd, "id")
+    order = np.argsort(ids)
+    # The sample file's rows: id x y z d.
+    assert np.array_equal(ids[order], sample[:, 0].astype(np.int64))
+    points = vtk_to_numpy(first.GetPoints().GetData())
+    np.testing.assert_array_equal(points[order], sample[:, 1:4])
+    np.testing.assert_array_equal(2.0 * _array(pd, "radius")[order], sample[:, 4])
+    assert np.all(_array(pd, "parent_id") == -1)
+    for name in ("velocity", "angular_velocity", "force"):
+        assert _array(pd, name).shape == (len(sample), 3)
+
+
+def test_contacts_join_touching_grains_with_their_forces(run_dir):
+    entries = _collection(run_dir / "vtk" / "contacts.pvd")
+    net = _read(run_dir / "vtk" / entries[-1][1])
+    grains = _read(run_dir / "vtk" / entries[-1][1].replace("contacts", "particles"))
+    n = net.GetNumberOfLines()
+    assert n > 0 and net.GetNumberOfPoints() == 2 * n
+    cd = net.GetCellData()
+    fn, wall, overlap = _array(cd, "normal_force"), _array(cd, "is_wall"), _array(cd, "overlap")
+    assert np.all(fn > 0) and np.all(overlap > 0) and wall.sum() > 0 and (wall == 0).sum() > 0
+    ft = _array(cd, "tangential_force")
+    np.testing.assert_allclose(_array(cd, "tangential_force_magnitude"),
+                               np.linalg.norm(ft, axis=1), rtol=1e-12, atol=0)
+    # Each grain-grain line runs between the centres of the two grains it names, and the
+    # centres are overlap apart less than the sum of the radii.
+    ids = _array(grains.GetPointData(), "id")
+    radius = _array(grains.GetPointData(), "radius")
+    centre = vtk_to_numpy(grains.GetPoints().GetData())
+    where = {int(g): k for k, g in enumerate(ids)}
+    ends = vtk_to_numpy(net.GetPoints().GetData()).reshape(n, 2, 3)
+    id_i, id_j = _array(cd, "id_i"), _array(cd, "id_j")
+    for c in np.flatnonzero(wall == 0):
+        i, j = where[int(id_i[c])], where[int(id_j[c])]
+        np.testing.assert_array_equal(ends[c, 0], centre[i])
+        np.testing.assert_array_equal(ends[c, 1], centre[j])
+        gap = np.linalg.norm(centre[j] - centre[i])
+        assert gap == pytest.approx(radius[i] + radius[j] - overlap[c], rel=1e-9)
+
+
+def test_box_is_the_walls_at_the_end(run_dir):
+    entries = _collection(run_dir / "vtk" / "box.pvd")
+    box = _read(run_dir / "vtk" / entries[-1][1])
+    assert box.GetNumberOfPoints() == 8 and box.GetNumberOfPolys() == 6
+    corners = vtk_to_numpy(box.GetPoints().GetData())
+    with open(run_dir / "timeseries.csv") as f:
+        header = f.readline().strip().split(",")
+        last = f.readlines()[-1].strip().split(",")
+    row = dict(zip(header, (float(v) for v in last)))
+    assert corners[:, 0].min() == pytest.approx(row["wall_xmin_position_m"], rel=1e-12)
+    assert corners[:, 2].max() == pytest.approx(row["wall_zmax_position_m"], rel=1e-12)
