@@ -45,7 +45,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from .plot import read_events, read_summary
-from .reproduce import value_at
+from .analysis import value_at
 
 HOUR_S, DAY_S, REF_S = 3600.0, 86400.0, 4.0
 # How long a task waits for the lock of its run directory: a run killed with its worker takes a

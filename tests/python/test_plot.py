@@ -7,7 +7,6 @@ rebuild), otherwise from the installed package.
 """
 
 import csv
-import importlib.util
 import json
 import math
 import os
@@ -17,14 +16,9 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-_SOURCE = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir,
-                       "python", "crushdem", "plot.py")
-if os.path.isfile(_SOURCE):
-    _spec = importlib.util.spec_from_file_location("crushdem_plot_under_test", _SOURCE)
-    plot = importlib.util.module_from_spec(_spec)
-    _spec.loader.exec_module(plot)
-else:
-    from crushdem import plot
+from _source import load  # noqa: E402
+
+plot = load("plot")
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 OLD_FIGURES = {"stress_time.png", "strain_stress.png", "void_ratio.png", "coordination.png",
@@ -453,3 +447,25 @@ def test_ageing_reads_events(tmp_path):
     label, idx, ref = groups[0]
     assert "relaxation" in label and ref == 0 and len(idx) == 15
     assert plot.read_events(_plain_run(tmp_path / "plain")) is None
+
+
+def test_relaxation_with_every_wall_fixed_is_told_from_creep(tmp_path):
+    # Relaxation (walls fixed) is normalised by sigma_v(4 s) and gets the plausible band; in
+    # creep the axial wall is servo-controlled and moves, and sigma_v(0) stays the reference.
+    for creep in (False, True):
+        run = _ageing_run(tmp_path / ("creep" if creep else "relaxation"), creep=creep)
+        path = os.path.join(run, "events.csv")
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        if creep:
+            for r in rows:  # the top wall follows the axial strain
+                r["wall_zmax_position_m"] = repr(1e-3 * (1.0 - float(r["axial_strain"])))
+            with open(path, "w", newline="") as f:
+                w = csv.DictWriter(f, fieldnames=list(rows[0]))
+                w.writeheader()
+                w.writerows(rows)
+        ev = plot.read_events(run)
+        (_, idx, _), = plot._ageing_groups(ev, plot.read_summary(run))
+        assert plot._walls_fixed(ev, idx) is (not creep)
+        assert not plot._walls_fixed(ev, idx[:1])  # one phase says nothing
+        assert AGEING_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))

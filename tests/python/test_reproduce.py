@@ -8,40 +8,21 @@ runs the real pipeline (about two minutes on one core).
 """
 
 import csv
-import importlib
 import importlib.util
 import json
 import math
 import os
 import subprocess
 import sys
-import types
 
 import numpy as np
 import pytest
 
 pytest.importorskip("matplotlib")
 
-_SOURCE_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, os.pardir,
-                           "python", "crushdem")
+from _source import load  # noqa: E402
 
-
-def _load_reproduce():
-    """reproduce.py from the source tree as a module of a stand-in package (so that its relative
-    import of .plot resolves there too, without the package __init__ and its compiled _core)."""
-    if not os.path.isfile(os.path.join(_SOURCE_DIR, "reproduce.py")):
-        from crushdem import reproduce
-
-        return reproduce
-    name = "crushdem_src_under_test"
-    if name not in sys.modules:
-        pkg = types.ModuleType(name)
-        pkg.__path__ = [os.path.abspath(_SOURCE_DIR)]
-        sys.modules[name] = pkg
-    return importlib.import_module(f"{name}.reproduce")
-
-
-rp = _load_reproduce()
+rp = load("reproduce")
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 

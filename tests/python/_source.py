@@ -1,0 +1,23 @@
+"""The Python modules of the checkout, for tests that must follow the source without a rebuild:
+python/crushdem/<name>.py imported as a module of a stand-in package (so that its relative
+imports resolve in the source tree too, without the package __init__ and its compiled _core);
+the installed crushdem module where this file does not sit in a checkout."""
+
+import importlib
+import os
+import sys
+import types
+
+SOURCE_DIR = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir,
+                                          os.pardir, "python", "crushdem"))
+_PACKAGE = "crushdem_src_under_test"
+
+
+def load(name):
+    if not os.path.isfile(os.path.join(SOURCE_DIR, f"{name}.py")):
+        return importlib.import_module(f"crushdem.{name}")
+    if _PACKAGE not in sys.modules:
+        pkg = types.ModuleType(_PACKAGE)
+        pkg.__path__ = [SOURCE_DIR]
+        sys.modules[_PACKAGE] = pkg
+    return importlib.import_module(f"{_PACKAGE}.{name}")
