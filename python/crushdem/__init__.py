@@ -31,7 +31,8 @@ from typing import Any, Dict, Mapping, Optional, Sequence
 import numpy as np
 
 from . import _core
-from ._core import ConfigError, Interrupted, RuntimeFailure, __version__, cli_main
+from ._core import (ConfigError, Interrupted, RuntimeFailure, __version__, cli_main,
+                    set_threads, threads)
 from . import lab
 from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_test,
                   prepare_sample, triaxial_relaxation, triaxial_test)
@@ -44,6 +45,8 @@ __all__ = [
     "WALL_NAMES",
     "NO_PARENT",
     "cli_main",
+    "set_threads",
+    "threads",
     "resolved_config",
     "lab",
     "prepare_sample",

@@ -44,17 +44,14 @@ phases, breakages, grains, wall-clock time of each run); a table of them is prin
 looser, docs/laboratory-tests.md) with short dynamic phases, to check the pipeline in a few
 minutes; its numbers are not the study's.
 
-Threads: ``_core.run`` has no thread argument and OpenMP reads OMP_NUM_THREADS only when its
-runtime loads, which happens when ``crushdem`` is imported (before this module runs). ``--threads``
-therefore calls ``omp_set_num_threads`` of the OpenMP runtime already loaded by ``_core`` (through
-ctypes); each run's ``timing.json`` records the count used. Results do not depend on it.
+Threads: ``--threads`` sets the OpenMP thread count of the engine (``crushdem.set_threads``);
+each run's ``timing.json`` records the count used. Results do not depend on it.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
-import ctypes
 import json
 import math
 import os
@@ -492,25 +489,12 @@ def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
 # Running.
 
 
-def set_threads(n: int) -> Optional[int]:
-    """Sets the OpenMP thread count of the runtime ``_core`` uses; returns the count in force
-    (None when no OpenMP runtime is loaded: a build without OpenMP runs on one thread).
+def set_threads(n: int) -> int:
+    """Sets the OpenMP thread count of every later run (``crushdem._core.set_threads``);
+    returns the count in force (1 in a build without OpenMP)."""
+    from . import _core
 
-    OMP_NUM_THREADS alone is too late here (read when the runtime loads, at ``import
-    crushdem``); it is still set, for anything started later. RTLD_NOLOAD finds only a runtime
-    already in the process, so a second, different one is never loaded.
-    """
-    os.environ["OMP_NUM_THREADS"] = str(n)
-    mode = getattr(os, "RTLD_NOLOAD", 0) | getattr(os, "RTLD_LAZY", 0)
-    for name in ("libgomp.so.1", "libomp.so", "libomp.so.5", "libiomp5.so", "libgomp.1.dylib",
-                 "libomp.dylib"):
-        try:
-            lib = ctypes.CDLL(name, mode=mode)
-        except OSError:
-            continue
-        lib.omp_set_num_threads(ctypes.c_int(n))
-        return int(lib.omp_get_max_threads())
-    return None
+    return int(_core.set_threads(int(n)))
 
 
 def _finished(run_dir: str) -> bool:
@@ -692,8 +676,6 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
             json.dump(cfg, f, indent=2)
             f.write("\n")
     used_threads = set_threads(threads) if threads else None
-    if threads and used_threads is None:
-        log("no OpenMP runtime found in this process: --threads ignored")
 
     t_start = time.perf_counter()
     from . import _core

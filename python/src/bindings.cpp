@@ -27,6 +27,10 @@
 #include "crushdem/io/runner.hpp"
 #include "crushdem/io/toml.hpp"
 
+#ifdef CRUSHDEM_HAVE_OPENMP
+#include <omp.h>
+#endif
+
 namespace nb = nanobind;
 using namespace nb::literals;
 
@@ -261,6 +265,31 @@ NB_MODULE(_core, m) {
 
   m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
   m.attr("__version__") = CRUSHDEM_VERSION;
+
+  m.def(
+      "set_threads",
+      [](int n) {
+        if (n < 1) throw ConfigError("threads: " + std::to_string(n) + " (expected >= 1)");
+#ifdef CRUSHDEM_HAVE_OPENMP
+        omp_set_num_threads(n);
+        return omp_get_max_threads();
+#else
+        return 1;
+#endif
+      },
+      nb::arg("n"),
+      "Sets the number of OpenMP threads of every later step and run (results do not depend "
+      "on it); returns the count in force (1 in a build without OpenMP).");
+  m.def(
+      "threads",
+      [] {
+#ifdef CRUSHDEM_HAVE_OPENMP
+        return omp_get_max_threads();
+#else
+        return 1;
+#endif
+      },
+      "The number of OpenMP threads the next step or run uses.");
 
   nb::exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
   nb::exception<RuntimeFailure>(m, "RuntimeFailure", PyExc_RuntimeError);

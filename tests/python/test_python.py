@@ -386,3 +386,25 @@ def test_creep_and_relaxation_functions(tmp_path, small_sample):
     t_age = [float(r.split(",")[0]) for r in rows[1:]]
     assert t_age[0] == 0.0 and all(b > a for a, b in zip(t_age, t_age[1:]))
     assert t_age[-1] == pytest.approx(3600.0)
+    # The solid mass balance (density scaling on: the stored masses of the small fragments are
+    # not their solid masses, the balance is of volumes times the material density).
+    co = creep.summary["crushing"]
+    assert co["breakages_instant"] + co["breakages_crack"] > 0 and co["removed_volume_m3"] > 0
+    rho = co["solid_density_kg_m3"]
+    assert rho == 2650.0
+    assert co["removed_solid_mass_kg"] == pytest.approx(rho * co["removed_volume_m3"], rel=1e-15)
+    assert co["initial_solid_mass_kg"] == pytest.approx(
+        co["retained_solid_mass_kg"] + co["removed_solid_mass_kg"], rel=1e-12)
+    assert abs(co["mass_balance_relative_error"]) < 1e-12
+    assert co["retained_solid_mass_kg"] < co["initial_solid_mass_kg"]
+
+
+def test_set_threads_sets_the_engine_thread_count():
+    before = crushdem.threads()
+    try:
+        assert crushdem.set_threads(1) == 1 and crushdem.threads() == 1
+        assert crushdem.set_threads(2) in (1, 2)  # 1 in a build without OpenMP
+        with pytest.raises(crushdem.ConfigError, match="expected >= 1"):
+            crushdem.set_threads(0)
+    finally:
+        crushdem.set_threads(before)

@@ -1175,6 +1175,22 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
     co.number("pattern_retained_volume_fraction", crusher->pattern().retained_volume_fraction());
     co.integer("pattern_fragments", static_cast<long long>(crusher->pattern().size()));
     for (auto& [k, v] : crushing_measurements(sim, *crusher)) co.number(k, v);
+    // The solid mass balance from volumes and the material density (with density scaling the
+    // stored masses of small fragments are not their solid masses): initial = retained +
+    // removed, up to rounding.
+    const double rho = sim.config().material.density;
+    double initial_volume = 0.0;
+    for (double d : crusher->initial_diameters()) initial_volume += kPi / 6.0 * d * d * d;
+    const double retained_volume = sim.particles().solid_volume();
+    const double removed_volume = crusher->removed_volume();
+    co.number("solid_density_kg_m3", rho);
+    co.number("initial_solid_mass_kg", rho * initial_volume);
+    co.number("retained_solid_mass_kg", rho * retained_volume);
+    co.number("removed_solid_mass_kg", rho * removed_volume);
+    co.number("mass_balance_relative_error",
+              initial_volume > 0.0
+                  ? (initial_volume - retained_volume - removed_volume) / initial_volume
+                  : 0.0);
     summary.object("crushing", co);
   }
   JsonObject final_state;
