@@ -17,6 +17,12 @@ label_args=(-LE slow)
 [ -n "${CRUSHDEM_TEST_LABELS:-}" ] && label_args=()
 (cd build/test && ctest --output-on-failure -j "$JOBS" "${label_args[@]}")
 
+echo "== C++: install, then build and run a project that uses find_package(crushdem)"
+cmake --install build/test --prefix build/test/install >/dev/null
+cmake -S tests/consumer -B build/consumer -DCMAKE_PREFIX_PATH="$PWD/build/test/install" >/dev/null
+cmake --build build/consumer -j "$JOBS" >/dev/null
+build/consumer/crushdem_consumer
+
 echo "== Python: install the package into .venv, run pytest"
 ensure_venv
 .venv/bin/python -m pip install --quiet ".[test]"
