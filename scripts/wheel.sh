@@ -8,6 +8,8 @@ cd "$(dirname "$0")/.."
 source scripts/deps.sh
 ensure_build_deps
 ensure_venv
+# Its own build directory: the objects of `pip install .` are built for this machine.
 CMAKE_ARGS="${CMAKE_ARGS:-} -DCRUSHDEM_NATIVE=OFF" \
-  .venv/bin/python -m pip wheel . --no-deps --wheel-dir dist
+  .venv/bin/python -m pip wheel . --no-deps --wheel-dir dist \
+  --config-settings=build-dir="build-wheel/{wheel_tag}"
 ls dist/crushdem-*.whl

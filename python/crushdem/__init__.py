@@ -59,6 +59,15 @@ __all__ = [
 ]
 
 
+def _interactive() -> bool:
+    """Whether progress bars help: stderr is a terminal, or this runs in a notebook kernel."""
+    import sys
+
+    if getattr(sys.stderr, "isatty", lambda: False)():
+        return True
+    return "ipykernel" in sys.modules
+
+
 #: Wall order used by every per-wall array (axis k//2, low side when k is even).
 WALL_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 
@@ -194,9 +203,28 @@ class Simulation:
 
     # --- time stepping ----------------------------------------------------------------------
 
-    def step(self, n: int = 1) -> None:
-        """Advances ``n`` time steps (the GIL is released meanwhile)."""
-        self._sim.step(int(n))
+    def step(self, n: int = 1, progress: Any = None) -> None:
+        """Advances ``n`` time steps (the GIL is released meanwhile).
+
+        Ctrl-C stops it within about a second with KeyboardInterrupt, between two steps (the
+        state stays consistent; ``step_count`` says how far it got). ``progress``: a callable
+        ``progress(done, n)`` called about twice a second; True for a progress bar (tqdm, also
+        in a notebook), False for none; None (default) shows the bar for 10,000 steps or more
+        when the output is a terminal or a notebook.
+        """
+        n = int(n)
+        if progress is None:
+            progress = n >= 10_000 and _interactive()
+        if progress is True:
+            from tqdm.auto import tqdm
+
+            with tqdm(total=n, unit="step", unit_scale=True, desc="crushdem step",
+                      leave=False) as bar:
+                self._sim.step(n, lambda done, total: bar.update(done - bar.n))
+        elif progress is False:
+            self._sim.step(n)
+        else:
+            self._sim.step(n, progress)
 
     def run(self, duration: float) -> None:
         """Advances by at least ``duration`` seconds of simulated time, in whole steps."""

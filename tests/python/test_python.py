@@ -408,3 +408,49 @@ def test_set_threads_sets_the_engine_thread_count():
             crushdem.set_threads(0)
     finally:
         crushdem.set_threads(before)
+
+
+def _rattling_pair():
+    sim = hertz_sim()
+    sim.add_particles(np.array([[3.5e-4, 5e-4, 5e-4], [6.5e-4, 5e-4, 5e-4]]),
+                      np.array([1e-4, 1e-4]), np.array([[0.5, 0.1, 0.0], [-0.5, 0.0, 0.2]]))
+    return sim
+
+
+def test_step_reports_progress_and_gives_the_bits_of_single_steps():
+    calls = []
+    a, b = _rattling_pair(), _rattling_pair()
+    a.step(20_000, progress=lambda done, total: calls.append((done, total)))
+    for _ in range(20_000):
+        b.step(1)
+    assert calls and calls[-1] == (20_000, 20_000)
+    assert all(t == 20_000 for _, t in calls)
+    assert [d for d, _ in calls] == sorted({d for d, _ in calls})
+    assert a.step_count == b.step_count == 20_000
+    np.testing.assert_array_equal(a.positions(), b.positions())
+    np.testing.assert_array_equal(a.velocities(), b.velocities())
+    a.step(100, progress=False)
+    a.step(100, progress=True)  # a tqdm bar (not a terminal here: it still works)
+    assert a.step_count == 20_200
+
+
+def test_ctrl_c_interrupts_a_long_step_within_a_second():
+    import signal
+    import threading
+    import time
+
+    sim = _rattling_pair()
+    n = 10**12  # years of stepping
+    main = threading.get_ident()
+    timer = threading.Timer(0.5, lambda: signal.pthread_kill(main, signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        sim.step(n, progress=False)
+    stopped_after = time.perf_counter() - t0
+    timer.join()
+    assert stopped_after < 2.0, stopped_after  # 0.5 s until the signal, then within a second
+    done = sim.step_count
+    assert 0 < done < n
+    sim.step(10)  # the state is consistent: stepping goes on
+    assert sim.step_count == done + 10

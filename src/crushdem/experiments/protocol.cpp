@@ -353,6 +353,14 @@ void StageController::start_phase(const Simulation& sim) {
   if (on_phase_record) on_phase_record(phase_record(sim));
 }
 
+std::string StageController::progress_note() const {
+  if (cfg_.kind != StageKind::Age) return "";
+  char b[128];
+  std::snprintf(b, sizeof b, "phase %llu  ageing time %.4g s of %.4g s",
+                static_cast<unsigned long long>(res_.dynamic_phases), ageing_time_, cfg_.duration);
+  return b;
+}
+
 Measurement StageController::phase_record(const Simulation& sim) const {
   const Walls& w = sim.walls();
   const double sa = w.axial_stress(), sr = w.lateral_stress();

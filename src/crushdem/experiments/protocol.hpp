@@ -191,6 +191,9 @@ class StageController final : public Controller {
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;
   const StageResult& result() const { return res_; }
+  /// Where the stage stands, for progress lines: for an age stage the dynamic phase and the
+  /// ageing time against its duration; empty for the others (their lines give the stresses).
+  std::string progress_note() const;
   /// Called for every time-series row (tracks peaks and limits at output resolution too).
   void observe(const Simulation& sim);
 

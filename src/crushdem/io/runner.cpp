@@ -244,7 +244,9 @@ class Driver {
   /// loop, `to_check` steps before its next check (begin() and the first row are not repeated).
   void drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
              const std::string& label, const std::function<double()>& fraction = {},
-             bool resumed = false, std::uint64_t to_check = 0) {
+             bool resumed = false, std::uint64_t to_check = 0,
+             std::function<std::string()> note = {}) {
+    progress_note_ = std::move(note);
     if (!resumed) {
       c.begin(sim_);
       csv.write(row());
@@ -364,6 +366,7 @@ class Driver {
  private:
   using clock = std::chrono::steady_clock;
   static constexpr std::uint64_t kMaxChunk = 2000;
+  std::function<std::string()> progress_note_;  // set by drive() from its caller's note
   void progress(const std::string& label, const std::function<double()>& fraction) {
     if (!opt_.progress || !(cfg_.output.progress_seconds > 0)) return;
     const auto now = clock::now();
@@ -376,6 +379,10 @@ class Driver {
                  "q = %.4g MPa",
                  label.c_str(), static_cast<unsigned long long>(sim_.step_count()), sim_.time(),
                  1e-6 * sz, 1e-6 * sr, 1e-6 * (sz - sr));
+    if (progress_note_) {
+      const std::string note = progress_note_();
+      if (!note.empty()) std::fprintf(stderr, "  %s", note.c_str());
+    }
     if (fraction) {
       const double f = fraction();
       const double el = std::chrono::duration<double>(now - t0_).count();
@@ -1125,7 +1132,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
             crushing_row(m);
             return m;
           },
-          cfg.stages[k].label(), {}, cont, st.to_check);
+          cfg.stages[k].label(), {}, cont, st.to_check, [&]() { return stage.progress_note(); });
       JsonObject result = stage_json(stage.result());
       if (crusher) result.object("loaded_share", loaded_share_json(sim, *crusher));
       st.stage_results.push_back(result);
