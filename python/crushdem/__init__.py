@@ -45,6 +45,7 @@ __all__ = [
     "WALL_NAMES",
     "NO_PARENT",
     "cli_main",
+    "parameter_reference",
     "set_threads",
     "threads",
     "resolved_config",
@@ -94,23 +95,10 @@ class Simulation:
     Particle data come from methods (``positions()``, ``velocities()``, ...) that return NumPy
     copies; editing them does not change the simulation.
 
-    Keyword arguments are the sections of a configuration file, each a dict (SI units):
+    Keyword arguments are the sections of a configuration file, each a dict (SI units). The
+    keys of ``material``, ``contact``, ``damping``, ``timestep`` and ``neighbor`` are listed at
+    the end, from the engine's parameter tables (``crushdem.parameter_reference()``); besides:
 
-    ``material``
-        ``density`` [kg/m^3], ``shear_modulus`` G [Pa], ``poisson_ratio`` nu [-],
-        ``friction`` grain-grain mu [-].
-    ``contact``
-        ``law`` ("hertz" or "rough"), ``roughness_Sq`` [m], ``k1``, ``k2`` [-],
-        ``wall_friction`` [-], ``restitution`` [-], ``rolling_friction`` mu_r [-] (grain-grain
-        rolling resistance, 0 = off), ``rotation`` ("free", "rolling" or "blocked": spins held
-        at zero; "rolling" is implied by ``rolling_friction`` > 0).
-    ``damping``
-        ``local_alpha`` [-] (0 turns local damping off).
-    ``timestep``
-        ``dt`` [s] (0 = automatic), ``rayleigh_fraction``, ``safety`` [-],
-        ``update_interval`` [steps].
-    ``neighbor``
-        ``skin`` [m] (0 = automatic), ``sort_particles`` (bool), ``prune`` (bool).
     ``box``
         ``min``, ``max``: corners [m] as 3-lists.
     ``walls``
@@ -340,3 +328,29 @@ class Simulation:
     def __repr__(self) -> str:
         return (f"<crushdem.Simulation: {self.num_particles} particles, "
                 f"t = {self.time:.6g} s, {self.step_count} steps>")
+
+
+def parameter_reference() -> Dict[str, str]:
+    """The configuration keys that have a parameter table in the engine: {section: Markdown
+    table of key, default, unit and meaning}, as in docs/configuration.md."""
+    return dict(_core.parameter_reference())
+
+
+def _parameter_doc() -> str:
+    """The keys of the simulation sections as docstring text, from the parameter tables."""
+    lines = []
+    for section, table in _core.parameter_reference():
+        if section not in ("material", "contact", "damping", "timestep", "neighbor"):
+            continue
+        lines.append(f"    ``{section}``")
+        for row in table.splitlines()[2:]:
+            cells = [c.strip() for c in row.strip().strip("|").split(" | ")]
+            if len(cells) >= 4:
+                key, default, unit, meaning = cells[0], cells[1], cells[2], " | ".join(cells[3:])
+                unit = f" [{unit}]" if unit and unit != "-" else ""
+                meaning = meaning.replace("\\|", "|")
+                lines.append(f"        {key}{unit}, default {default}: {meaning}")
+    return "\n".join(lines)
+
+
+Simulation.__doc__ = (Simulation.__doc__ or "") + "\n    Parameter tables:\n\n" + _parameter_doc() + "\n"

@@ -7,6 +7,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -295,6 +296,9 @@ NB_MODULE(_core, m) {
   m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
   m.attr("__version__") = CRUSHDEM_VERSION;
 
+  m.def("parameter_reference", &parameter_reference,
+        "The configuration keys with a parameter table, as (section, Markdown table) pairs: "
+        "key, default, unit and meaning of each (the tables of docs/configuration.md).");
   m.def(
       "set_threads",
       [](int n) {

@@ -454,3 +454,15 @@ def test_ctrl_c_interrupts_a_long_step_within_a_second():
     assert 0 < done < n
     sim.step(10)  # the state is consistent: stepping goes on
     assert sim.step_count == done + 10
+
+
+def test_docstring_and_reference_come_from_the_parameter_tables():
+    ref = crushdem.parameter_reference()
+    assert {"material", "contact", "damping", "timestep", "neighbor", "crushing",
+            "output"} <= set(ref)
+    doc = crushdem.Simulation.__doc__
+    for section in ("material", "contact", "damping", "timestep", "neighbor"):
+        for row in ref[section].splitlines()[2:]:
+            key = row.split("|")[1].strip()
+            assert f"{key}" in doc, (section, key)
+    assert "`rotation`" in doc and "blocked" in doc and "default 0.275" in doc

@@ -15,27 +15,12 @@ void require(bool ok, const std::string& key, double v, const std::string& expec
 }  // namespace
 
 void MaterialConfig::validate() const {
-  require(density > 0.0 && std::isfinite(density), "material.density", density,
-          "a positive density in kg/m^3");
-  require(shear_modulus > 0.0 && std::isfinite(shear_modulus), "material.shear_modulus",
-          shear_modulus, "a positive shear modulus in Pa");
-  require(poisson_ratio > -1.0 && poisson_ratio < 0.5, "material.poisson_ratio", poisson_ratio,
-          "a Poisson's ratio in (-1, 0.5)");
-  require(friction >= 0.0 && std::isfinite(friction), "material.friction", friction,
-          "a friction coefficient >= 0");
+  validate_params(*this, material_params(), "material");
 }
 
 void ContactConfig::validate() const {
-  require(roughness_Sq >= 0.0 && std::isfinite(roughness_Sq), "contact.roughness_Sq", roughness_Sq,
-          "a roughness >= 0 in m");
-  require(k1 > 0.0 && std::isfinite(k1), "contact.k1", k1, "a positive number");
+  validate_params(*this, contact_params(), "contact");
   require(k2 > k1 && std::isfinite(k2), "contact.k2", k2, "a number larger than contact.k1");
-  require(wall_friction >= 0.0 && std::isfinite(wall_friction), "contact.wall_friction",
-          wall_friction, "a friction coefficient >= 0");
-  require(restitution > 0.0 && restitution <= 1.0, "contact.restitution", restitution,
-          "a coefficient of restitution in (0, 1] (1 = no viscous damping)");
-  require(rolling_friction >= 0.0 && std::isfinite(rolling_friction), "contact.rolling_friction",
-          rolling_friction, "a rolling friction coefficient >= 0 (0 = no rolling resistance)");
   if (rotation == Rotation::Rolling && !(rolling_friction > 0.0)) {
     throw ConfigError(bad_value("contact.rolling_friction", show_number(rolling_friction),
                                 "mu_r > 0 with contact.rotation = \"rolling\""));
@@ -86,6 +71,72 @@ ContactParams make_contact_params(const MaterialConfig& m, const ContactConfig& 
   p.rough_pp = make_rough_hertz(std::sqrt(2.0) * Sq, c.k1, c.k2);
   p.rough_pw = make_rough_hertz(Sq, c.k1, c.k2);
   return p;
+}
+
+const ParamTable<MaterialConfig>& material_params() {
+  using M = MaterialConfig;
+  static const ParamTable<M> table = {
+      {"density", &M::density, "kg/m^3", "grain density (quartz; CHOICE)",
+       [](double v) { return v > 0.0; }, "a positive density in kg/m^3"},
+      {"shear_modulus", &M::shear_modulus, "Pa", "G (Table 1)", [](double v) { return v > 0.0; },
+       "a positive shear modulus in Pa"},
+      {"poisson_ratio", &M::poisson_ratio, "-", "nu (Table 1); E* = G / (1 - nu)",
+       [](double v) { return v > -1.0 && v < 0.5; }, "a Poisson's ratio in (-1, 0.5)"},
+      {"friction", &M::friction, "-", "grain-grain friction coefficient mu (Table 1)",
+       [](double v) { return v >= 0.0; }, "a friction coefficient >= 0"},
+  };
+  return table;
+}
+
+const ParamTable<ContactConfig>& contact_params() {
+  using C = ContactConfig;
+  static const ParamTable<C> table = {
+      {"law",
+       ParamChoice<C>{[](const C& c) { return std::string(to_string(c.law)); },
+                      [](C& c, const std::string& v, const std::string& key) {
+                        c.law = parse_normal_law(v, key);
+                      },
+                      "\"hertz\" or \"rough\""},
+       "",
+       "`\"rough\"`: rough-surface Hertz (Otsubo et al. 2017, docs/model.md 1.2); `\"hertz\"`: "
+       "smooth Hertz"},
+      {"roughness_Sq", &C::roughness_Sq, "m",
+       "rms surface roughness S_q (Table 1); s = sqrt(2) S_q between grains, S_q against walls",
+       [](double v) { return v >= 0.0; }, "a roughness >= 0 in m"},
+      {"k1", &C::k1, "-", "transition-load constant (Table 1 n1; the original code used 1)",
+       [](double v) { return v > 0.0; }, "a positive number"},
+      {"k2", &C::k2, "-",
+       "transition-load constant, > k1 (Table 1 n2; the original code used 100)"},
+      {"wall_friction", &C::wall_friction, "-", "friction coefficient against walls (CHOICE)",
+       [](double v) { return v >= 0.0; }, "a friction coefficient >= 0"},
+      {"restitution", &C::restitution, "-",
+       "< 1 adds Tsuji viscous contact damping (as LAMMPS `damping tsuji`) for this coefficient "
+       "of restitution; the fit is approximate (a head-on impact with 0.5 rebounds at 0.55); "
+       "1 = none",
+       [](double v) { return v > 0.0 && v <= 1.0; },
+       "a coefficient of restitution in (0, 1] (1 = no viscous damping)"},
+      {"rolling_friction", &C::rolling_friction, "-",
+       "mu_r of grain-grain rolling resistance (docs/model.md 1.5; PFC `rrlinear`): a moment "
+       "spring k_r = k_t R*^2 on the relative bending rotation, capped at mu_r R* F_n "
+       "(`contact/rolling.hpp`). Not in Table 1 (CHOICE); 0 = off; > 0 needs `rotation = "
+       "\"rolling\"` (implied when `rotation` is not given). Grain-grain contacts only",
+       [](double v) { return v >= 0.0; },
+       "a rolling friction coefficient >= 0 (0 = no rolling resistance)"},
+      {"rotation",
+       ParamChoice<C>{[](const C& c) { return std::string(to_string(c.rotation)); },
+                      [](C& c, const std::string& v, const std::string& key) {
+                        c.rotation = parse_rotation(v, key);
+                      },
+                      "\"free\", \"rolling\" or \"blocked\""},
+       "",
+       "how grains turn (not in Table 1, CHOICE): `\"free\"` spins from the contact moments; "
+       "`\"rolling\"` free spins plus the rolling resistance of `rolling_friction` (> 0); "
+       "`\"blocked\"` spins held at zero and contact moments ignored (the rotation-prohibited "
+       "spheres of Arroyo et al. 2011), sliding friction still acting. Grains and fragments "
+       "alike. Without the key, `rolling_friction` > 0 means `\"rolling\"`; crushdem's study "
+       "parameter set uses `\"blocked\"` (docs/model.md 1.5)"},
+  };
+  return table;
 }
 
 }  // namespace crushdem

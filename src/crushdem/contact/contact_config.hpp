@@ -7,6 +7,7 @@
 #include "crushdem/contact/hertz.hpp"
 #include "crushdem/contact/rough_hertz.hpp"
 #include "crushdem/contact/tangential.hpp"
+#include "crushdem/core/params.hpp"
 
 namespace crushdem {
 
@@ -58,5 +59,9 @@ struct ContactParams {
 };
 
 ContactParams make_contact_params(const MaterialConfig& m, const ContactConfig& c);
+
+/// The keys of [material] and [contact] (core/params.hpp).
+const ParamTable<MaterialConfig>& material_params();
+const ParamTable<ContactConfig>& contact_params();
 
 }  // namespace crushdem

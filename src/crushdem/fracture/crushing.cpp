@@ -39,27 +39,79 @@ const char* to_string(BreakCause c) {
 }
 
 void CrushingConfig::validate() const {
-  require(sigma_lim0 > 0.0 && std::isfinite(sigma_lim0), "sigma_lim0", sigma_lim0,
-          "a positive limit stress in Pa");
-  require(weibull_m > 0.0 && std::isfinite(weibull_m), "weibull_m", weibull_m,
-          "a positive Weibull modulus");
+  validate_params(*this, crushing_params(), "crushing");
   require(var >= 0.0 && (distribution == StrengthDistribution::Normal ? var < 10.0 : var < 1.0),
           "var", var,
           distribution == StrengthDistribution::Normal
               ? "a variability >= 0"
               : "a variability in [0, 1) (f is uniform on [1 - var, 1 + var])");
-  require(d0 >= 0.0 && std::isfinite(d0), "d0", d0,
-          "a reference diameter in m (0 = d50 of the initial grains)");
   if (r_prime != "R_star" && r_prime != "2R_star") {
     throw ConfigError(
         bad_value("crushing.r_prime", "\"" + r_prime + "\"", "\"R_star\" or \"2R_star\""));
   }
-  require(dc_ratio >= 0.0 && std::isfinite(dc_ratio), "dc_ratio", dc_ratio,
-          "a ratio d_c / d50 >= 0");
-  require(d_min >= 0.0 && std::isfinite(d_min), "d_min", d_min, "a diameter in m (>= 0)");
-  if (interval == 0) throw ConfigError(bad_value("crushing.interval", "0", "> 0 steps"));
-  require(v0 > 0.0 && std::isfinite(v0), "v0", v0, "a positive crack velocity in m/s");
-  require(n > 0.0 && std::isfinite(n), "n", n, "a positive stress-corrosion index");
+}
+
+const ParamTable<CrushingConfig>& crushing_params() {
+  using K = CrushingConfig;
+  const auto positive = [](double v) { return v > 0.0; };
+  const auto non_negative = [](double v) { return v >= 0.0; };
+  static const ParamTable<K> table = {
+      {"enabled",
+       &K::enabled,
+       "",
+       "false keeps the section but turns crushing off",
+       nullptr,
+       {},
+       "true"},
+      {"sigma_lim0", &K::sigma_lim0, "Pa", "limit contact stress at d0 (STUDY)", positive,
+       "a positive limit stress in Pa"},
+      {"weibull_m", &K::weibull_m, "-", "Weibull modulus m: strength ~ (d / d0)^(-3/m) (STUDY)",
+       positive, "a positive Weibull modulus"},
+      {"var", &K::var, "-",
+       "strength variability (STUDY); < 1 with the uniform distribution (checked in validate)"},
+      {"distribution",
+       ParamChoice<K>{[](const K& k) { return std::string(to_string(k.distribution)); },
+                      [](K& k, const std::string& v, const std::string& key) {
+                        k.distribution = parse_strength_distribution(v, key);
+                      },
+                      "\"normal\" or \"uniform\""},
+       "",
+       "f ~ normal(1, var) truncated to [0.05, 1 + 3 var] (CHOICE), or `\"uniform\"` on "
+       "[1 - var, 1 + var]"},
+      {"d0", &K::d0, "m",
+       "reference diameter; 0 = d50 of the grains present when the test starts (CHOICE; "
+       "crushdem's study parameter set: 1 mm, docs/model.md 2.1)",
+       non_negative, "a reference diameter in m (0 = d50 of the initial grains)"},
+      {"r_prime",
+       ParamChoice<K>{[](const K& k) { return k.r_prime; },
+                      [](K& k, const std::string& v, const std::string&) { k.r_prime = v; },
+                      "\"R_star\" or \"2R_star\""},
+       "",
+       "r' in the contact stress: `\"R_star\"` (Hertz contact area, CHOICE) or `\"2R_star\"` "
+       "(PFC)"},
+      {"dc_ratio", &K::dc_ratio, "-",
+       "comminution limit d_c = dc_ratio x initial d50; smaller grains never break (STUDY)",
+       non_negative, "a ratio d_c / d50 >= 0"},
+      {"d_min", &K::d_min, "m",
+       "fragments smaller than this are removed (volume and mass accounted) (STUDY)", non_negative,
+       "a diameter in m (>= 0)"},
+      {"interval", &K::interval, "", "steps between criterion checks", positive, "> 0 steps"},
+      {"seed", &K::seed, "", "strength, orientation and crack random streams"},
+      {"density_scaling", &K::density_scaling, "",
+       "fragments smaller than the smallest initial grain d_ref get density rho (d_ref / d)^2, "
+       "so the time step stays at the initial sample's (docs/model.md 1.4); only inertia "
+       "changes: keep the reported inertial number below 1e-3. Removed mass is then counted at "
+       "the material density"},
+      {"crack_growth", &K::crack_growth, "",
+       "time-dependent failure (docs/model.md 3): each crushable grain gets a crack a0 ~ "
+       "uniform[0.001 d, 0.5 d] when created and fails (cause `crack`) when a >= 0.5 d; needed "
+       "by `age` stages"},
+      {"v0", &K::v0, "m/s", "reference crack velocity in v = v0 (sigma / sigma_lim)^n (STUDY)",
+       positive, "a positive crack velocity in m/s"},
+      {"n", &K::n, "-", "stress-corrosion index (STUDY)", positive,
+       "a positive stress-corrosion index"},
+  };
+  return table;
 }
 
 Crusher::Crusher(const CrushingConfig& cfg, SplitPattern pattern)

@@ -24,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "crushdem/core/params.hpp"
 #include "crushdem/core/random.hpp"
 #include "crushdem/fracture/pattern.hpp"
 #include "crushdem/fracture/strength.hpp"
@@ -57,6 +58,10 @@ struct CrushingConfig {
 
 const char* to_string(StrengthDistribution d);
 StrengthDistribution parse_strength_distribution(const std::string& s, const std::string& key);
+
+/// The keys of [crushing] (core/params.hpp); `enabled` and `pattern` are read apart (a present
+/// section turns crushing on; a pattern path is relative to the configuration file).
+const ParamTable<CrushingConfig>& crushing_params();
 
 enum class BreakCause { Instant, Crack };
 const char* to_string(BreakCause c);

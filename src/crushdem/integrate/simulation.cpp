@@ -113,34 +113,59 @@ struct KickDrift {
 }  // namespace
 
 void DampingConfig::validate() const {
-  if (!(local_alpha >= 0.0 && local_alpha < 1.0)) {
-    throw ConfigError(
-        bad_value("damping.local_alpha", show_number(local_alpha), "a value in [0, 1)"));
-  }
+  validate_params(*this, damping_params(), "damping");
 }
 
 void TimestepConfig::validate() const {
-  if (!(dt >= 0.0) || !std::isfinite(dt)) {
-    throw ConfigError(
-        bad_value("timestep.dt", show_number(dt), "a step >= 0 in s (0 = automatic)"));
-  }
-  if (!(rayleigh_fraction > 0.0 && rayleigh_fraction <= 1.0)) {
-    throw ConfigError(bad_value("timestep.rayleigh_fraction", show_number(rayleigh_fraction),
-                                "a value in (0, 1]"));
-  }
-  if (!(safety > 0.0 && safety <= 1.0)) {
-    throw ConfigError(bad_value("timestep.safety", show_number(safety), "a value in (0, 1]"));
-  }
-  if (update_interval == 0) {
-    throw ConfigError(bad_value("timestep.update_interval", "0", "a positive number of steps"));
-  }
+  validate_params(*this, timestep_params(), "timestep");
 }
 
 void NeighborConfig::validate() const {
-  if (!(skin >= 0.0) || !std::isfinite(skin)) {
-    throw ConfigError(
-        bad_value("neighbor.skin", show_number(skin), "a skin >= 0 in m (0 = automatic)"));
-  }
+  validate_params(*this, neighbor_params(), "neighbor");
+}
+
+const ParamTable<DampingConfig>& damping_params() {
+  using D = DampingConfig;
+  static const ParamTable<D> table = {
+      {"local_alpha", &D::local_alpha, "-",
+       "PFC local damping: each force and torque component F_j -= alpha |F_j| sign(v_j); 0 = off "
+       "(CHOICE)",
+       [](double v) { return v >= 0.0 && v < 1.0; }, "a value in [0, 1)"},
+  };
+  return table;
+}
+
+const ParamTable<TimestepConfig>& timestep_params() {
+  using T = TimestepConfig;
+  static const ParamTable<T> table = {
+      {"dt", &T::dt, "s", "fixed time step; 0 = automatic", [](double v) { return v >= 0.0; },
+       "a step >= 0 in s (0 = automatic)"},
+      {"rayleigh_fraction", &T::rayleigh_fraction, "-",
+       "automatic: dt <= fraction x Rayleigh time of the smallest grain",
+       [](double v) { return v > 0.0 && v <= 1.0; }, "a value in (0, 1]"},
+      {"safety", &T::safety, "-",
+       "automatic: dt <= safety x min_i sqrt(m_i / sum of k_n + k_t of its contacts)",
+       [](double v) { return v > 0.0 && v <= 1.0; }, "a value in (0, 1]"},
+      {"update_interval", &T::update_interval, "", "automatic: steps between re-evaluations",
+       [](double v) { return v > 0.0; }, "a positive number of steps"},
+  };
+  return table;
+}
+
+const ParamTable<NeighborConfig>& neighbor_params() {
+  using N = NeighborConfig;
+  static const ParamTable<N> table = {
+      {"skin", &N::skin, "m", "Verlet skin; 0 = half the smallest radius at the first build",
+       [](double v) { return v >= 0.0; }, "a skin >= 0 in m (0 = automatic)"},
+      {"sort_particles", &N::sort_particles, "",
+       "reorder particles in cell order at each rebuild (speed only; results stay "
+       "deterministic)"},
+      {"prune", &N::prune, "",
+       "the pair loop walks a pruned copy of the list: the pairs with a gap below an inner skin "
+       "chosen from the grains' speed, remade when they have moved half of it (speed only; "
+       "results bit-identical with it off)"},
+  };
+  return table;
 }
 
 void SimulationConfig::validate() const {

@@ -49,6 +49,11 @@ struct NeighborConfig {
   void validate() const;
 };
 
+/// The keys of [damping], [timestep] and [neighbor] (core/params.hpp).
+const ParamTable<DampingConfig>& damping_params();
+const ParamTable<TimestepConfig>& timestep_params();
+const ParamTable<NeighborConfig>& neighbor_params();
+
 struct SimulationConfig {
   MaterialConfig material;
   ContactConfig contact;

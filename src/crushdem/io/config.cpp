@@ -1,6 +1,7 @@
 #include "crushdem/io/config.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -135,51 +136,77 @@ class Section {
   std::set<std::string> known_;
 };
 
+/// Every key of `table` that the section holds, into `obj` (types checked, errors naming the
+/// key and line); the range checks follow in validate().
+template <class S>
+void read_params(Section& s, S& obj, const ParamTable<S>& table) {
+  for (const Param<S>& p : table) {
+    const std::string k(p.key);
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      s.number(k, obj.*(*num));
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      s.count(k, obj.*(*cnt));
+    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+      s.boolean(k, obj.*(*flag));
+    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+      s.string(k, obj.*(*text));
+    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      std::string v = choice->get(obj);
+      s.string(k, v);
+      choice->set(obj, v, s.key(k));
+    }
+  }
+}
+
+/// Every key of `table` with its value in `obj`, as written to config.toml.
+template <class S>
+Table write_params(const S& obj, const ParamTable<S>& table) {
+  Table t;
+  for (const Param<S>& p : table) {
+    const std::string k(p.key);
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      t[k] = Value::make_float(obj.*(*num));
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      t[k] = Value::make_integer(static_cast<std::int64_t>(obj.*(*cnt)));
+    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+      t[k] = Value::make_bool(obj.*(*flag));
+    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+      t[k] = Value::make_string(obj.*(*text));
+    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      t[k] = Value::make_string(choice->get(obj));
+    }
+  }
+  return t;
+}
+
 void read_simulation(Section& root, SimulationConfig& c, bool box_required = true) {
   {
     Section s = root.sub("material");
-    s.number("density", c.material.density);
-    s.number("shear_modulus", c.material.shear_modulus);
-    s.number("poisson_ratio", c.material.poisson_ratio);
-    s.number("friction", c.material.friction);
+    read_params(s, c.material, material_params());
     s.finish();
   }
   {
     Section s = root.sub("contact");
-    std::string law = to_string(c.contact.law);
-    s.string("law", law);
-    c.contact.law = parse_normal_law(law, "contact.law");
-    s.number("roughness_Sq", c.contact.roughness_Sq);
-    s.number("k1", c.contact.k1);
-    s.number("k2", c.contact.k2);
-    s.number("wall_friction", c.contact.wall_friction);
-    s.number("restitution", c.contact.restitution);
-    s.number("rolling_friction", c.contact.rolling_friction);
+    read_params(s, c.contact, contact_params());
     // Without the key, mu_r > 0 means rolling resistance, as it did before the key existed.
-    std::string rotation = to_string(c.contact.rotation);
-    if (!s.has("rotation") && c.contact.rolling_friction > 0.0) rotation = "rolling";
-    s.string("rotation", rotation);
-    c.contact.rotation = parse_rotation(rotation, "contact.rotation");
+    if (!s.has("rotation") && c.contact.rolling_friction > 0.0) {
+      c.contact.rotation = Rotation::Rolling;
+    }
     s.finish();
   }
   {
     Section s = root.sub("damping");
-    s.number("local_alpha", c.damping.local_alpha);
+    read_params(s, c.damping, damping_params());
     s.finish();
   }
   {
     Section s = root.sub("timestep");
-    s.number("dt", c.timestep.dt);
-    s.number("rayleigh_fraction", c.timestep.rayleigh_fraction);
-    s.number("safety", c.timestep.safety);
-    s.count("update_interval", c.timestep.update_interval);
+    read_params(s, c.timestep, timestep_params());
     s.finish();
   }
   {
     Section s = root.sub("neighbor");
-    s.number("skin", c.neighbor.skin);
-    s.boolean("sort_particles", c.neighbor.sort_particles);
-    s.boolean("prune", c.neighbor.prune);
+    read_params(s, c.neighbor, neighbor_params());
     s.finish();
   }
   {
@@ -397,24 +424,8 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     Section s = r.sub("crushing");
     CrushingConfig& k = c.crushing;
     k.enabled = true;
-    s.boolean("enabled", k.enabled);
-    s.number("sigma_lim0", k.sigma_lim0);
-    s.number("weibull_m", k.weibull_m);
-    s.number("var", k.var);
-    std::string dist = to_string(k.distribution);
-    s.string("distribution", dist);
-    k.distribution = parse_strength_distribution(dist, "crushing.distribution");
-    s.number("d0", k.d0);
-    s.string("r_prime", k.r_prime);
-    s.number("dc_ratio", k.dc_ratio);
-    s.number("d_min", k.d_min);
-    s.count("interval", k.interval);
-    s.count("seed", k.seed);
+    read_params(s, k, crushing_params());
     s.string("pattern", k.pattern);
-    s.boolean("density_scaling", k.density_scaling);
-    s.boolean("crack_growth", k.crack_growth);
-    s.number("v0", k.v0);
-    s.number("n", k.n);
     if (!k.pattern.empty() && std::filesystem::path(k.pattern).is_relative()) {
       k.pattern = std::filesystem::absolute(std::filesystem::path(base_dir) / k.pattern)
                       .lexically_normal()
@@ -482,15 +493,91 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
   }
   {
     Section s = r.sub("output");
-    s.count("interval", c.output.interval);
-    s.count("vtk_interval", c.output.vtk_interval);
-    s.number("progress_seconds", c.output.progress_seconds);
-    s.number("checkpoint_seconds", c.output.checkpoint_seconds);
+    read_params(s, c.output, output_params());
     s.finish();
   }
   r.finish();
   c.validate();
   return c;
+}
+
+namespace {
+
+/// The shortest form that reads back exactly, with a plain exponent (2650, 3.2e10, 6e-7).
+std::string doc_number(double v) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  std::string s(buf, static_cast<std::size_t>(res.ptr - buf));
+  const std::size_t e = s.find('e');
+  if (e == std::string::npos) return s;
+  std::string mantissa = s.substr(0, e), exponent = s.substr(e + 1);
+  const bool negative = !exponent.empty() && exponent[0] == '-';
+  if (!exponent.empty() && (exponent[0] == '+' || exponent[0] == '-')) exponent.erase(0, 1);
+  while (exponent.size() > 1 && exponent[0] == '0') exponent.erase(0, 1);
+  return mantissa + "e" + (negative ? "-" : "") + exponent;
+}
+
+/// Pipes would end a Markdown table cell.
+std::string cell(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+template <class S>
+std::string default_text(const Param<S>& p) {
+  if (!p.default_doc.empty()) return std::string(p.default_doc);
+  const S d{};
+  if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+    return doc_number(d.*(*num));
+  }
+  if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+    return std::to_string(d.*(*cnt));
+  }
+  if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+    return d.*(*flag) ? "true" : "false";
+  }
+  if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+    return "`\"" + d.*(*text) + "\"`";
+  }
+  return "`\"" + std::get<ParamChoice<S>>(p.member).get(d) + "\"`";
+}
+
+template <class S>
+std::string markdown(const ParamTable<S>& table, const std::vector<std::string>& extra_rows = {}) {
+  std::string out = "| key | default | unit | meaning |\n|---|---|---|---|\n";
+  for (const Param<S>& p : table) {
+    std::string meaning(p.doc);
+    if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      meaning += "; one of " + std::string(choice->choices);
+    }
+    if (p.ok) meaning += "; expected: " + std::string(p.expected);
+    out += "| `" + std::string(p.key) + "` | " + default_text(p) + " | " + std::string(p.unit) +
+           " | " + cell(meaning) + " |\n";
+  }
+  for (const std::string& row : extra_rows) out += row + "\n";
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::string>> parameter_reference() {
+  return {
+      {"material", markdown(material_params())},
+      {"contact", markdown(contact_params())},
+      {"damping", markdown(damping_params())},
+      {"timestep", markdown(timestep_params())},
+      {"neighbor", markdown(neighbor_params())},
+      {"crushing",
+       markdown(crushing_params(),
+                {"| `pattern` | (the 14 fragments) | | file of `radius_fraction x y z` rows "
+                 "(units of the parent radius, local axis z = the normal of the parent's largest "
+                 "contact force); relative to the config file |"})},
+      {"output", markdown(output_params())},
+  };
 }
 
 RunConfig load_run_config(const std::string& path) {
@@ -551,15 +638,27 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
 }
 
 void OutputConfig::validate() const {
-  if (interval == 0)
-    throw ConfigError(bad_value("output.interval", "0", "a positive number of steps"));
-  if (!(progress_seconds >= 0.0)) {
-    throw ConfigError(
-        bad_value("output.progress_seconds", std::to_string(progress_seconds), "a time >= 0 in s"));
-  }
-  require_value(checkpoint_seconds >= 0.0 && std::isfinite(checkpoint_seconds),
-                "output.checkpoint_seconds", checkpoint_seconds,
-                "a wall-clock time >= 0 in s (0: checkpoints at events and stage ends only)");
+  validate_params(*this, output_params(), "output");
+}
+
+const ParamTable<OutputConfig>& output_params() {
+  using O = OutputConfig;
+  static const ParamTable<O> table = {
+      {"interval", &O::interval, "", "steps between rows of `timeseries.csv`",
+       [](double v) { return v > 0.0; }, "a positive number of steps"},
+      {"vtk_interval", &O::vtk_interval, "",
+       "steps between ParaView snapshots (counted from step 0); 0 = the first and last state "
+       "only"},
+      {"progress_seconds", &O::progress_seconds, "s",
+       "wall-clock seconds between progress lines on the terminal; 0 = none",
+       [](double v) { return v >= 0.0; }, "a time >= 0 in s"},
+      {"checkpoint_seconds", &O::checkpoint_seconds, "s",
+       "wall-clock seconds between periodic checkpoints; 0 = only at ageing events and stage "
+       "ends (see Checkpoints)",
+       [](double v) { return v >= 0.0; },
+       "a wall-clock time >= 0 in s (0: checkpoints at events and stage ends only)"},
+  };
+  return table;
 }
 
 void RunConfig::validate() const {
@@ -600,36 +699,11 @@ void RunConfig::validate() const {
 
 toml::Table to_toml(const SimulationConfig& c) {
   Table t;
-  Table m;
-  m["density"] = num(c.material.density);
-  m["shear_modulus"] = num(c.material.shear_modulus);
-  m["poisson_ratio"] = num(c.material.poisson_ratio);
-  m["friction"] = num(c.material.friction);
-  t["material"] = Value::make_table(m);
-  Table ct;
-  ct["law"] = Value::make_string(to_string(c.contact.law));
-  ct["roughness_Sq"] = num(c.contact.roughness_Sq);
-  ct["k1"] = num(c.contact.k1);
-  ct["k2"] = num(c.contact.k2);
-  ct["wall_friction"] = num(c.contact.wall_friction);
-  ct["restitution"] = num(c.contact.restitution);
-  ct["rolling_friction"] = num(c.contact.rolling_friction);
-  ct["rotation"] = Value::make_string(to_string(c.contact.rotation));
-  t["contact"] = Value::make_table(ct);
-  Table d;
-  d["local_alpha"] = num(c.damping.local_alpha);
-  t["damping"] = Value::make_table(d);
-  Table ts;
-  ts["dt"] = num(c.timestep.dt);
-  ts["rayleigh_fraction"] = num(c.timestep.rayleigh_fraction);
-  ts["safety"] = num(c.timestep.safety);
-  ts["update_interval"] = cnt(c.timestep.update_interval);
-  t["timestep"] = Value::make_table(ts);
-  Table nb;
-  nb["skin"] = num(c.neighbor.skin);
-  nb["sort_particles"] = Value::make_bool(c.neighbor.sort_particles);
-  nb["prune"] = Value::make_bool(c.neighbor.prune);
-  t["neighbor"] = Value::make_table(nb);
+  t["material"] = Value::make_table(write_params(c.material, material_params()));
+  t["contact"] = Value::make_table(write_params(c.contact, contact_params()));
+  t["damping"] = Value::make_table(write_params(c.damping, damping_params()));
+  t["timestep"] = Value::make_table(write_params(c.timestep, timestep_params()));
+  t["neighbor"] = Value::make_table(write_params(c.neighbor, neighbor_params()));
   Table box;
   std::vector<Value> lo, hi;
   for (int a = 0; a < 3; ++a) {
@@ -659,12 +733,7 @@ toml::Table to_toml(const SimulationConfig& c) {
 namespace {
 toml::Table output_table(const OutputConfig& o) {
   using toml::Value;
-  toml::Table t;
-  t["interval"] = cnt(o.interval);
-  t["vtk_interval"] = cnt(o.vtk_interval);
-  t["progress_seconds"] = num(o.progress_seconds);
-  t["checkpoint_seconds"] = num(o.checkpoint_seconds);
-  return t;
+  return write_params(o, output_params());
 }
 }  // namespace
 
@@ -748,23 +817,8 @@ toml::Table to_toml(const RunConfig& c) {
   }
   if (c.crushing.enabled) {
     const CrushingConfig& k = c.crushing;
-    Table ct;
-    ct["enabled"] = Value::make_bool(true);
-    ct["sigma_lim0"] = num(k.sigma_lim0);
-    ct["weibull_m"] = num(k.weibull_m);
-    ct["var"] = num(k.var);
-    ct["distribution"] = Value::make_string(to_string(k.distribution));
-    ct["d0"] = num(k.d0);
-    ct["r_prime"] = Value::make_string(k.r_prime);
-    ct["dc_ratio"] = num(k.dc_ratio);
-    ct["d_min"] = num(k.d_min);
-    ct["interval"] = cnt(k.interval);
-    ct["seed"] = cnt(k.seed);
+    Table ct = write_params(k, crushing_params());
     if (!k.pattern.empty()) ct["pattern"] = Value::make_string(k.pattern);
-    ct["density_scaling"] = Value::make_bool(k.density_scaling);
-    ct["crack_growth"] = Value::make_bool(k.crack_growth);
-    ct["v0"] = num(k.v0);
-    ct["n"] = num(k.n);
     t["crushing"] = Value::make_table(ct);
   }
   if (c.has_sample || !c.stages.empty()) {

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "crushdem/experiments/protocol.hpp"
@@ -40,6 +41,13 @@ struct OutputConfig {
                                       // events and stage ends only)
   void validate() const;
 };
+
+/// The keys of [output] (core/params.hpp).
+const ParamTable<OutputConfig>& output_params();
+
+/// The reference tables of the configuration sections that have a parameter table, as
+/// (section, Markdown table) pairs: docs/configuration.md holds them verbatim (a test checks it).
+std::vector<std::pair<std::string, std::string>> parameter_reference();
 
 struct RunConfig {
   SimulationConfig simulation;

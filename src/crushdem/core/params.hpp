@@ -1,0 +1,71 @@
+// Declarative parameter tables (in the manner of HOOMD-blue's ParameterDict and LAMMPS
+// pair granular's coeffs_to_local): one row per configuration key of a struct, giving the TOML
+// key, the member it sets, its unit, its range and a one-line description. The default is the
+// member's value in a default-constructed struct. The TOML reader and writer, the range checks
+// (validate_params), docs/configuration.md and the Python docstrings all come from the rows, so
+// adding a key is one row. Pure data and checks, no I/O.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+
+/// A key with a fixed set of string values stored as an enum: how to read it from and write it
+/// to its struct. `set` throws ConfigError naming `key` for a value not in `choices`.
+template <class S>
+struct ParamChoice {
+  std::string (*get)(const S&);
+  void (*set)(S&, const std::string& value, const std::string& key);
+  std::string_view choices;  // for messages and docs, e.g. "\"hertz\" or \"rough\""
+};
+
+template <class S>
+struct Param {
+  using Number = double S::*;
+  using Count = std::uint64_t S::*;
+  using Flag = bool S::*;
+  using Text = std::string S::*;
+  std::string_view key;
+  std::variant<Number, Count, Flag, Text, ParamChoice<S>> member;
+  std::string_view unit;  // SI unit, "-" for a pure number, "" where none applies
+  std::string_view doc;   // one line: what it is, where it comes from (STUDY / CHOICE ...)
+  // Range of a Number (finite always; NaN never passes) or a Count: the check and the
+  // expected-value text of its error message. No check when `ok` is null.
+  bool (*ok)(double) = nullptr;
+  std::string_view expected = {};
+  // Shown as the default in the docs instead of the default-constructed struct's value (for a
+  // key whose effective default depends on where it is read).
+  std::string_view default_doc = {};
+};
+
+template <class S>
+using ParamTable = std::vector<Param<S>>;
+
+/// The range checks of `table` on `obj`; errors name "section.key", the value and the range.
+template <class S>
+void validate_params(const S& obj, const ParamTable<S>& table, const std::string& section) {
+  for (const Param<S>& p : table) {
+    if (!p.ok) continue;
+    double v = 0.0;
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      v = obj.*(*num);
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      v = static_cast<double>(obj.*(*cnt));
+    } else {
+      continue;
+    }
+    if (!std::isfinite(v) || !p.ok(v)) {
+      throw ConfigError(
+          bad_value(section + "." + std::string(p.key), show_number(v), std::string(p.expected)));
+    }
+  }
+}
+
+}  // namespace crushdem

@@ -1,0 +1,102 @@
+// The parameter tables (core/params.hpp): one row per key drives the reader, the writer, the
+// range checks and docs/configuration.md. The docs test fails when the reference is out of
+// date; CRUSHDEM_UPDATE_DOCS=1 rewrites the generated tables in place.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/toml.hpp"
+
+namespace crushdem {
+namespace {
+
+const std::string kDocs = std::string(CRUSHDEM_TEST_DATA_DIR) + "/../../docs/configuration.md";
+
+std::string begin_marker(const std::string& section) {
+  return "<!-- parameters [" + section + "]: generated from its table, do not edit -->\n";
+}
+const std::string kEndMarker = "<!-- end of generated parameters -->\n";
+
+TEST(ParameterTables, DocsHoldEveryGeneratedTable) {
+  std::ifstream in(kDocs);
+  ASSERT_TRUE(in) << kDocs;
+  std::stringstream buf;
+  buf << in.rdbuf();
+  std::string docs = buf.str();
+  const bool update = std::getenv("CRUSHDEM_UPDATE_DOCS") != nullptr;
+  for (const auto& [section, table] : parameter_reference()) {
+    const std::size_t b = docs.find(begin_marker(section));
+    ASSERT_NE(b, std::string::npos)
+        << "docs/configuration.md has no block for [" << section << "]; add the two marker lines";
+    const std::size_t start = b + begin_marker(section).size();
+    const std::size_t end = docs.find(kEndMarker, start);
+    ASSERT_NE(end, std::string::npos) << "unterminated block for [" << section << "]";
+    if (update) {
+      docs.replace(start, end - start, table);
+    } else {
+      EXPECT_EQ(docs.substr(start, end - start), table)
+          << "docs/configuration.md [" << section
+          << "] is out of date: run the test with CRUSHDEM_UPDATE_DOCS=1";
+    }
+  }
+  if (update) std::ofstream(kDocs) << docs;
+}
+
+// A key is one row: it is read, written back and range-checked from that row alone.
+TEST(ParameterTables, EveryRowIsReadWrittenAndChecked) {
+  const toml::Table t = toml::parse(
+      "[material]\nfriction = 0.4\n[contact]\nlaw = \"hertz\"\nrotation = \"blocked\"\n"
+      "[damping]\nlocal_alpha = 0.25\n[timestep]\nupdate_interval = 7\n[neighbor]\nprune = false\n"
+      "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles.generate]\ncount = 10\n"
+      "diameter_min = 1e-4\ndiameter_max = 1e-4\n[crushing]\nd0 = 1e-3\n"
+      "distribution = \"uniform\"\nvar = 0.2\n[output]\nvtk_interval = 500\n[run]\nsteps = 10\n",
+      "cfg.toml");
+  const RunConfig c = run_config_from_toml(t, "cfg.toml", ".");
+  EXPECT_EQ(c.simulation.material.friction, 0.4);
+  EXPECT_EQ(c.simulation.contact.law, NormalLaw::Hertz);
+  EXPECT_EQ(c.simulation.contact.rotation, Rotation::Blocked);
+  EXPECT_EQ(c.simulation.damping.local_alpha, 0.25);
+  EXPECT_EQ(c.simulation.timestep.update_interval, 7u);
+  EXPECT_FALSE(c.simulation.neighbor.prune);
+  EXPECT_TRUE(c.crushing.enabled);
+  EXPECT_EQ(c.crushing.d0, 1e-3);
+  EXPECT_EQ(c.crushing.distribution, StrengthDistribution::Uniform);
+  EXPECT_EQ(c.output.vtk_interval, 500u);
+  // Written back, every key of every table is there and reads back to the same values.
+  const toml::Table back = to_toml(c);
+  const RunConfig again = run_config_from_toml(back, "back.toml", ".");
+  EXPECT_EQ(toml::serialize(to_toml(again)), toml::serialize(back));
+  for (const auto& p : crushing_params()) {
+    EXPECT_TRUE(back.at("crushing").table->count(std::string(p.key))) << p.key;
+  }
+  for (const auto& p : contact_params()) {
+    EXPECT_TRUE(back.at("contact").table->count(std::string(p.key))) << p.key;
+  }
+  // A range from a row, with the row's message.
+  const auto message = [](const std::string& text) {
+    try {
+      run_config_from_toml(toml::parse(text, "bad.toml"), "bad.toml", ".");
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string box =
+      "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles.generate]\ncount = 10\n"
+      "diameter_min = 1e-4\ndiameter_max = 1e-4\n[run]\nsteps = 10\n";
+  EXPECT_NE(message(box + "[damping]\nlocal_alpha = 1.5\n").find("damping.local_alpha"),
+            std::string::npos);
+  EXPECT_NE(message(box + "[crushing]\nv0 = -1\n").find("a positive crack velocity"),
+            std::string::npos);
+  EXPECT_NE(message(box + "[output]\ninterval = 0\n").find("output.interval"), std::string::npos);
+  EXPECT_NE(message(box + "[contact]\nrotation = \"spinning\"\n").find("\"blocked\""),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace crushdem
