@@ -120,3 +120,74 @@ TEST(Config, SyntaxErrorNamesLine) {
 
 }  // namespace
 }  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+const char* kSample = R"([sample]
+count = 500
+void_ratio = 0.75
+[sample.grading]
+diameter = [0.1e-3, 0.2e-3]
+passing = [0.0, 1.0]
+[[stage]]
+type = "isotropic"
+stress = 1e6
+)";
+
+std::string sample_with(const std::string& from, const std::string& to) {
+  std::string s = kSample;
+  return s.replace(s.find(from), from.size(), to);
+}
+
+TEST(Config, SampleVoidRatioAndCountAreChecked) {
+  EXPECT_NO_THROW(parse(kSample));
+  for (const char* e : {"void_ratio = 2.5", "void_ratio = 5", "void_ratio = 1e6"}) {
+    expect_error(sample_with("void_ratio = 0.75", e), {"sample.void_ratio", "(0, 1.2)"});
+  }
+  expect_error(sample_with("count = 500", "count = 0"), {"sample.count", "a positive number"});
+}
+
+// Sample files: the five columns only, ids >= 0, no two grains at one point.
+TEST(Config, ParticleFilesAreChecked) {
+  const auto dir = std::filesystem::temp_directory_path() / "crushdem_bad_particles";
+  std::filesystem::create_directories(dir);
+  const auto check = [&](const std::string& rows, const std::vector<std::string>& fragments) {
+    std::ofstream((dir / "p.txt").string()) << rows;
+    const std::string text =
+        "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles]\n"
+        "file = \"" +
+        (dir / "p.txt").string() + "\"\n[run]\nsteps = 10\n";
+    if (fragments.empty()) {
+      EXPECT_NO_THROW(parse(text)) << rows;
+    } else {
+      expect_error(text, fragments);
+    }
+  };
+  check("1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n", {});
+  check("1 1e-4 1e-4 1e-4 1e-4 7\n2 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:1", "5 columns"});
+  check("1 1e-4 1e-4 1e-4 1e-4\n-1 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:2", "id -1", ">= 0"});
+  check("1 5e-4 5e-4 5e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n", {"particles 1 and 2", "same point"});
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+TEST(Config, GrainsOutsideTheBoxAreFoundByCheck) {
+  const auto dir = std::filesystem::temp_directory_path() / "crushdem_outside_box";
+  std::filesystem::create_directories(dir);
+  std::ofstream((dir / "p.txt").string()) << "1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 9.8e-4 1e-4\n";
+  const std::string text =
+      "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles]\n"
+      "file = \"" +
+      (dir / "p.txt").string() + "\"\n[run]\nsteps = 10\n";
+  expect_error(text, {"particle 2", "not inside the box"});
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace crushdem

@@ -37,6 +37,10 @@ double SampleConfig::cube_side() const {
   return 4e-3;
 }
 
+namespace {
+constexpr double kLoosestVoidRatio = 1.2;
+}  // namespace
+
 void SampleConfig::validate(const SimulationConfig& sim) const {
   grading.validate("sample.grading");
   if (side != 0.0 && count != 0) {
@@ -45,8 +49,12 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
         "many grains), not both");
   }
   require_value(side >= 0.0 && std::isfinite(side), "sample.side", side, "a cube side in m (> 0)");
-  require_value(void_ratio > 0.0 && std::isfinite(void_ratio), "sample.void_ratio", void_ratio,
-                "a positive void ratio");
+  // A random packing of spheres brought to equilibrium is not looser than about e = 0.8-1.0
+  // (random loose packing of frictional spheres); the preparation cannot reach more.
+  require_value(void_ratio > 0.0 && void_ratio < kLoosestVoidRatio, "sample.void_ratio", void_ratio,
+                "a void ratio in (0, " + show_number(kLoosestVoidRatio) +
+                    "): random packings of spheres in equilibrium are not looser than about "
+                    "e = 0.8-1.0");
   const double e_min = densest_void_ratio(grading, cube_side());
   if (void_ratio < e_min) {
     throw ConfigError(bad_value(

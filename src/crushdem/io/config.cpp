@@ -296,6 +296,9 @@ void read_sample(Section& s, SampleConfig& c) {
   g.finish();
   s.number("side", c.side);
   s.count("count", c.count);
+  if (s.has("count") && c.count == 0) {
+    throw ConfigError(bad_value(s.key("count"), "0", "a positive number of grains"));
+  }
   s.number("void_ratio", c.void_ratio);
   s.number("tolerance", c.tolerance);
   s.number("stress", c.stress);
@@ -634,6 +637,24 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
     throw ConfigError(bad_value("particles.file", "\"" + file + "\"",
                                 "an existing particle file (a prepared sample: `crushdem run "
                                 "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
+  } else {
+    // Read here too, so that `crushdem check` finds a bad file (its rows, ids, positions) and
+    // grains that stick out of the box, not the run. A loaded sample presses its outer grains
+    // slightly into the walls: an overlap up to a tenth of the radius is accepted.
+    const Packing pk = read_packing(file);
+    for (const PackingRow& r : pk.rows) {
+      const double x[3] = {r.position.x, r.position.y, r.position.z};
+      const double reach = 0.9 * 0.5 * r.diameter;
+      for (int a = 0; a < 3; ++a) {
+        if (x[a] - reach < box[static_cast<std::size_t>(2 * a)] ||
+            x[a] + reach > box[static_cast<std::size_t>(2 * a + 1)]) {
+          throw ConfigError(file + ": particle " + std::to_string(r.id) + " (centre " +
+                            show_number(x[0]) + ", " + show_number(x[1]) + ", " +
+                            show_number(x[2]) + " m, diameter " + show_number(r.diameter) +
+                            " m) is not inside the box: expected every grain between the walls");
+        }
+      }
+    }
   }
 }
 

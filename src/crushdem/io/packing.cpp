@@ -1,6 +1,7 @@
 #include "crushdem/io/packing.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -56,10 +57,20 @@ Packing read_packing(const std::string& path) {
     }
     std::istringstream s(line);
     PackingRow r;
-    if (!(s >> r.id >> r.position.x >> r.position.y >> r.position.z >> r.diameter)) {
+    long long id = 0;  // signed: "-1" must not wrap round to the no-parent id
+    if (!(s >> id >> r.position.x >> r.position.y >> r.position.z >> r.diameter)) {
       throw ConfigError(path + ":" + std::to_string(lineno) +
                         ": expected 'id x y z diameter', got '" + line + "'");
     }
+    if (!(s >> std::ws).eof()) {
+      throw ConfigError(path + ":" + std::to_string(lineno) +
+                        ": expected the 5 columns 'id x y z diameter', got more: '" + line + "'");
+    }
+    if (id < 0) {
+      throw ConfigError(path + ":" + std::to_string(lineno) + ": particle id " +
+                        std::to_string(id) + ": expected an id >= 0");
+    }
+    r.id = static_cast<ParticleId>(id);
     if (!(r.diameter > 0.0) || !std::isfinite(r.position.x) || !std::isfinite(r.position.y) ||
         !std::isfinite(r.position.z)) {
       throw ConfigError(path + ":" + std::to_string(lineno) +
@@ -72,6 +83,22 @@ Packing read_packing(const std::string& path) {
     pk.rows.push_back(r);
   }
   if (pk.rows.empty()) throw ConfigError("particle file '" + path + "' holds no particles");
+  // Two grains at one point would meet with an infinite force at the first step.
+  std::vector<std::size_t> order(pk.rows.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  const auto at = [&](std::size_t i) {
+    const Vec3& x = pk.rows[i].position;
+    return std::array<double, 3>{x.x, x.y, x.z};
+  };
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return at(a) < at(b); });
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    if (at(order[k]) == at(order[k - 1])) {
+      throw ConfigError(path + ": particles " + std::to_string(pk.rows[order[k - 1]].id) + " and " +
+                        std::to_string(pk.rows[order[k]].id) +
+                        " sit at the same point: expected distinct positions");
+    }
+  }
   return pk;
 }
 
