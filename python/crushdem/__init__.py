@@ -26,7 +26,9 @@ message naming the key, e.g. ``material.shear_modulus``.
 
 from __future__ import annotations
 
-from typing import Any, Dict, Mapping, Optional, Sequence
+import contextlib
+import threading
+from typing import Any, Dict, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -114,6 +116,18 @@ class Simulation:
         merged: Dict[str, Any] = dict(config or {})
         merged.update(sections)
         self._sim = _core.Simulation(_config_dict(merged))
+        # step() releases the GIL: another Python thread must not change the grains meanwhile.
+        self._busy = threading.Lock()
+
+    @contextlib.contextmanager
+    def _exclusive(self, what: str) -> Iterator[None]:
+        if not self._busy.acquire(blocking=False):
+            raise RuntimeError(f"Simulation.{what}: the simulation is stepping in another thread; "
+                               "wait for step() to return")
+        try:
+            yield
+        finally:
+            self._busy.release()
 
     # --- particles --------------------------------------------------------------------------
 
@@ -128,6 +142,9 @@ class Simulation:
         positions: (N, 3) centres [m]; radii: (N,) [m] (a scalar is broadcast);
         velocities: (N, 3) [m/s] or None for rest. Mass follows from ``material.density``.
         """
+        for name, a in (("positions", positions), ("radii", radii), ("velocities", velocities)):
+            if a is not None and np.iscomplexobj(a):
+                raise ConfigError(f"add_particles: {name} are complex: expected real numbers")
         pos = np.ascontiguousarray(positions, dtype=np.float64)
         if pos.ndim == 1 and pos.size == 3:
             pos = pos.reshape(1, 3)
@@ -140,7 +157,26 @@ class Simulation:
             vel = np.ascontiguousarray(velocities, dtype=np.float64)
             if vel.ndim == 1 and vel.size == 3 and pos.shape[0] == 1:
                 vel = vel.reshape(1, 3)
-        return self._sim.add_particles(pos, rad, vel)
+        if pos.ndim == 2 and pos.shape[1] == 3 and rad.shape == (pos.shape[0],):
+            self._check_inside(pos, rad)
+        with self._exclusive("add_particles"):
+            return self._sim.add_particles(pos, rad, vel)
+
+    def _check_inside(self, pos: np.ndarray, rad: np.ndarray) -> None:
+        """Every centre finite and inside the walls, overlapping them by at most a tenth of the
+        radius (a grain far into a wall would meet it with an enormous force)."""
+        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(rad)) and np.all(rad > 0)):
+            raise ConfigError("add_particles: expected finite positions and positive radii")
+        walls = self.wall_positions()
+        lo, hi = walls[0::2], walls[1::2]
+        reach = 0.9 * rad[:, None]
+        outside = np.any((pos - reach < lo) | (pos + reach > hi), axis=1)
+        if outside.any():
+            k = int(np.flatnonzero(outside)[0])
+            raise ConfigError(
+                f"add_particles: grain {k} (centre {pos[k].tolist()} m, radius {rad[k]:g} m) is "
+                f"not inside the box {lo.tolist()} - {hi.tolist()} m: expected every grain "
+                "between the walls")
 
     def add_particle(self, position: Sequence[float], radius: float,
                      velocity: Optional[Sequence[float]] = None) -> int:
@@ -203,16 +239,17 @@ class Simulation:
         n = int(n)
         if progress is None:
             progress = n >= 10_000 and _interactive()
-        if progress is True:
-            from tqdm.auto import tqdm
+        with self._exclusive("step"):
+            if progress is True:
+                from tqdm.auto import tqdm
 
-            with tqdm(total=n, unit="step", unit_scale=True, desc="crushdem step",
-                      leave=False) as bar:
-                self._sim.step(n, lambda done, total: bar.update(done - bar.n))
-        elif progress is False:
-            self._sim.step(n)
-        else:
-            self._sim.step(n, progress)
+                with tqdm(total=n, unit="step", unit_scale=True, desc="crushdem step",
+                          leave=False) as bar:
+                    self._sim.step(n, lambda done, total: bar.update(done - bar.n))
+            elif progress is False:
+                self._sim.step(n)
+            else:
+                self._sim.step(n, progress)
 
     def run(self, duration: float) -> None:
         """Advances by at least ``duration`` seconds of simulated time, in whole steps."""

@@ -314,9 +314,11 @@ def test_plot_writes_png(tmp_path):
 
 def test_runtime_failure_is_runtime_error():
     sim = hertz_sim()
-    sim.add_particles(np.array([[5e-4, 5e-4, 2e-3]]), np.array([4e-5]))  # above the zmax wall
+    # So fast that it crosses the zmax wall within one step (no contact can stop it).
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([4e-5]),
+                      np.array([[0.0, 0.0, 1e7]]))
     with pytest.raises(RuntimeError, match="left the box"):
-        sim.step(1)
+        sim.step(10)
     assert issubclass(crushdem.RuntimeFailure, RuntimeError)
 
 
@@ -466,3 +468,44 @@ def test_docstring_and_reference_come_from_the_parameter_tables():
             key = row.split("|")[1].strip()
             assert f"{key}" in doc, (section, key)
     assert "`rotation`" in doc and "blocked" in doc and "default 0.275" in doc
+
+
+def test_add_particles_refuses_what_would_blow_up():
+    sim = hertz_sim()
+    with pytest.raises(crushdem.ConfigError, match="not inside the box"):
+        sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([5e-3]))  # 10 mm in 1 mm
+    with pytest.raises(crushdem.ConfigError, match="grain 1 .* not inside the box"):
+        sim.add_particles(np.array([[5e-4, 5e-4, 5e-4], [5e-4, 5e-4, 2e-3]]), 1e-4)
+    with pytest.raises(crushdem.ConfigError, match="complex"):
+        sim.add_particles(np.array([[5e-4 + 1e-5j, 5e-4, 5e-4]]), np.array([1e-4]))
+    with pytest.raises(crushdem.ConfigError, match="finite"):
+        sim.add_particles(np.array([[np.nan, 5e-4, 5e-4]]), np.array([1e-4]))
+    assert sim.num_particles == 0
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
+    assert sim.num_particles == 1
+
+
+def test_add_particles_while_stepping_in_another_thread_is_refused():
+    import threading
+
+    sim = _rattling_pair()
+    errors = []
+    started = threading.Event()
+
+    def stepper():
+        started.set()
+        sim.step(3_000_000, progress=False)
+
+    t = threading.Thread(target=stepper)
+    t.start()
+    started.wait()
+    import time
+
+    time.sleep(0.2)
+    try:
+        sim.add_particles(np.array([[5e-4, 2e-4, 2e-4]]), np.array([5e-5]))
+    except RuntimeError as e:
+        errors.append(str(e))
+    t.join()
+    assert errors and "stepping in another thread" in errors[0]
+    assert sim.num_particles == 2 and sim.step_count == 3_000_000
