@@ -221,14 +221,37 @@ def test_set_wall_moves_it():
 
 
 def test_step_releases_gil():
+    """While one thread steps, another runs Python code at about its own speed: the GIL is
+    released for the stepping (held, the other thread would only run between chunks)."""
     import threading
+    import time
 
-    sim = hertz_sim()
-    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
-    t = threading.Thread(target=sim.step, args=(1000,))
-    t.start()
-    t.join()
-    assert sim.step_count == 1000
+    def spin(seconds):
+        n, end = 0, time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            n += 1
+        return n
+
+    sim = _rattling_pair()
+    before = crushdem.threads()
+    crushdem.set_threads(1)
+    try:
+        t0 = time.perf_counter()
+        sim.step(20_000, progress=False)
+        n = max(20_000, int(20_000 * 1.5 / max(time.perf_counter() - t0, 1e-6)))  # ~1.5 s
+        alone = spin(0.3)
+        t = threading.Thread(target=sim.step, args=(n,), kwargs={"progress": False})
+        t.start()
+        time.sleep(0.1)
+        during = spin(0.3)
+        overlapped = t.is_alive()
+        t.join()
+    finally:
+        crushdem.set_threads(before)
+    assert overlapped, "the step ended before the measurement: too few steps"
+    assert sim.step_count == 20_000 + n
+    # Held, the main thread would get the GIL at chunk ends only (a few per 0.3 s).
+    assert during > 0.1 * alone, (during, alone)
 
 
 def test_resolved_config():
