@@ -11,11 +11,13 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "crushdem/cli/cli.hpp"
+#include "crushdem/core/build_info.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -130,6 +132,11 @@ class RunDirectory : public ::testing::Test {
 TEST_F(RunDirectory, ASecondRunIsRefusedAndLeavesTheFilesAsTheyWere) {
   ASSERT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
   const std::string summary = slurp(fs::path(out_) / "summary.json");
+  // The results say what made them: the version and the source commit.
+  EXPECT_TRUE(has(summary, std::string("\"crushdem_version\": \"") + CRUSHDEM_VERSION + "\""));
+  const std::string commit = build_commit();
+  EXPECT_TRUE(has(summary, "\"crushdem_commit\": \"" + commit + "\""));
+  EXPECT_TRUE(std::regex_match(commit, std::regex("[0-9a-f]{12}(-dirty)?|unknown"))) << commit;
   const std::string series = slurp(fs::path(out_) / "timeseries.csv");
   const Outcome again = cli({"run", config_, "--out", out_, "--quiet"});
   EXPECT_EQ(again.rc, 2);

@@ -33,8 +33,8 @@ from typing import Any, Dict, Iterator, Mapping, Optional, Sequence
 import numpy as np
 
 from . import _core
-from ._core import (ConfigError, Interrupted, RuntimeFailure, __version__, cli_main,
-                    set_threads, threads)
+from ._core import (ConfigError, Interrupted, RuntimeFailure, __commit__, __version__,
+                    cli_main, set_threads, threads)
 from . import lab
 from .lab import (creep_test, isotropic_test, oedometric_relaxation, oedometric_test,
                   prepare_sample, triaxial_relaxation, triaxial_test)

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "crushdem/cli/cli.hpp"
+#include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
@@ -295,6 +296,7 @@ NB_MODULE(_core, m) {
 
   m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
   m.attr("__version__") = CRUSHDEM_VERSION;
+  m.attr("__commit__") = build_commit();
 
   m.def("parameter_reference", &parameter_reference,
         "The configuration keys with a parameter table, as (section, Markdown table) pairs: "

@@ -532,3 +532,16 @@ def test_add_particles_while_stepping_in_another_thread_is_refused():
     t.join()
     assert errors and "stepping in another thread" in errors[0]
     assert sim.num_particles == 2 and sim.step_count == 3_000_000
+
+
+def test_results_record_the_version_and_commit(tmp_path):
+    import re
+
+    assert re.fullmatch(r"[0-9a-f]{12}(-dirty)?|unknown", crushdem.__commit__)
+    sample = os.path.join(os.path.dirname(__file__), "..", "data", "lattice_64.txt")
+    run = crushdem.lab.run({"contact": {"law": "hertz"},
+                            "particles": {"file": os.path.abspath(sample)},
+                            "run": {"steps": 10}, "output": {"progress_seconds": 0}},
+                           tmp_path / "r")
+    assert run.summary["crushdem_version"] == crushdem.__version__
+    assert run.summary["crushdem_commit"] == crushdem.__commit__

@@ -15,6 +15,7 @@
 #include <memory>
 #include <set>
 
+#include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
 #include "crushdem/core/state_io.hpp"
@@ -1162,6 +1163,7 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 
   JsonObject summary;
   summary.string("crushdem_version", CRUSHDEM_VERSION);
+  summary.string("crushdem_commit", build_commit());
   if (st.has_sample_json) summary.object("sample", st.sample_json);
   if (fs::exists(dir / "branch.json")) {
     std::string b = read_binary_file((dir / "branch.json").string());
