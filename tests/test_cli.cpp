@@ -309,3 +309,37 @@ TEST_F(Branch, ChangesBeforeTheBranchAreRefusedNamingTheKey) {
 
 }  // namespace
 }  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+// A fixed time step above the automatic one is run, with a warning that says by how much.
+TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
+  const fs::path dir = fs::temp_directory_path() / "crushdem_dt_warning";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string lattice = std::string(CRUSHDEM_TEST_DATA_DIR) + "/lattice_64.txt";
+  for (const double dt : {1e-10, 2e-8}) {
+    const fs::path out = dir / (dt < 1e-9 ? "small" : "large");
+    std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" << lattice
+                                  << "\"\n[timestep]\ndt = " << dt
+                                  << "\n[run]\nsteps = 5\n[output]\nprogress_seconds = 0\n";
+    const Outcome o = cli({"run", (dir / "c.toml").string(), "--out", out.string()});
+    EXPECT_EQ(o.rc, 0) << o.err;
+    std::ifstream in(out / "summary.json");
+    std::stringstream summary;
+    summary << in.rdbuf();
+    if (dt < 1e-9) {
+      EXPECT_FALSE(has(o.err, "times the automatic step")) << o.err;
+      EXPECT_TRUE(has(summary.str(), "\"warnings\": 0")) << summary.str();
+    } else {
+      EXPECT_TRUE(has(o.err, "timestep.dt = 2e-08 s is")) << o.err;
+      EXPECT_TRUE(has(o.err, "times the automatic step")) << o.err;
+      EXPECT_TRUE(has(summary.str(), "\"warnings\": 1")) << summary.str();
+    }
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace crushdem

@@ -282,11 +282,21 @@ class Simulation:
 
     @dt.setter
     def dt(self, value: float) -> None:
-        self._sim.set_dt(float(value))
+        self.set_dt(value)
 
     def set_dt(self, dt: float) -> None:
-        """Fixes the time step [s], overriding the automatic choice."""
-        self._sim.set_dt(float(dt))
+        """Fixes the time step [s], overriding the automatic choice; warns (RuntimeWarning) when
+        it is above the automatic step of the grains present (the run may be unstable)."""
+        dt = float(dt)
+        self._sim.set_dt(dt)
+        if self.num_particles:
+            automatic = self._sim.automatic_dt()
+            if dt > automatic:
+                import warnings
+
+                warnings.warn(f"set_dt: {dt:g} s is {dt / automatic:.3g} times the automatic "
+                              f"step {automatic:g} s: the run may be unstable", RuntimeWarning,
+                              stacklevel=2)
 
     def rayleigh_dt(self) -> float:
         """Rayleigh time-step estimate of the smallest grain [s]."""

@@ -410,6 +410,8 @@ NB_MODULE(_core, m) {
       .def("set_dt", &Simulation::set_dt, "dt"_a, "Fixes the time step [s] (overrides automatic).")
       .def("rayleigh_dt", &Simulation::rayleigh_dt, "Rayleigh time-step estimate [s].")
       .def("stiffness_dt", &Simulation::stiffness_dt, "Stiffness time-step estimate [s].")
+      .def("automatic_dt", &Simulation::automatic_dt,
+           "The step the automatic choice would take now [s], fixed step or not.")
       .def_prop_ro("num_particles", [](const Simulation& sim) { return sim.particles().size(); })
 
       // Particle arrays (copies).

@@ -545,3 +545,17 @@ def test_results_record_the_version_and_commit(tmp_path):
                            tmp_path / "r")
     assert run.summary["crushdem_version"] == crushdem.__version__
     assert run.summary["crushdem_commit"] == crushdem.__commit__
+
+
+def test_a_fixed_step_above_the_automatic_one_warns():
+    import warnings
+
+    sim = _rattling_pair()
+    sim.compute_forces()
+    auto = sim.core.automatic_dt()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.dt = 0.5 * auto  # below: no warning
+    with pytest.warns(RuntimeWarning, match="times the automatic step"):
+        sim.set_dt(6.7 * auto)
+    assert sim.dt == 6.7 * auto

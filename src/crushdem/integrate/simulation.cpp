@@ -1566,13 +1566,16 @@ bool Simulation::dt_due(std::uint64_t step) const {
   return !dt_fixed_ && (!dt_valid_ || step - dt_computed_at_ >= cfg_.timestep.update_interval);
 }
 
+double Simulation::automatic_dt() {
+  if (!nl_valid_ && p_.size() > 0) rebuild_neighbors();
+  const double h = std::min(cfg_.timestep.rayleigh_fraction * rayleigh_dt(),
+                            cfg_.timestep.safety * stiffness_dt());
+  return std::isfinite(h) ? h : 1e-6;  // no particles: any value works
+}
+
 double Simulation::dt() {
   if (dt_due(steps_)) {
-    if (!nl_valid_ && p_.size() > 0) rebuild_neighbors();
-    double h = cfg_.timestep.rayleigh_fraction * rayleigh_dt();
-    h = std::min(h, cfg_.timestep.safety * stiffness_dt());
-    if (!std::isfinite(h)) h = 1e-6;  // no particles: any value works
-    dt_ = h;
+    dt_ = automatic_dt();
     dt_valid_ = true;
     dt_computed_at_ = steps_;
   }

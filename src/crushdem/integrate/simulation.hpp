@@ -173,6 +173,9 @@ class Simulation {
   /// Time-step estimates (exposed for tests and reporting).
   double rayleigh_dt() const;
   double stiffness_dt() const;
+  /// The step the automatic choice would take now (timestep.rayleigh_fraction and safety),
+  /// whether or not the step is fixed: a fixed step above it is likely unstable.
+  double automatic_dt();
 
  private:
   friend class GpuStepper;

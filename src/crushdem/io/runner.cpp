@@ -1075,6 +1075,18 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 
   // The test starts here. Crushing acts during the test (not during preparation).
   const bool in_test = resumed && st.part != kPartPreparation;
+  if (!in_test && cfg.simulation.timestep.dt > 0.0) {
+    const double automatic = sim.automatic_dt();
+    if (cfg.simulation.timestep.dt > automatic) {
+      const std::string w = "timestep.dt = " + show_number(cfg.simulation.timestep.dt) + " s is " +
+                            show_number(cfg.simulation.timestep.dt / automatic) +
+                            " times the automatic step " + show_number(automatic) +
+                            " s (rayleigh_fraction x the Rayleigh time, safety x sqrt(m / k)): "
+                            "the run may be unstable (0 = automatic)";
+      st.warnings.push_back(w);
+      if (opt.progress) std::fprintf(stderr, "[crushdem] warning: %s\n", w.c_str());
+    }
+  }
   if (!in_test) {
     st.ref = StrainReference::from(sim.walls());
     st.d50 = diameter_at_fraction(sim.particles().diameters(), 0.5);
