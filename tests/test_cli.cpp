@@ -343,3 +343,32 @@ TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
 
 }  // namespace
 }  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+// A stage whose target is met when it starts (an unloading stage where there is nothing to
+// unload) ends at once, and says so.
+TEST(RunWarnings, AStageWhoseTargetIsMetAtTheStartIsWarnedAbout) {
+  const fs::path dir = fs::temp_directory_path() / "crushdem_target_met";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string lattice = std::string(CRUSHDEM_TEST_DATA_DIR) + "/lattice_64.txt";
+  std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" << lattice
+                                << "\"\n[[stage]]\ntype = \"oedometric\"\nname = \"unload\"\n"
+                                   "stress = 1e6\nstrain_rate = -10.0\n[output]\n"
+                                   "progress_seconds = 0\n";
+  const Outcome o = cli({"run", (dir / "c.toml").string(), "--out", (dir / "out").string()});
+  EXPECT_EQ(o.rc, 0) << o.err;
+  EXPECT_TRUE(has(o.err, "stage 'unload': its target stress 1e+06 Pa is met at the start"))
+      << o.err;
+  std::ifstream in(dir / "out" / "summary.json");
+  std::stringstream summary;
+  summary << in.rdbuf();
+  EXPECT_TRUE(has(summary.str(), "the stage ends at once")) << summary.str();
+  EXPECT_TRUE(has(summary.str(), "\"warnings\": 1")) << summary.str();
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace crushdem

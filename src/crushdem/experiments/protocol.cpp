@@ -352,6 +352,24 @@ void StageController::begin(Simulation& sim) {
   ageing_time_ = 0.0;
   observe(sim);
   if (cfg_.kind == StageKind::Age) start_phase(sim);
+  // A target already met at the start ends the stage at its first check: almost always a
+  // target on the wrong side (an unloading stage that should load, or the reverse).
+  std::string met;
+  const double sv = w.axial_stress(), q = sv - w.lateral_stress();
+  if (cfg_.kind == StageKind::Oedometric && ((cfg_.strain_rate > 0.0 && sv >= cfg_.stress) ||
+                                             (cfg_.strain_rate < 0.0 && sv <= cfg_.stress))) {
+    met = "its target stress " + show_number(cfg_.stress) + " Pa is met at the start (axial " +
+          "stress " + show_number(sv) + " Pa; strain_rate > 0 loads to the target, < 0 unloads)";
+  }
+  if (cfg_.kind == StageKind::Triaxial && cfg_.stop_q > 0.0 && q >= cfg_.stop_q) {
+    met = "its stop_q " + show_number(cfg_.stop_q) +
+          " Pa is met at the start (q = " + show_number(q) + " Pa)";
+  }
+  if (!met.empty()) {
+    met += ": the stage ends at once";
+    res_.warning += (res_.warning.empty() ? "" : "; ") + met;
+    std::fprintf(stderr, "[crushdem] warning: stage '%s': %s\n", res_.name.c_str(), met.c_str());
+  }
 }
 
 void StageController::start_phase(const Simulation& sim) {
