@@ -1,6 +1,8 @@
 #include "crushdem/io/output.hpp"
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -21,6 +23,17 @@ CsvWriter::~CsvWriter() {
   if (f_) std::fclose(f_);
 }
 
+void CsvWriter::flush() {
+  // Every row is on disk before the run goes on: a full disk or a lost mount stops the run at
+  // once, naming the file, instead of leaving a silently truncated series (the last checkpoint
+  // stays; resume continues from it).
+  if (std::fflush(f_) != 0 || std::ferror(f_)) {
+    const int err = errno;
+    throw RuntimeFailure("cannot write '" + path_ + "': " + std::strerror(err) +
+                         "; the run stops here (its last checkpoint is kept)");
+  }
+}
+
 void CsvWriter::start(const std::vector<std::string>& columns) {
   if (f_) std::fclose(f_);
   f_ = std::fopen(path_.c_str(), "w");
@@ -30,14 +43,14 @@ void CsvWriter::start(const std::vector<std::string>& columns) {
     std::fprintf(f_, "%s%s", k ? "," : "", columns[k].c_str());
   }
   std::fputc('\n', f_);
-  std::fflush(f_);
+  flush();
 }
 
 void CsvWriter::write_line(const std::string& line) {
   if (!f_) throw std::logic_error("CsvWriter::write_line before start(): " + path_);
   std::fputs(line.c_str(), f_);
   std::fputc('\n', f_);
-  std::fflush(f_);
+  flush();
 }
 
 void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
@@ -55,7 +68,7 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     std::fprintf(f_, "%s%s", k ? "," : "", format_double(row[k].second).c_str());
   }
   std::fputc('\n', f_);
-  std::fflush(f_);
+  flush();
 }
 
 long long CsvWriter::size() const {
@@ -142,6 +155,7 @@ void write_text_file(const std::string& path, const std::string& text) {
   std::ofstream f(path);
   if (!f) throw ConfigError("cannot write '" + path + "'");
   f << text;
+  f.flush();  // a full disk shows here, not at the close
   if (!f) throw ConfigError("cannot write '" + path + "'");
 }
 

@@ -33,6 +33,7 @@ class CsvWriter {
   void resume(long long size, const std::vector<std::string>& columns);
 
  private:
+  void flush();  // throws RuntimeFailure naming the file when the bytes cannot be written
   std::string path_;
   std::FILE* f_ = nullptr;
   std::vector<std::string> columns_;
