@@ -10,6 +10,7 @@
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/config.hpp"
+#include "crushdem/io/param_io.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem {
@@ -96,6 +97,69 @@ TEST(ParameterTables, EveryRowIsReadWrittenAndChecked) {
   EXPECT_NE(message(box + "[output]\ninterval = 0\n").find("output.interval"), std::string::npos);
   EXPECT_NE(message(box + "[contact]\nrotation = \"spinning\"\n").find("\"blocked\""),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+// A made-up section with a made-up key: declaring the row is all it takes for the key to be
+// read (with its type and range checked), written back and documented.
+struct Widget {
+  double width = 2e-3;
+  bool enabled = true;
+};
+
+const ParamTable<Widget>& widget_params() {
+  static const ParamTable<Widget> table = {
+      {"width", &Widget::width, "m", "how wide the widget is", [](double v) { return v > 0.0; },
+       "a positive width in m"},
+      {"enabled", &Widget::enabled, "", "whether the widget works"},
+  };
+  return table;
+}
+
+TEST(ParameterTables, AMadeUpKeyIsOneRow) {
+  const toml::Table t = toml::parse("[widget]\nwidth = 5e-3\n", "w.toml");
+  param_io::Section root(&t, "", "w.toml");
+  param_io::Section s = root.sub("widget");
+  Widget w;
+  param_io::read_params(s, w, widget_params());
+  s.finish();
+  EXPECT_EQ(w.width, 5e-3);
+  EXPECT_TRUE(w.enabled);  // the default, untouched
+  validate_params(w, widget_params(), "widget");
+  // Written back with every key.
+  const toml::Table back = param_io::write_params(w, widget_params());
+  EXPECT_EQ(toml::serialize(back), "enabled = true\nwidth = 0.005\n");
+  // Documented: default, unit, meaning and range, from the row.
+  const std::string doc = param_io::markdown(widget_params());
+  EXPECT_NE(doc.find("| `width` | 0.002 | m | how wide the widget is; expected: a positive width "
+                     "in m |"),
+            std::string::npos)
+      << doc;
+  EXPECT_NE(doc.find("| `enabled` | true |  | whether the widget works |"), std::string::npos);
+  // Checked: the type by the reader (naming file, line and key), the range by the row.
+  const toml::Table bad = toml::parse("[widget]\n\nwidth = \"wide\"\n", "w.toml");
+  param_io::Section root2(&bad, "", "w.toml");
+  param_io::Section s2 = root2.sub("widget");
+  try {
+    param_io::read_params(s2, w, widget_params());
+    ADD_FAILURE() << "a string width was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("w.toml:3: "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("widget.width"), std::string::npos) << e.what();
+  }
+  w.width = -1.0;
+  EXPECT_THROW(validate_params(w, widget_params(), "widget"), ConfigError);
+  // An unknown key next to it is still refused.
+  const toml::Table extra = toml::parse("[widget]\nwidht = 1e-3\n", "w.toml");
+  param_io::Section root3(&extra, "", "w.toml");
+  param_io::Section s3 = root3.sub("widget");
+  param_io::read_params(s3, w, widget_params());
+  EXPECT_THROW(s3.finish(), ConfigError);
 }
 
 }  // namespace

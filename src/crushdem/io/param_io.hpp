@@ -1,0 +1,245 @@
+// Reading and writing configuration sections through their parameter tables
+// (core/params.hpp): the Section reader (types checked, unknown keys reported with the file and
+// line), read_params / write_params for a table, and the Markdown reference of a table. Used by
+// io/config.cpp; a test drives it with a made-up table of its own.
+#pragma once
+
+#include <algorithm>
+#include <charconv>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/core/params.hpp"
+#include "crushdem/io/toml.hpp"
+
+namespace crushdem::param_io {
+
+using toml::Table;
+using toml::Type;
+using toml::Value;
+
+inline std::string show(const Value& v) {
+  switch (v.type) {
+    case Type::String: return "\"" + v.str + "\"";
+    case Type::Integer: return std::to_string(v.integer);
+    case Type::Float: return show_number(v.real);
+    case Type::Boolean: return v.boolean ? "true" : "false";
+    case Type::Array: return "an array";
+    case Type::Table: return "a table";
+  }
+  return "?";
+}
+
+/// Reads one section, remembering which keys were used so that unknown keys are reported.
+class Section {
+ public:
+  Section(const Table* t, std::string prefix, std::string source)
+      : t_(t), prefix_(std::move(prefix)), source_(std::move(source)) {}
+
+  std::string key(const std::string& k) const { return prefix_.empty() ? k : prefix_ + "." + k; }
+  std::string where(const Value& v) const {
+    return v.line > 0 ? source_ + ":" + std::to_string(v.line) + ": " : source_ + ": ";
+  }
+  [[noreturn]] void fail(const std::string& k, const Value& v, const std::string& expected) const {
+    throw ConfigError(where(v) + bad_value(key(k), show(v), expected));
+  }
+  const Value* find(const std::string& k) {
+    known_.insert(k);
+    if (!t_) return nullptr;
+    auto it = t_->find(k);
+    return it == t_->end() ? nullptr : &it->second;
+  }
+  void number(const std::string& k, double& out, const char* expected = "a number") {
+    if (const Value* v = find(k)) {
+      if (!v->is_number()) fail(k, *v, expected);
+      out = v->as_number();
+    }
+  }
+  void count(const std::string& k, std::uint64_t& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Integer || v->integer < 0) fail(k, *v, "an integer >= 0");
+      out = static_cast<std::uint64_t>(v->integer);
+    }
+  }
+  void boolean(const std::string& k, bool& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Boolean) fail(k, *v, "true or false");
+      out = v->boolean;
+    }
+  }
+  void string(const std::string& k, std::string& out) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::String) fail(k, *v, "a string");
+      out = v->str;
+    }
+  }
+  void vec3(const std::string& k, double out[3], bool& present) {
+    present = false;
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array || v->array.size() != 3 ||
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.is_number(); })) {
+        fail(k, *v, "an array of 3 numbers [x, y, z] in m");
+      }
+      for (int d = 0; d < 3; ++d) out[d] = v->array[static_cast<std::size_t>(d)].as_number();
+      present = true;
+    }
+  }
+  /// An array of numbers (at least one).
+  void numbers(const std::string& k, std::vector<double>& out, const char* expected) {
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array || v->array.empty() ||
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.is_number(); })) {
+        fail(k, *v, expected);
+      }
+      out.clear();
+      for (const Value& x : v->array) out.push_back(x.as_number());
+    }
+  }
+  /// An array of tables ([[k]] sections); returns one Section per element.
+  std::vector<Section> table_array(const std::string& k) {
+    std::vector<Section> out;
+    if (const Value* v = find(k)) {
+      if (v->type != Type::Array ||
+          !std::all_of(v->array.begin(), v->array.end(),
+                       [](const Value& x) { return x.type == Type::Table; })) {
+        fail(k, *v, "an array of tables [[" + key(k) + "]]");
+      }
+      for (std::size_t i = 0; i < v->array.size(); ++i) {
+        out.emplace_back(v->array[i].table.get(), key(k) + "[" + std::to_string(i) + "]", source_);
+      }
+    }
+    return out;
+  }
+  Section sub(const std::string& k) {
+    const Value* v = find(k);
+    if (v && v->type != Type::Table) fail(k, *v, "a table [" + key(k) + "]");
+    return Section(v ? v->table.get() : nullptr, key(k), source_);
+  }
+  bool has(const std::string& k) const { return t_ && t_->count(k); }
+  /// Throws for any key that no reader asked for.
+  void finish() const {
+    if (!t_) return;
+    for (const auto& [k, v] : *t_) {
+      if (!known_.count(k)) {
+        std::string valid;
+        for (const auto& n : known_) valid += (valid.empty() ? "" : ", ") + n;
+        throw ConfigError(where(v) + "unknown key '" + key(k) + "'" +
+                          (valid.empty() ? "" : " (valid keys: " + valid + ")"));
+      }
+    }
+  }
+
+ private:
+  const Table* t_;
+  std::string prefix_, source_;
+  std::set<std::string> known_;
+};
+
+/// Every key of `table` that the section holds, into `obj` (types checked, errors naming the
+/// key and line); the range checks follow in validate().
+template <class S>
+void read_params(Section& s, S& obj, const ParamTable<S>& table) {
+  for (const Param<S>& p : table) {
+    const std::string k(p.key);
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      s.number(k, obj.*(*num));
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      s.count(k, obj.*(*cnt));
+    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+      s.boolean(k, obj.*(*flag));
+    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+      s.string(k, obj.*(*text));
+    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      std::string v = choice->get(obj);
+      s.string(k, v);
+      choice->set(obj, v, s.key(k));
+    }
+  }
+}
+
+/// Every key of `table` with its value in `obj`, as written to config.toml.
+template <class S>
+Table write_params(const S& obj, const ParamTable<S>& table) {
+  Table t;
+  for (const Param<S>& p : table) {
+    const std::string k(p.key);
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      t[k] = Value::make_float(obj.*(*num));
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      t[k] = Value::make_integer(static_cast<std::int64_t>(obj.*(*cnt)));
+    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+      t[k] = Value::make_bool(obj.*(*flag));
+    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+      t[k] = Value::make_string(obj.*(*text));
+    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      t[k] = Value::make_string(choice->get(obj));
+    }
+  }
+  return t;
+}
+
+/// The shortest form that reads back exactly, with a plain exponent (2650, 3.2e10, 6e-7).
+inline std::string doc_number(double v) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  std::string s(buf, static_cast<std::size_t>(res.ptr - buf));
+  const std::size_t e = s.find('e');
+  if (e == std::string::npos) return s;
+  std::string mantissa = s.substr(0, e), exponent = s.substr(e + 1);
+  const bool negative = !exponent.empty() && exponent[0] == '-';
+  if (!exponent.empty() && (exponent[0] == '+' || exponent[0] == '-')) exponent.erase(0, 1);
+  while (exponent.size() > 1 && exponent[0] == '0') exponent.erase(0, 1);
+  return mantissa + "e" + (negative ? "-" : "") + exponent;
+}
+
+/// Pipes would end a Markdown table cell.
+inline std::string cell(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+template <class S>
+std::string default_text(const Param<S>& p) {
+  if (!p.default_doc.empty()) return std::string(p.default_doc);
+  static const S d{};  // the defaults (static: GCC 12 misreads a local as uninitialised)
+  if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+    return doc_number(d.*(*num));
+  }
+  if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+    return std::to_string(d.*(*cnt));
+  }
+  if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+    return d.*(*flag) ? "true" : "false";
+  }
+  if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+    return "`\"" + d.*(*text) + "\"`";
+  }
+  return "`\"" + std::get<ParamChoice<S>>(p.member).get(d) + "\"`";
+}
+
+template <class S>
+std::string markdown(const ParamTable<S>& table, const std::vector<std::string>& extra_rows = {}) {
+  std::string out = "| key | default | unit | meaning |\n|---|---|---|---|\n";
+  for (const Param<S>& p : table) {
+    std::string meaning(p.doc);
+    if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      meaning += "; one of " + std::string(choice->choices);
+    }
+    if (p.ok) meaning += "; expected: " + std::string(p.expected);
+    out += "| `" + std::string(p.key) + "` | " + default_text(p) + " | " + std::string(p.unit) +
+           " | " + cell(meaning) + " |\n";
+  }
+  for (const std::string& row : extra_rows) out += row + "\n";
+  return out;
+}
+
+}  // namespace crushdem::param_io
