@@ -19,7 +19,6 @@ using param_io::read_params;
 using param_io::Section;
 using param_io::write_params;
 using toml::Table;
-using toml::Type;
 using toml::Value;
 
 void read_simulation(Section& root, SimulationConfig& c, bool box_required = true) {
