@@ -317,61 +317,60 @@ TEST_F(Branch, ChangesBeforeTheBranchAreRefusedNamingTheKey) {
 namespace crushdem {
 namespace {
 
-// A fixed time step above the automatic one is run, with a warning that says by how much.
-TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
-  const fs::path dir = fs::temp_directory_path() / "crushdem_dt_warning";
+/// A run of the 64-grain lattice (hertz) with `sections` added, from a fresh directory `name`:
+/// the outcome and summary.json.
+struct LatticeRun {
+  Outcome outcome;
+  std::string summary;
+};
+LatticeRun run_lattice(const std::string& name, const std::string& sections) {
+  const fs::path dir = fs::temp_directory_path() / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const std::string lattice = std::string(CRUSHDEM_TEST_DATA_DIR) + "/lattice_64.txt";
+  std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \""
+                                << CRUSHDEM_TEST_DATA_DIR << "/lattice_64.txt\"\n"
+                                << sections << "[output]\nprogress_seconds = 0\n";
+  LatticeRun r;
+  r.outcome = cli({"run", (dir / "c.toml").string(), "--out", (dir / "out").string()});
+  std::ifstream in(dir / "out" / "summary.json");
+  std::stringstream summary;
+  summary << in.rdbuf();
+  r.summary = summary.str();
+  fs::remove_all(dir);
+  return r;
+}
+
+// A fixed time step above the automatic one is run, with a warning that says by how much.
+TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
   for (const double dt : {1e-10, 2e-8}) {
-    const fs::path out = dir / (dt < 1e-9 ? "small" : "large");
-    std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" << lattice
-                                  << "\"\n[timestep]\ndt = " << dt
-                                  << "\n[run]\nsteps = 5\n[output]\nprogress_seconds = 0\n";
-    const Outcome o = cli({"run", (dir / "c.toml").string(), "--out", out.string()});
+    std::ostringstream timestep;
+    timestep << "[timestep]\ndt = " << dt << "\n[run]\nsteps = 5\n";
+    const LatticeRun r = run_lattice("crushdem_dt_warning", timestep.str());
+    const Outcome& o = r.outcome;
     EXPECT_EQ(o.rc, 0) << o.err;
-    std::ifstream in(out / "summary.json");
-    std::stringstream summary;
-    summary << in.rdbuf();
     if (dt < 1e-9) {
       EXPECT_FALSE(has(o.err, "times the automatic step")) << o.err;
-      EXPECT_TRUE(has(summary.str(), "\"warnings\": 0")) << summary.str();
+      EXPECT_TRUE(has(r.summary, "\"warnings\": 0")) << r.summary;
     } else {
       EXPECT_TRUE(has(o.err, "timestep.dt = 2e-08 s is")) << o.err;
       EXPECT_TRUE(has(o.err, "times the automatic step")) << o.err;
-      EXPECT_TRUE(has(summary.str(), "\"warnings\": 1")) << summary.str();
+      EXPECT_TRUE(has(r.summary, "\"warnings\": 1")) << r.summary;
     }
   }
-  fs::remove_all(dir);
 }
-
-}  // namespace
-}  // namespace crushdem
-
-namespace crushdem {
-namespace {
 
 // A stage whose target is met when it starts (an unloading stage where there is nothing to
 // unload) ends at once, and says so.
 TEST(RunWarnings, AStageWhoseTargetIsMetAtTheStartIsWarnedAbout) {
-  const fs::path dir = fs::temp_directory_path() / "crushdem_target_met";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const std::string lattice = std::string(CRUSHDEM_TEST_DATA_DIR) + "/lattice_64.txt";
-  std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" << lattice
-                                << "\"\n[[stage]]\ntype = \"oedometric\"\nname = \"unload\"\n"
-                                   "stress = 1e6\nstrain_rate = -10.0\n[output]\n"
-                                   "progress_seconds = 0\n";
-  const Outcome o = cli({"run", (dir / "c.toml").string(), "--out", (dir / "out").string()});
+  const LatticeRun r = run_lattice("crushdem_target_met",
+                                   "[[stage]]\ntype = \"oedometric\"\nname = \"unload\"\n"
+                                   "stress = 1e6\nstrain_rate = -10.0\n");
+  const Outcome& o = r.outcome;
   EXPECT_EQ(o.rc, 0) << o.err;
   EXPECT_TRUE(has(o.err, "stage 'unload': its target stress 1e+06 Pa is met at the start"))
       << o.err;
-  std::ifstream in(dir / "out" / "summary.json");
-  std::stringstream summary;
-  summary << in.rdbuf();
-  EXPECT_TRUE(has(summary.str(), "the stage ends at once")) << summary.str();
-  EXPECT_TRUE(has(summary.str(), "\"warnings\": 1")) << summary.str();
-  fs::remove_all(dir);
+  EXPECT_TRUE(has(r.summary, "the stage ends at once")) << r.summary;
+  EXPECT_TRUE(has(r.summary, "\"warnings\": 1")) << r.summary;
 }
 
 }  // namespace
