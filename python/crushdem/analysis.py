@@ -1,11 +1,16 @@
-"""Pure analysis of relaxation and creep curves: one value per dynamic phase against ageing
-time (NumPy only, no files, no figures; tested on synthetic data). Used by the figures
-(:mod:`crushdem.plot`), ``crushdem reproduce`` and the sweep tool."""
+"""Pure analysis of a run's columns (NumPy only, no files, no figures; tested on synthetic
+data): the time series split by stage, the rows whose contact measurements were not computed,
+and relaxation and creep curves, one value per dynamic phase against ageing time. Used by
+:mod:`crushdem.rundir`, the figures (:mod:`crushdem.figures`), ``crushdem reproduce`` and the
+sweep tool.
+
+A set of columns is a dict {column name: float64 array}, as :func:`crushdem.rundir.read_csv`
+returns it."""
 
 from __future__ import annotations
 
 import math
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -15,6 +20,179 @@ T_REF_S = 4.0  # the study normalises sigma_v by its value at 4 s of ageing
 PLAUSIBLE_OEDOMETRIC_1DAY = (0.70, 0.97)
 HOUR_S = 3600.0
 DAY_S = 86400.0
+WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+
+Columns = Mapping[str, np.ndarray]
+
+
+def has_values(d: Columns, *cols: str) -> bool:
+    """Whether every column of ``cols`` exists in ``d`` with at least one finite value."""
+    return all(c in d and np.isfinite(d[c]).any() for c in cols)
+
+
+def as_float(x: Any) -> float:
+    """A summary.json value as a float (NaN when missing or not a number)."""
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def column(d: Columns, name: str, idx: np.ndarray) -> np.ndarray:
+    """Column ``name`` on rows ``idx`` (NaN when the column is missing)."""
+    return d[name][idx] if name in d else np.full(np.asarray(idx).size, math.nan)
+
+
+def _mean_of_walls(d: Columns, walls: Sequence[str]) -> Optional[np.ndarray]:
+    cols = [d[f"wall_{w}_stress_Pa"] for w in walls if has_values(d, f"wall_{w}_stress_Pa")]
+    if not cols:
+        return None
+    with np.errstate(all="ignore"):
+        return np.nanmean(np.vstack(cols), axis=0)
+
+
+def vertical_stress(d: Columns) -> Optional[np.ndarray]:
+    """sigma_v: mean of the zmin and zmax wall stresses [Pa] (whichever exist); None without."""
+    return _mean_of_walls(d, ("zmin", "zmax"))
+
+
+def lateral_stress(d: Columns) -> Optional[np.ndarray]:
+    """sigma_h: mean of the four lateral wall stresses [Pa] (whichever exist); None without."""
+    return _mean_of_walls(d, ("xmin", "xmax", "ymin", "ymax"))
+
+
+# Columns computed from the grain-grain contact list (experiments/measurements.cpp).
+CONTACT_COLUMNS = ("n_contacts", "coordination_number", "mean_Fn_N", "std_Fn_N", "mean_Ft_N",
+                   "std_Ft_N", "unbalanced_force_ratio", "love_xx_Pa", "love_yy_Pa",
+                   "love_zz_Pa", "love_xy_Pa", "love_yz_Pa", "love_xz_Pa",
+                   "love_mean_stress_Pa")
+
+
+def unmeasured_contact_rows(d: Columns) -> np.ndarray:
+    """Rows whose contact columns were written before the contact list was computed.
+
+    The first row of a test that starts from a prepared sample has its wall stresses (the walls
+    keep theirs) but every contact measurement 0: no contact, Z = 0, F_n = 0, Love-Weber stress
+    0. Such a row is the first of its stage, has ``n_contacts`` 0 and a nonzero wall stress: a
+    loaded sample in equilibrium has contacts. Elsewhere, n_contacts = 0 is a real measurement
+    (grains not yet touching during preparation)."""
+    n = len(next(iter(d.values()))) if d else 0
+    if "n_contacts" not in d or n == 0:
+        return np.zeros(n, dtype=bool)
+    first_of_stage = np.zeros(n, dtype=bool)
+    first_of_stage[0] = True
+    if "stage" in d:
+        st = d["stage"]
+        first_of_stage[1:] = st[1:] != st[:-1]
+    walls = [d[f"wall_{w}_stress_Pa"] for w in WALLS if f"wall_{w}_stress_Pa" in d]
+    if not walls:
+        return np.zeros(n, dtype=bool)
+    loaded = np.any(np.abs(np.vstack(walls)) > 0, axis=0)
+    return first_of_stage & (d["n_contacts"] == 0) & loaded
+
+
+def mask_unmeasured_contacts(d: Columns) -> Dict[str, np.ndarray]:
+    """A copy of ``d`` with the CONTACT_COLUMNS NaN on the unmeasured_contact_rows."""
+    out = dict(d)
+    rows = unmeasured_contact_rows(d)
+    if rows.any():
+        for c in CONTACT_COLUMNS:
+            if c in out:
+                out[c] = np.where(rows, math.nan, out[c])
+    return out
+
+
+StageRows = Tuple[int, np.ndarray, Dict[str, Any]]
+
+
+def stage_rows(d: Columns, summary: Mapping[str, Any]) -> List[StageRows]:
+    """[(stage index, row mask, stage description from summary["stages"] or {})] in stage
+    order; empty when the CSV has no ``stage`` column. A run writes the row at a stage boundary
+    twice (last row of one stage, first row of the next), so consecutive stages share a point.
+    """
+    if not has_values(d, "stage"):
+        return []
+    listed = summary.get("stages")
+    listed = listed if isinstance(listed, list) else []
+    s = d["stage"]
+    out = []
+    for k in sorted({int(v) for v in s[np.isfinite(s)]}):
+        info = listed[k] if 0 <= k < len(listed) and isinstance(listed[k], dict) else {}
+        out.append((k, s == k, info))
+    return out
+
+
+def stage_label(k: int, info: Mapping[str, Any]) -> str:
+    """"stage K: NAME" (the stage's name, else its type)."""
+    name = info.get("name") or info.get("type") or ""
+    return f"stage {k}: {name}" if name else f"stage {k}"
+
+
+def age_stage_indices(summary: Mapping[str, Any], events: Optional[Columns]) -> List[int]:
+    """The indices of the "age" stages: those typed so in summary["stages"], and those with
+    rows in events.csv (which only age stages write)."""
+    listed = summary.get("stages")
+    found = {k for k, st in enumerate(listed if isinstance(listed, list) else [])
+             if isinstance(st, dict) and st.get("type") == "age"}
+    if events is not None and has_values(events, "stage"):
+        found |= {int(v) for v in events["stage"][np.isfinite(events["stage"])]}
+    return sorted(found)
+
+
+def age_rows(ev: Columns) -> np.ndarray:
+    """Row indices of the first age stage in events.csv / phases.csv, in ageing-time order."""
+    n = len(next(iter(ev.values()))) if ev else 0
+    idx = np.arange(n)
+    if has_values(ev, "stage"):
+        st = ev["stage"]
+        idx = np.flatnonzero(st == np.nanmin(st))
+    if has_values(ev, "ageing_time_s"):
+        idx = idx[np.isfinite(ev["ageing_time_s"][idx])]
+        idx = idx[np.argsort(ev["ageing_time_s"][idx], kind="stable")]
+    return idx
+
+
+def ageing_groups(ev: Columns, summary: Mapping[str, Any]) -> List[Tuple[str, np.ndarray, int]]:
+    """[(label, row indices in ageing-time order, reference row)] for each age stage of the
+    events (events.csv columns). The reference row is the stage's first dynamic phase (ageing
+    time 0, or the earliest one)."""
+    t_age = ev["ageing_time_s"]
+    n = len(t_age)
+    listed = summary.get("stages")
+    listed = listed if isinstance(listed, list) else []
+    if has_values(ev, "stage"):
+        keys = sorted({int(v) for v in ev["stage"][np.isfinite(ev["stage"])]})
+        groups = [(k, np.flatnonzero(ev["stage"] == k)) for k in keys]
+    else:
+        groups = [(-1, np.arange(n))]
+    out = []
+    for k, idx in groups:
+        idx = idx[np.isfinite(t_age[idx])]
+        if not idx.size:
+            continue
+        order = idx[np.argsort(t_age[idx], kind="stable")]
+        if has_values(ev, "dynamic_phase"):
+            phase = ev["dynamic_phase"][order]
+            ref = int(order[int(np.nanargmin(phase))]) if np.isfinite(phase).any() \
+                else int(order[0])
+        else:
+            ref = int(order[0])
+        if k < 0:
+            label = "age"
+        else:
+            info = listed[k] if 0 <= k < len(listed) and isinstance(listed[k], dict) else {}
+            label = stage_label(k, info)
+        out.append((label, order, ref))
+    return out
+
+
+def walls_fixed(ev: Columns, idx: np.ndarray) -> bool:
+    """Whether every wall stood still over the phases ``idx`` (a relaxation with all walls
+    fixed, as in the oedometric relaxation) rather than servo-controlled (creep, triaxial)."""
+    cols = [f"wall_{w}_position_m" for w in WALLS]
+    if len(idx) < 2 or not has_values(ev, *cols):
+        return False
+    return all(np.ptp(ev[c][idx]) == 0.0 for c in cols)
 
 
 def value_at(t: np.ndarray, y: np.ndarray, t_target: float) -> Tuple[float, str]:

@@ -1,0 +1,210 @@
+"""Reading a crushdem run directory (NumPy only: no figures, no engine).
+
+A run directory holds ``config.toml`` (written when the run starts), ``timeseries.csv``,
+``summary.json`` (written when it ends), and, depending on the run, ``events.csv`` and
+``phases.csv`` (age stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and
+``timing.json``; docs/configuration.md lists their columns. Every reader here returns an empty
+or ``None`` result for a file that is missing, so a run still going can be read too.
+
+:func:`read_run` reads everything the figures need into one :class:`RunData`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+
+from .analysis import mask_unmeasured_contacts
+
+PathLike = Union[str, "os.PathLike[str]"]
+Columns = Dict[str, np.ndarray]
+
+
+def read_csv(path: PathLike) -> Columns:
+    """A CSV with one header row as {column: float64 array}; blanks and text become NaN and
+    lines starting with ``#`` are skipped. Raises ValueError for an empty file or a row with the
+    wrong number of fields."""
+    with open(path, newline="") as f:
+        rows = [r for r in csv.reader(f) if r and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise ValueError(f"{path}: empty file")
+    header = [h.strip() for h in rows[0]]
+    data: Dict[str, List[float]] = {h: [] for h in header}
+    for line_no, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise ValueError(f"{path}:{line_no}: {len(row)} fields, the header has {len(header)}")
+        for h, v in zip(header, row):
+            v = v.strip()
+            try:
+                data[h].append(float(v) if v else math.nan)
+            except ValueError:
+                data[h].append(math.nan)
+    return {h: np.asarray(v, dtype=np.float64) for h, v in data.items()}
+
+
+def read_timeseries(path: PathLike) -> Columns:
+    """DIR/timeseries.csv when ``path`` is a run directory, else the CSV file ``path``, as
+    {column: float64 array} (see :func:`read_csv`)."""
+    if os.path.isdir(path):
+        path = os.path.join(path, "timeseries.csv")
+    return read_csv(path)
+
+
+def read_summary(run_dir: PathLike) -> Dict[str, Any]:
+    """DIR/summary.json as a dict; {} when it is missing or not valid JSON."""
+    return _read_json(os.path.join(run_dir, "summary.json"))
+
+
+def read_timing(run_dir: PathLike) -> Dict[str, Any]:
+    """DIR/timing.json (the run's wall-clock seconds, threads, time by part); {} when it is
+    missing or unreadable."""
+    return _read_json(os.path.join(run_dir, "timing.json"))
+
+
+def _read_json(path: str) -> Dict[str, Any]:
+    try:
+        with open(path) as f:
+            s = json.load(f)
+    except (OSError, ValueError):
+        return {}
+    return s if isinstance(s, dict) else {}
+
+
+def is_finished(run_dir: PathLike) -> bool:
+    """Whether the run has ended (summary.json, written last, exists)."""
+    return os.path.isfile(os.path.join(run_dir, "summary.json"))
+
+
+def stages_from_config(run_dir: PathLike) -> List[Dict[str, Any]]:
+    """The stages (type and name) of DIR/config.toml, which a run writes when it starts: the
+    stage types for a run still going or stopped before summary.json exists. [] when the file
+    is missing, unreadable or has no [[stage]]."""
+    import tomllib
+
+    try:
+        with open(os.path.join(run_dir, "config.toml"), "rb") as f:
+            cfg = tomllib.load(f)
+    except (OSError, ValueError):
+        return []
+    listed = cfg.get("stage")
+    if not isinstance(listed, list):
+        return []
+    return [{"type": st.get("type"), "name": st.get("name")} for st in listed
+            if isinstance(st, dict)]
+
+
+def read_events(run_dir: PathLike) -> Optional[Columns]:
+    """DIR/events.csv (one row per dynamic phase of the "age" stages) as {column: array}.
+
+    None when the file is missing, or unreadable (as it can be for a moment while a run is still
+    writing it: a message goes to stderr).
+    """
+    path = os.path.join(run_dir, "events.csv")
+    if not os.path.isfile(path):
+        return None
+    try:
+        return read_csv(path)
+    except (OSError, ValueError) as e:
+        print(f"crushdem: {path} skipped: {e}", file=sys.stderr)
+        return None
+
+
+def read_phases(run_dir: PathLike) -> Optional[Columns]:
+    """DIR/phases.csv (rows within the dynamic phases of age stages), or None when missing."""
+    path = os.path.join(run_dir, "phases.csv")
+    if not os.path.isfile(path):
+        return None
+    return read_csv(path)
+
+
+def read_grading(run_dir: PathLike) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """DIR/grading.csv as (sieve sizes [m] increasing, mass fraction passing [rows, sieves]).
+
+    The sieve size is read from the column name ``passing_<d>_m``. None when the file is missing,
+    unreadable or has no passing column or no row.
+    """
+    path = os.path.join(run_dir, "grading.csv")
+    if not os.path.isfile(path):
+        return None
+    try:
+        g = read_csv(path)
+    except (OSError, ValueError):
+        return None
+    cols = []
+    for name in g:
+        if name.startswith("passing_") and name.endswith("_m"):
+            try:
+                size = float(name[len("passing_"):-len("_m")])
+            except ValueError:
+                continue
+            if size > 0 and math.isfinite(size):
+                cols.append((size, name))
+    if not cols:
+        return None
+    cols.sort()
+    passing = np.column_stack([g[name] for _, name in cols])
+    if passing.shape[0] == 0:
+        return None
+    return np.asarray([size for size, _ in cols]), passing
+
+
+def read_breakage(run_dir: PathLike) -> List[Tuple[float, str]]:
+    """(diameter [m], cause) of every breakage in DIR/breakage.csv; [] when there is none."""
+    path = os.path.join(run_dir, "breakage.csv")
+    out: List[Tuple[float, str]] = []
+    try:
+        with open(path, newline="") as f:
+            for row in csv.DictReader(f):
+                try:
+                    dia = float(row.get("diameter_m") or "nan")
+                except ValueError:
+                    continue
+                if math.isfinite(dia) and dia > 0:
+                    out.append((dia, (row.get("cause") or "").strip() or "unknown"))
+    except (OSError, ValueError, csv.Error):
+        return []
+    return out
+
+
+@dataclass
+class RunData:
+    """What the figures of one run directory read, loaded once.
+
+    ``timeseries`` has its contact columns NaN on rows written before the contact measurements
+    were computed (:func:`crushdem.analysis.mask_unmeasured_contacts`). ``summary`` is
+    summary.json, or for a run not ``finished`` only the stages of config.toml.
+    """
+
+    directory: str
+    timeseries: Columns
+    summary: Dict[str, Any]
+    finished: bool
+    events: Optional[Columns] = None
+    grading: Optional[Tuple[np.ndarray, np.ndarray]] = None
+    breakage: List[Tuple[float, str]] = field(default_factory=list)
+
+    @property
+    def title(self) -> str:
+        return os.path.basename(os.path.normpath(self.directory))
+
+
+def read_run(run_dir: PathLike) -> RunData:
+    """Reads ``run_dir`` (timeseries.csv is required; OSError or ValueError without it)."""
+    run_dir = os.fspath(run_dir)
+    d = mask_unmeasured_contacts(read_timeseries(os.path.join(run_dir, "timeseries.csv")))
+    summary = read_summary(run_dir)
+    finished = bool(summary)
+    if not finished:
+        # Still running, or stopped (a checkpoint waits for `crushdem resume`): the stage types
+        # come from the configuration, the figures from the rows written so far.
+        summary = {"stages": stages_from_config(run_dir)}
+    return RunData(directory=run_dir, timeseries=d, summary=summary, finished=finished,
+                   events=read_events(run_dir), grading=read_grading(run_dir),
+                   breakage=read_breakage(run_dir))
