@@ -19,6 +19,9 @@ pytest.importorskip("matplotlib")
 from _source import load  # noqa: E402
 
 plot = load("plot")
+analysis = load("analysis")
+figures = load("figures")
+rundir = load("rundir")
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 OLD_FIGURES = {"stress_time.png", "strain_stress.png", "void_ratio.png", "coordination.png",
@@ -442,7 +445,7 @@ def test_ageing_reads_events(tmp_path):
     ev = plot.read_events(run)
     assert ev["ageing_time_s"][0] == 0.0 and np.all(np.diff(ev["ageing_time_s"]) > 0)
     assert list(ev["dynamic_phase"]) == list(range(15))
-    groups = plot._ageing_groups(ev, plot.read_summary(run))
+    groups = analysis.ageing_groups(ev, plot.read_summary(run))
     assert len(groups) == 1
     label, idx, ref = groups[0]
     assert "relaxation" in label and ref == 0 and len(idx) == 15
@@ -465,7 +468,7 @@ def test_relaxation_with_every_wall_fixed_is_told_from_creep(tmp_path):
                 w.writeheader()
                 w.writerows(rows)
         ev = plot.read_events(run)
-        (_, idx, _), = plot._ageing_groups(ev, plot.read_summary(run))
-        assert plot._walls_fixed(ev, idx) is (not creep)
-        assert not plot._walls_fixed(ev, idx[:1])  # one phase says nothing
+        (_, idx, _), = analysis.ageing_groups(ev, plot.read_summary(run))
+        assert analysis.walls_fixed(ev, idx) is (not creep)
+        assert not analysis.walls_fixed(ev, idx[:1])  # one phase says nothing
         assert AGEING_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
