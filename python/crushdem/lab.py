@@ -37,7 +37,7 @@ class Result:
     @property
     def timeseries(self) -> Dict[str, np.ndarray]:
         """``timeseries.csv`` as {column: float64 array}."""
-        from .plot import read_timeseries
+        from .rundir import read_timeseries
 
         return read_timeseries(os.path.join(self.directory, "timeseries.csv"))
 

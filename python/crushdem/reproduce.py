@@ -55,49 +55,24 @@ import csv
 import json
 import math
 import os
-import shutil
 import sys
 import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .analysis import (N_BREAK_TOLERANCE, PLAUSIBLE_OEDOMETRIC_1DAY, T_REF_S,  # noqa: F401
-                       compare_relaxation, fit_log_t, value_at)
-from .plot import (DAY_S, HOUR_S, MPA, _has, _num, _vertical_stress, read_events,
-                   read_summary, read_timeseries)
+from .analysis import (DAY_S, HOUR_S, N_BREAK_TOLERANCE,  # noqa: F401  (re-exported)
+                       PLAUSIBLE_OEDOMETRIC_1DAY, T_REF_S, age_rows, column, compare_relaxation,
+                       fit_log_t, has_values, lateral_stress, value_at, vertical_stress)
+from .figures import MPA, mark_times, use_file_backend_without_display
+from .rundir import read_events, read_phases, read_summary, read_timeseries  # noqa: F401
+from .runs import run_step, set_threads
+from .study import (CONTACT, CRUSHING, MATERIAL, NE34,  # noqa: F401  (re-exported)
+                    OEDOMETRIC_STRESS_PA, PARAMETER_SETS, SIGMA_3_PA, TABLE1_CONTACT,
+                    TABLE1_CRUSHING)
 
 FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
 RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
-
-# Table 1 of the study (docs/model.md 1-3) with the first reconstruction choices: free rotation
-# (no key: the engine's default) and d0 = d50 (no key). The crushing keys are those of
-# examples/*crushing.toml.
-MATERIAL = {"density": 2650.0, "shear_modulus": 32e9, "poisson_ratio": 0.19, "friction": 0.275}
-TABLE1_CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
-NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e-3],
-        "passing": [0.0, 0.10, 0.30, 0.50, 0.70, 0.90, 1.0]}
-# density_scaling as in examples/relaxation_small.toml and the runs of docs/crushing.md: the
-# fragments keep the initial time step (14-fragment splitting would lower it about five times,
-# which a one-day relaxation of 150,000-cycle phases cannot afford); only inertia changes, and the
-# inertial number is reported per stage.
-TABLE1_CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distribution": "normal",
-                   "r_prime": "R_star", "dc_ratio": 0.55, "d_min": 0.01e-3, "crack_growth": True,
-                   "v0": 0.1, "n": 60.0, "density_scaling": True}
-# crushdem's parameter set for the study, chosen by the decision study of docs/crushing.md
-# ("Which rotation model and which grain strength"): Table 1 with rotation blocked (Table 1 lists
-# no rotation model; free spheres cannot reach the study's strength) and d0 = 1 mm (a d50 grain
-# breaks between platens at F / d^2 = 0.47 GPa, inside the 0.05-0.5 GPa of real quartz grains).
-CONTACT = {**TABLE1_CONTACT, "rotation": "blocked"}
-CRUSHING = {**TABLE1_CRUSHING, "d0": 1e-3}
-# Named parameter sets of `crushdem reproduce --parameters`: (contact, crushing, what it is).
-PARAMETER_SETS: Dict[str, Tuple[Dict[str, Any], Dict[str, Any], str]] = {
-    "crushdem": (CONTACT, CRUSHING,
-                 "Table 1 with rotation blocked and d0 = 1 mm (the decision study's choice)"),
-    "table1": (TABLE1_CONTACT, TABLE1_CRUSHING,
-               "Table 1 with free rotation and d0 = d50 (the earlier defaults: q_max 8.5 MPa)"),
-}
-
 
 def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
     """The parameters of every run, study scale or ``--quick``, with the named parameter set
@@ -113,8 +88,8 @@ def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
         "crushing": dict(crushing),
         "sample": {"side": 4e-3, "void_ratio": 0.65, "seed": 1, "stress": 100e3,
                    "grading": NE34},
-        "oedometric": {"stress": 7.5e6, "strain_rate": 10.0},
-        "triaxial": {"sigma_3": 10e6, "strain_rate": 50.0, "axial_strain": 0.30},
+        "oedometric": {"stress": OEDOMETRIC_STRESS_PA, "strain_rate": 10.0},
+        "triaxial": {"sigma_3": SIGMA_3_PA, "strain_rate": 50.0, "axial_strain": 0.30},
         "relaxation": {"q_fraction": 0.7},
         # The study: dynamic phases of at least 150,000 cycles, N_break = 30, one day.
         "age": {"duration": 86400.0, "min_cycles": 150000, "n_break": 30},
@@ -144,34 +119,6 @@ def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
     return s
 
 
-def _age_rows(ev: Dict[str, np.ndarray]) -> np.ndarray:
-    """Row indices of the first age stage in events.csv / phases.csv, in ageing-time order."""
-    n = len(next(iter(ev.values()))) if ev else 0
-    idx = np.arange(n)
-    if _has(ev, "stage"):
-        st = ev["stage"]
-        idx = np.flatnonzero(st == np.nanmin(st))
-    if _has(ev, "ageing_time_s"):
-        idx = idx[np.isfinite(ev["ageing_time_s"][idx])]
-        idx = idx[np.argsort(ev["ageing_time_s"][idx], kind="stable")]
-    return idx
-
-
-def _col(d: Dict[str, np.ndarray], name: str, idx: np.ndarray) -> np.ndarray:
-    """A column on rows ``idx`` (NaN when the column is missing)."""
-    return d[name][idx] if name in d else np.full(idx.size, math.nan)
-
-
-def _lateral_stress(d: Dict[str, np.ndarray]) -> Optional[np.ndarray]:
-    """sigma_h: mean of the four lateral wall stresses [Pa] (whichever exist)."""
-    cols = [d[f"wall_{w}_stress_Pa"] for w in ("xmin", "xmax", "ymin", "ymax")
-            if _has(d, f"wall_{w}_stress_Pa")]
-    if not cols:
-        return None
-    with np.errstate(all="ignore"):
-        return np.nanmean(np.vstack(cols), axis=0)
-
-
 def _write_csv(path: str, comments: Sequence[str], columns: Mapping[str, Sequence[Any]]) -> None:
     """A CSV with ``#`` comment lines first (read_timeseries skips them), then a header row."""
     names = list(columns)
@@ -195,9 +142,6 @@ def _write_csv(path: str, comments: Sequence[str], columns: Mapping[str, Sequenc
 
 
 def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     return plt
@@ -209,25 +153,13 @@ def _save(fig, path: str, written: List[str]) -> None:
     written.append(path)
 
 
-def _mark_times(ax, marks: Sequence[Tuple[float, str]]) -> None:
-    """Dotted vertical lines (with labels) at the given times, where inside the x range."""
-    lo, hi = ax.get_xlim()
-    for x, text in marks:
-        if lo <= x <= hi * 1.0001:
-            ax.axvline(x, color="0.35", ls=":", lw=1.2)
-            ax.text(x, 0.97, f"{text} ", transform=ax.get_xaxis_transform(), rotation=90,
-                    ha="right", va="top", fontsize=8, color="0.25",
-                    bbox=dict(facecolor="white", alpha=0.7, lw=0, pad=1))
-    ax.set_xlim(lo, hi)
-
-
 def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[str, Any]:
     """fig1_oedometric_relaxation.{png,csv} from ``run_dir``/events.csv; returns its numbers."""
     ev = read_events(run_dir)
-    if ev is None or not _has(ev, "ageing_time_s"):
+    if ev is None or not has_values(ev, "ageing_time_s"):
         raise ValueError(f"{run_dir}: no events.csv with ageing_time_s (no age stage ran?)")
-    idx = _age_rows(ev)
-    sigma_v = _vertical_stress(ev)
+    idx = age_rows(ev)
+    sigma_v = vertical_stress(ev)
     if sigma_v is None:
         raise ValueError(f"{run_dir}/events.csv: no axial wall stress column")
     t, s = ev["ageing_time_s"][idx], sigma_v[idx]
@@ -244,15 +176,15 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
         f"ratio at 1 h = {r_1h!r} ({how_1h}); at 1 day = {r_1d!r} ({how_1d}).",
         f"source: {os.path.join(run_dir, 'events.csv')}",
     ], {
-        "dynamic_phase": _col(ev, "dynamic_phase", idx).astype(np.int64)
-        if _has(ev, "dynamic_phase") else np.arange(idx.size),
+        "dynamic_phase": column(ev, "dynamic_phase", idx).astype(np.int64)
+        if has_values(ev, "dynamic_phase") else np.arange(idx.size),
         "ageing_time_s": t,
         "sigma_v_Pa": s,
         "sigma_v_ratio": ratio,
         "sigma_v_over_first_phase": s / s[0] if s.size and s[0] else np.full(s.size, math.nan),
-        "breakages_instant": _col(ev, "breakages_instant", idx),
-        "breakages_crack": _col(ev, "breakages_crack", idx),
-        "n_particles": _col(ev, "n_particles", idx),
+        "breakages_instant": column(ev, "breakages_instant", idx),
+        "breakages_crack": column(ev, "breakages_crack", idx),
+        "n_particles": column(ev, "n_particles", idx),
     })
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.8))
@@ -263,7 +195,9 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
     if math.isfinite(s_ref):
         ax.plot([T_REF_S], [1.0], "s", mfc="none", mec="k", ms=7,
                 label=f"$\\sigma_v$(4 s) = {s_ref * MPA:.3g} MPa")
-    ax.errorbar([DAY_S], [0.835], yerr=[[0.135], [0.135]], fmt="none", ecolor="tab:blue",
+    lo, hi = PLAUSIBLE_OEDOMETRIC_1DAY
+    ax.errorbar([DAY_S], [(lo + hi) / 2], yerr=[[(hi - lo) / 2], [(hi - lo) / 2]], fmt="none",
+                ecolor="tab:blue",
                 capsize=4, lw=1.5, label="plausible band at 1 day (docs/model.md 4.4)")
     ax.axhline(1.0, color="0.6", lw=0.8)
     ax.set_xlabel("ageing time $t$ [s] (log scale)")
@@ -272,7 +206,7 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
                  f"{s[0] * MPA:.3g} MPa" if s.size else "Oedometric stress relaxation")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower left")
-    _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+    mark_times([ax], label_ax=ax)
     _save(fig, base + ".png", written)
     plt.close(fig)
     return {"sigma_v_start_Pa": float(s[0]) if s.size else math.nan,
@@ -280,14 +214,6 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
             "sigma_v_ratio_1h": r_1h, "sigma_v_ratio_1h_method": how_1h,
             "sigma_v_ratio_1day": r_1d, "sigma_v_ratio_1day_method": how_1d,
             "sigma_v_ratio_end": float(ratio[-1]) if ratio.size else math.nan}
-
-
-def read_phases(run_dir: str) -> Optional[Dict[str, np.ndarray]]:
-    """DIR/phases.csv (rows within the dynamic phases of age stages), or None when missing."""
-    path = os.path.join(run_dir, "phases.csv")
-    if not os.path.isfile(path):
-        return None
-    return read_timeseries(path)
 
 
 def figure_dynamic_phase(run_dir: str, out_dir: str, written: List[str],
@@ -306,18 +232,18 @@ def figure_dynamic_phase(run_dir: str, out_dir: str, written: List[str],
     if missing:
         return {"skipped": f"{run_dir}/phases.csv lacks the columns {', '.join(missing)}"}
     rows = np.arange(len(ph["cycle"]))
-    if _has(ph, "stage"):
+    if has_values(ph, "stage"):
         rows = np.flatnonzero(ph["stage"] == np.nanmin(ph["stage"]))
     rows = rows[ph["dynamic_phase"][rows] == phase]
     if not rows.size:
-        n = int(np.nanmax(ph["dynamic_phase"])) + 1 if _has(ph, "dynamic_phase") else 0
+        n = int(np.nanmax(ph["dynamic_phase"])) + 1 if has_values(ph, "dynamic_phase") else 0
         return {"skipped": f"{run_dir}/phases.csv has no dynamic phase {phase + 1} "
                            f"(dynamic_phase == {phase}); the run had {n} phase(s)"}
     rows = rows[np.argsort(ph["cycle"][rows], kind="stable")]
     cyc = ph["cycle"][rows]
     fluct = ph["confining_fluctuation"][rows]
     vol = ph["volumetric_strain_phase"][rows]
-    t_age = float(_col(ph, "ageing_time_s", rows)[0])
+    t_age = float(column(ph, "ageing_time_s", rows)[0])
     base = os.path.join(out_dir, "fig2_dynamic_phase4")
     _write_csv(base + ".csv", [
         f"Dynamic phase {phase + 1} (dynamic_phase == {phase}) of the triaxial relaxation "
@@ -328,16 +254,16 @@ def figure_dynamic_phase(run_dir: str, out_dir: str, written: List[str],
         f"ageing time of the phase: {t_age!r} s; source: {os.path.join(run_dir, 'phases.csv')}",
     ], {
         "cycle": cyc.astype(np.int64),
-        "ageing_time_s": _col(ph, "ageing_time_s", rows),
-        "time_s": _col(ph, "time_s", rows),
+        "ageing_time_s": column(ph, "ageing_time_s", rows),
+        "time_s": column(ph, "time_s", rows),
         "confining_fluctuation": fluct,
         "volumetric_strain_phase": vol,
-        "lateral_stress_Pa": _col(ph, "lateral_stress_Pa", rows),
-        "axial_stress_Pa": _col(ph, "axial_stress_Pa", rows),
-        "deviator_stress_Pa": _col(ph, "deviator_stress_Pa", rows),
-        "breakages_instant": _col(ph, "breakages_instant", rows),
-        "breakages_crack": _col(ph, "breakages_crack", rows),
-        "n_particles": _col(ph, "n_particles", rows),
+        "lateral_stress_Pa": column(ph, "lateral_stress_Pa", rows),
+        "axial_stress_Pa": column(ph, "axial_stress_Pa", rows),
+        "deviator_stress_Pa": column(ph, "deviator_stress_Pa", rows),
+        "breakages_instant": column(ph, "breakages_instant", rows),
+        "breakages_crack": column(ph, "breakages_crack", rows),
+        "n_particles": column(ph, "n_particles", rows),
     })
     plt = _pyplot()
     fig, (ax_a, ax_b) = plt.subplots(2, 1, figsize=(7, 7), sharex=True)
@@ -364,15 +290,15 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
                     q_max: float = math.nan) -> Dict[str, Any]:
     """fig3_triaxial_relaxation.{png,csv}: q against log t with its straight-line fit."""
     ev = read_events(run_dir)
-    if ev is None or not _has(ev, "ageing_time_s", "deviator_stress_Pa"):
+    if ev is None or not has_values(ev, "ageing_time_s", "deviator_stress_Pa"):
         raise ValueError(f"{run_dir}: no events.csv with ageing_time_s and deviator_stress_Pa")
-    idx = _age_rows(ev)
+    idx = age_rows(ev)
     t, q = ev["ageing_time_s"][idx], ev["deviator_stress_Pa"][idx]
     fit = fit_log_t(t, q)
     q0 = float(q[0]) if q.size else math.nan
     q_fit = np.where(t > 0, fit["intercept"] + fit["slope"] * np.log10(np.where(t > 0, t, 1.0)),
                      math.nan)
-    lateral = _lateral_stress(ev)
+    lateral = lateral_stress(ev)
     base = os.path.join(out_dir, "fig3_triaxial_relaxation")
     _write_csv(base + ".csv", [
         "Triaxial stress relaxation (study Figure 3): one row per dynamic phase; q = axial - "
@@ -383,19 +309,19 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
         f"q at the first phase (t = 0) = {q0!r} Pa; q_max of the shear = {q_max!r} Pa",
         f"source: {os.path.join(run_dir, 'events.csv')}",
     ], {
-        "dynamic_phase": _col(ev, "dynamic_phase", idx).astype(np.int64)
-        if _has(ev, "dynamic_phase") else np.arange(idx.size),
+        "dynamic_phase": column(ev, "dynamic_phase", idx).astype(np.int64)
+        if has_values(ev, "dynamic_phase") else np.arange(idx.size),
         "ageing_time_s": t,
         "deviator_stress_Pa": q,
         "q_fit_Pa": q_fit,
         "q_over_q_max": q / q_max if math.isfinite(q_max) and q_max else np.full(q.size,
                                                                                  math.nan),
         "lateral_stress_Pa": lateral[idx] if lateral is not None else np.full(q.size, math.nan),
-        "axial_strain": _col(ev, "axial_strain", idx),
-        "volumetric_strain": _col(ev, "volumetric_strain", idx),
-        "breakages_instant": _col(ev, "breakages_instant", idx),
-        "breakages_crack": _col(ev, "breakages_crack", idx),
-        "n_particles": _col(ev, "n_particles", idx),
+        "axial_strain": column(ev, "axial_strain", idx),
+        "volumetric_strain": column(ev, "volumetric_strain", idx),
+        "breakages_instant": column(ev, "breakages_instant", idx),
+        "breakages_crack": column(ev, "breakages_crack", idx),
+        "n_particles": column(ev, "n_particles", idx),
     })
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.8))
@@ -415,7 +341,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
                  (f" ($q_{{max}}$ = {q_max * MPA:.3g} MPa)" if math.isfinite(q_max) else ""))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=9, loc="best")
-    _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+    mark_times([ax], label_ax=ax)
     _save(fig, base + ".png", written)
     plt.close(fig)
     return {"q_start_Pa": q0, "q_end_Pa": float(q[-1]) if q.size else math.nan,
@@ -432,11 +358,11 @@ def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
     data = []
     for label, run_dir in runs:
         ev = read_events(run_dir)
-        if ev is None or not _has(ev, "ageing_time_s", "std_Fn_N"):
+        if ev is None or not has_values(ev, "ageing_time_s", "std_Fn_N"):
             continue
-        idx = _age_rows(ev)
-        data.append((label, ev["ageing_time_s"][idx], {c: _col(ev, c, idx) for c in cols},
-                     _col(ev, "dynamic_phase", idx)))
+        idx = age_rows(ev)
+        data.append((label, ev["ageing_time_s"][idx], {c: column(ev, c, idx) for c in cols},
+                     column(ev, "dynamic_phase", idx)))
     if not data:
         raise ValueError("no events.csv with std_Fn_N")
     base = os.path.join(out_dir, "fig4_force_statistics")
@@ -479,7 +405,7 @@ def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8, loc="best")
-        _mark_times(ax, [(HOUR_S, "1 h"), (DAY_S, "1 day")])
+        mark_times([ax], label_ax=ax)
     _save(fig, base + ".png", written)
     plt.close(fig)
     return numbers
@@ -489,73 +415,13 @@ def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
 # Running.
 
 
-def set_threads(n: int) -> int:
-    """Sets the OpenMP thread count of every later run (``crushdem._core.set_threads``);
-    returns the count in force (1 in a build without OpenMP)."""
-    from . import _core
-
-    return int(_core.set_threads(int(n)))
-
-
-def _finished(run_dir: str) -> bool:
-    return os.path.isfile(os.path.join(run_dir, "summary.json"))
-
-
-def _timing(run_dir: str) -> Dict[str, Any]:
-    """The run's timing.json (its own wall-clock time, threads); {} when unreadable."""
-    try:
-        with open(os.path.join(run_dir, "timing.json")) as f:
-            t = json.load(f)
-    except (OSError, ValueError):
-        return {}
-    return t if isinstance(t, dict) else {}
-
-
-def _run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[str], None],
-              record: Dict[str, Any],
-              resume: Optional[Callable[[str, bool], Any]] = None) -> None:
-    """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing.
-
-    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
-    instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
-    the run starts over.
-    """
-    def from_timing() -> Dict[str, Any]:
-        timing = _timing(run_dir)
-        return {"wall_s": _num(timing.get("wall_seconds")), "threads": timing.get("threads"),
-                "dominant_part": timing.get("dominant_part")}
-
-    if _finished(run_dir):
-        log(f"{name}: {run_dir} has finished (summary.json): not run again")
-        record[name] = {"skipped": True, **from_timing()}
-        return
-    t0 = time.perf_counter()
-    resumed = False
-    if resume is not None and os.path.isfile(os.path.join(run_dir, "checkpoint.bin")):
-        log(f"{name}: resuming the interrupted run in {run_dir} from checkpoint.bin")
-        try:
-            resume(run_dir, False)
-            resumed = True
-        except (ValueError, RuntimeError) as e:
-            log(f"{name}: cannot resume ({e}): starting over")
-    if not resumed:
-        if os.path.isdir(run_dir):  # unfinished and not resumable: this tool's own directory
-            log(f"{name}: removing the unfinished run in {run_dir} to start it again")
-            shutil.rmtree(run_dir)
-        log(f"{name}: running into {run_dir}")
-        start()
-    wall = time.perf_counter() - t0
-    record[name] = {**from_timing(), "skipped": False, "resumed": resumed, "wall_s": wall}
-    log(f"{name}: done in {wall:.1f} s")
-
-
 def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
                record: Dict[str, Any]) -> str:
-    """The sample of the settings ``cfg`` prepared into ``run_dir`` as a ``_run_step``; returns
+    """The sample of the settings ``cfg`` prepared into ``run_dir`` as a ``run_step``; returns
     its particle file."""
     from . import _core, lab
 
-    _run_step("sample", run_dir,
+    run_step("sample", run_dir,
               lambda: lab.prepare_sample(run_dir, material=cfg["material"],
                                          contact=cfg["contact"], output=cfg["output"],
                                          **cfg["sample"]),
@@ -575,11 +441,11 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
                               log: Callable[[str], None], record: Dict[str, Any],
                               name: str = "oedometric_relaxation") -> None:
     """The study's oedometric relaxation with the settings ``cfg`` (see ``settings``) into
-    ``run_dir``, as a ``_run_step`` (skipped when finished, resumed when interrupted)."""
+    ``run_dir``, as a ``run_step`` (skipped when finished, resumed when interrupted)."""
     from . import _core, lab
 
     oe = cfg["oedometric"]
-    _run_step(name, run_dir,
+    run_step(name, run_dir,
               lambda: lab.oedometric_relaxation(
                   run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
                   crushing=dict(cfg["crushing"]), age_stage=_age_stage(cfg), **cfg["age"],
@@ -612,8 +478,8 @@ def _age_counts(run_dir: str) -> Dict[str, Any]:
             out["age_warning"] = st.get("warning", "")
             break
     ev = read_events(run_dir)
-    if ev is not None and _has(ev, "n_particles"):
-        idx = _age_rows(ev)
+    if ev is not None and has_values(ev, "n_particles"):
+        idx = age_rows(ev)
         out["grains_first_phase"] = float(ev["n_particles"][idx[0]])
     return out
 
@@ -704,7 +570,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
 
     # 3. Triaxial shear to find q_max.
     tx = cfg["triaxial"]
-    _run_step("triaxial_shear", dirs["triaxial_shear"],
+    run_step("triaxial_shear", dirs["triaxial_shear"],
               lambda: lab.triaxial_test(dirs["triaxial_shear"], sample_file,
                                         sigma_3=tx["sigma_3"], strain_rate=tx["strain_rate"],
                                         axial_strain=tx["axial_strain"], crushing=crushing,
@@ -722,7 +588,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
                                       "particles"))
 
     # 4. Triaxial relaxation at 0.7 q_max (the same shear, stopped there).
-    _run_step("triaxial_relaxation", dirs["triaxial_relaxation"],
+    run_step("triaxial_relaxation", dirs["triaxial_relaxation"],
               lambda: lab.triaxial_relaxation(
                   dirs["triaxial_relaxation"], sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
                   strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
@@ -869,6 +735,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     def log(msg: str) -> None:
         print(f"crushdem reproduce: {msg}", flush=True)
+
+    use_file_backend_without_display()
 
     try:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,

@@ -32,11 +32,12 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .plot import _num, read_summary
-from .reproduce import (MATERIAL, TABLE1_CONTACT, TABLE1_CRUSHING, _run_step, _timing,
-                        set_threads, triaxial_stage)
-
-STUDY_Q_MAX_PA = 22.6e6  # the study's q_max at sigma_3 = 10 MPa (section 3.2)
+from .analysis import as_float
+from .reproduce import triaxial_stage
+from .rundir import read_summary, read_timeseries, read_timing
+from .runs import run_step, set_threads
+from .study import (MATERIAL, SIGMA_3_PA, STUDY_Q_MAX_PA,  # noqa: F401  (re-exported)
+                    TABLE1_CONTACT, TABLE1_CRUSHING)
 
 # name: (what it changes, [contact] keys, [crushing] keys). One choice per variant, the rest as
 # in "base"; docs/model.md section 5 lists the choices.
@@ -67,7 +68,7 @@ for _mu_r in ("0.1", "0.2", "0.3", "0.4", "0.6", "1.0"):
         {"rotation": "rolling", "rolling_friction": float(_mu_r)}, {})
 
 
-def settings(sigma_3: float = 10e6, strain_rate: float = 50.0,
+def settings(sigma_3: float = SIGMA_3_PA, strain_rate: float = 50.0,
              axial_strain: float = 0.30) -> Dict[str, Any]:
     """The base settings of every variant, as one JSON-able dict."""
     crushing = dict(TABLE1_CRUSHING)
@@ -147,8 +148,6 @@ def solid_volume(sample: str) -> float:
 def shear_end(run_dir: str) -> Dict[str, float]:
     """q and the volumetric strain of the shear (from its first row) at the end of the
     triaxial stage, from DIR/timeseries.csv (NaN when it cannot be read)."""
-    from .plot import read_timeseries
-
     out = {"q_end_MPa": math.nan, "eps_v_shear": math.nan}
     try:
         d = read_timeseries(os.path.join(run_dir, "timeseries.csv"))
@@ -178,21 +177,21 @@ def read_variant(run_dir: str, sigma_3: float, solids_m3: float = math.nan) -> D
     if not summary:
         return row
     shear = triaxial_stage(summary)
-    q = _num(shear.get("q_max_Pa"))
+    q = as_float(shear.get("q_max_Pa"))
     row.update(finished=True, q_max_MPa=q / 1e6, q_max_over_sigma_3=q / sigma_3,
-               axial_strain_at_q_max=_num(shear.get("axial_strain_at_q_max")),
-               friction_angle_peak_deg=_num(shear.get("friction_angle_peak_deg")),
+               axial_strain_at_q_max=as_float(shear.get("axial_strain_at_q_max")),
+               friction_angle_peak_deg=as_float(shear.get("friction_angle_peak_deg")),
                grains_end=summary.get("particles", nan),
-               wall_s=_num(_timing(run_dir).get("wall_seconds")))
+               wall_s=as_float(read_timing(run_dir).get("wall_seconds")))
     row.update(shear_end(run_dir))
     crushing = summary.get("crushing") or {}
     if crushing:
         row["breakages"] = (crushing.get("breakages_instant", 0) or 0) + (
             crushing.get("breakages_crack", 0) or 0)
         row["relative_breakage_Br"] = crushing.get("relative_breakage_Br", nan)
-        row["removed_volume_share"] = _num(crushing.get("removed_volume_m3")) / solids_m3
+        row["removed_volume_share"] = as_float(crushing.get("removed_volume_m3")) / solids_m3
         first = (summary.get("stages") or [{}])[0]
-        row["loaded_share_072_isotropic"] = _num((first.get("loaded_share") or {}).get("0.72"))
+        row["loaded_share_072_isotropic"] = as_float((first.get("loaded_share") or {}).get("0.72"))
     else:
         row["breakages"], row["relative_breakage_Br"], row["removed_volume_share"] = 0, 0.0, 0.0
     return row
@@ -248,7 +247,7 @@ def table(out: str, names: Sequence[str], sigma_3: float,
 
 
 def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None,
-                    threads: Optional[int] = None, sigma_3: float = 10e6,
+                    threads: Optional[int] = None, sigma_3: float = SIGMA_3_PA,
                     strain_rate: float = 50.0, axial_strain: float = 0.30,
                     log: Callable[[str], None] = print) -> List[Dict[str, Any]]:
     """Runs the variants ``names`` (default: all) on the prepared ``sample`` into ``out``."""
@@ -287,7 +286,7 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
     for n, s in chosen.items():
         run_dir = os.path.join(out, n)
         tri = s["triaxial"]
-        _run_step(n, run_dir,
+        run_step(n, run_dir,
                   lambda s=s, run_dir=run_dir, tri=tri: lab.triaxial_test(
                       run_dir, sample, sigma_3=tri["sigma_3"], strain_rate=tri["strain_rate"],
                       axial_strain=tri["axial_strain"], material=s["material"],
@@ -310,7 +309,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                              f"their changes")
     parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E")
     parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R")
-    parser.add_argument("--sigma-3", type=float, default=10e6, metavar="PA")
+    parser.add_argument("--sigma-3", type=float, default=SIGMA_3_PA, metavar="PA")
     parser.add_argument("--threads", type=int, default=None, metavar="N")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     names = [n.strip() for n in args.only.split(",")] if args.only else None

@@ -44,10 +44,9 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .plot import read_events, read_summary
-from .analysis import value_at
+from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
+from .rundir import read_events, read_summary, read_timing
 
-HOUR_S, DAY_S, REF_S = 3600.0, 86400.0, 4.0
 # How long a task waits for the lock of its run directory: a run killed with its worker takes a
 # moment to write its checkpoint and let go.
 LOCK_WAIT_S = 120.0
@@ -242,10 +241,10 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
         name = st.get("name") or f"stage{k}"
         kind = st.get("type")
         if kind == "triaxial":
-            out[f"{name}.q_max_MPa"] = _f(st.get("q_max_Pa")) / 1e6
-            out[f"{name}.friction_angle_peak_deg"] = _f(st.get("friction_angle_peak_deg"))
+            out[f"{name}.q_max_MPa"] = as_float(st.get("q_max_Pa")) / 1e6
+            out[f"{name}.friction_angle_peak_deg"] = as_float(st.get("friction_angle_peak_deg"))
         if kind in ("oedometric", "isotropic", "triaxial", "age"):
-            out[f"{name}.K0_end"] = _f(st.get("K0_end"))
+            out[f"{name}.K0_end"] = as_float(st.get("K0_end"))
         if kind == "age" and ev is not None and "ageing_time_s" in ev:
             rows = np.arange(len(ev["ageing_time_s"]))
             if "stage" in ev:
@@ -258,7 +257,7 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
             if "deviator_stress_Pa" in ev:
                 series["q"] = ev["deviator_stress_Pa"][rows]
             for label, y in series.items():
-                y_ref, _ = value_at(t, y, REF_S)
+                y_ref, _ = value_at(t, y, T_REF_S)
                 for tag, t_at in (("1h", HOUR_S), ("1day", DAY_S)):
                     y_at, _ = value_at(t, y, t_at)
                     out[f"{name}.{label}_ratio_{tag}"] = y_at / y_ref if y_ref else math.nan
@@ -266,32 +265,17 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
                 out[f"{name}.axial_strain_1day"] = value_at(t, ev["axial_strain"][rows], DAY_S)[0]
     crushing = s.get("crushing") or {}
     if crushing:
-        out["breakages"] = _f(crushing.get("breakages_instant", 0)) + _f(
+        out["breakages"] = as_float(crushing.get("breakages_instant", 0)) + as_float(
             crushing.get("breakages_crack", 0))
-        out["relative_breakage_Br"] = _f(crushing.get("relative_breakage_Br"))
+        out["relative_breakage_Br"] = as_float(crushing.get("relative_breakage_Br"))
     final = s.get("final") or {}
     for k in ("void_ratio", "coordination_number", "mean_stress_Pa", "deviator_stress_Pa",
               "volumetric_strain"):
         if k in final:
-            out[f"final.{k}"] = _f(final[k])
-    out["grains_end"] = _f(s.get("particles"))
-    out["steps"] = _f(s.get("steps"))
+            out[f"final.{k}"] = as_float(final[k])
+    out["grains_end"] = as_float(s.get("particles"))
+    out["steps"] = as_float(s.get("steps"))
     return out
-
-
-def _f(x: Any) -> float:
-    try:
-        return float(x)
-    except (TypeError, ValueError):
-        return math.nan
-
-
-def _wall_seconds(run_dir: str) -> float:
-    try:
-        with open(os.path.join(run_dir, "timing.json")) as f:
-            return _f(json.load(f).get("wall_seconds"))
-    except (OSError, ValueError):
-        return math.nan
 
 
 def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str],
@@ -310,7 +294,7 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
         row["status"] = "done" if done else ("failed" if v["name"] in errors else "not run")
         row["error"] = errors.get(v["name"], "") if not done else ""
         row["run_dir"] = run_dir
-        row["wall_s"] = _wall_seconds(run_dir)
+        row["wall_s"] = as_float(read_timing(run_dir).get("wall_seconds"))
         row.update(figures)
         rows.append(row)
     df = pd.DataFrame(rows)

@@ -22,6 +22,7 @@ pytest.importorskip("matplotlib")
 from _source import load  # noqa: E402
 
 rp = load("reproduce")
+runs = load("runs")
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 
@@ -248,21 +249,21 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     def failing_resume(d, progress):
         raise RuntimeError("checkpoint of another build")
 
-    rp._run_step("r", str(run), start, log.append, record, resume)  # nothing there: runs
+    runs.run_step("r", str(run), start, log.append, record, resume)  # nothing there: runs
     assert calls == ["start"] and record["r"]["skipped"] is False
     (run / "checkpoint.bin").write_bytes(b"x")
-    rp._run_step("r", str(run), start, log.append, record, resume)
+    runs.run_step("r", str(run), start, log.append, record, resume)
     assert calls[-1] == ("resume", str(run), False) and record["r"]["resumed"] is True
-    rp._run_step("r", str(run), start, log.append, record, failing_resume)
+    runs.run_step("r", str(run), start, log.append, record, failing_resume)
     assert calls[-1] == "start" and record["r"]["resumed"] is False
     assert any("starting over" in m for m in log)
     assert not (run / "checkpoint.bin").exists()  # the unfinished run was removed first
-    rp._run_step("r", str(run), start, log.append, record, None)  # no resume in this build
+    runs.run_step("r", str(run), start, log.append, record, None)  # no resume in this build
     assert calls[-1] == "start"
     (run / "summary.json").write_text("{}")
     (run / "timing.json").write_text('{"wall_seconds": 12.5}')
     n = len(calls)
-    rp._run_step("r", str(run), start, log.append, record, resume)
+    runs.run_step("r", str(run), start, log.append, record, resume)
     assert len(calls) == n and record["r"]["skipped"] and record["r"]["wall_s"] == 12.5
 
 

@@ -26,7 +26,8 @@ def _sample(rp):
 
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
     from crushdem import reproduce as rp
-    from crushdem.plot import _vertical_stress, read_events
+    from crushdem.analysis import age_rows, vertical_stress
+    from crushdem.rundir import read_events
 
     os.makedirs(DIR, exist_ok=True)
     sample = _sample(rp)
@@ -38,8 +39,8 @@ def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
         out = os.path.join(DIR, f"oedometric_relaxation_nbreak{n_break}")
         rp.run_oedometric_relaxation(cfg, out, sample, print, {}, name=f"n_break {n_break}")
         ev = read_events(out)
-        idx = rp._age_rows(ev)
-        curves[n_break] = (ev["ageing_time_s"][idx], _vertical_stress(ev)[idx])
+        idx = age_rows(ev)
+        curves[n_break] = (ev["ageing_time_s"][idx], vertical_stress(ev)[idx])
     # Identical up to the first jump: the same state at t = 0.
     assert curves[10][1][0] == curves[30][1][0]
     cmp = rp.compare_relaxation(*curves[10], *curves[30])
