@@ -472,3 +472,197 @@ def test_relaxation_with_every_wall_fixed_is_told_from_creep(tmp_path):
         assert analysis.walls_fixed(ev, idx) is (not creep)
         assert not analysis.walls_fixed(ev, idx[:1])  # one phase says nothing
         assert AGEING_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
+
+
+# --- the figure functions ------------------------------------------------------------------------
+
+
+def _labels(fig):
+    """The legend labels of every axes of ``fig``, one list per legend."""
+    out = []
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is not None:
+            out.append([t.get_text() for t in leg.get_texts()])
+    return out
+
+
+def test_figure_functions_return_figures_without_switching_the_backend(tmp_path):
+    import matplotlib
+    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+
+    before = matplotlib.get_backend()
+    matplotlib.use("svg")  # a backend that is not Agg, as a notebook's inline one is not
+    try:
+        run = _triaxial_run(tmp_path / "triaxial")
+        data = rundir.read_run(run)
+        drawn = {}
+        for name, make in figures.FIGURES.items():
+            fig = make(data)
+            if fig is not None:
+                assert isinstance(fig, Figure), name
+                drawn[name] = fig
+        assert {"stress_time.png", "triaxial.png", "coordination.png"} <= set(drawn)
+        assert isinstance(plot.figure_stress_time(run), Figure)  # a path works too
+        written = plot.make_plots(run, str(tmp_path / "figs"))
+        assert _names(written) == set(drawn)
+        assert matplotlib.get_backend() == "svg"
+        plt.close("all")
+    finally:
+        matplotlib.use(before)
+
+
+def test_cli_selects_agg_only_without_a_display(tmp_path, monkeypatch, capsys):
+    import matplotlib
+
+    before = matplotlib.get_backend()
+    run = _plain_run(tmp_path / "plain")
+    try:
+        monkeypatch.setattr(figures, "display_available", lambda: True)
+        matplotlib.use("svg")
+        assert plot.main([run, "--out", str(tmp_path / "a")]) == 0
+        assert matplotlib.get_backend() == "svg"
+        monkeypatch.setattr(figures, "display_available", lambda: False)
+        assert plot.main([run, "--out", str(tmp_path / "b")]) == 0
+        assert matplotlib.get_backend().lower() == "agg"
+    finally:
+        matplotlib.use(before)
+    capsys.readouterr()
+
+
+def test_stress_time_of_an_age_run_is_against_ageing_time(tmp_path):
+    import matplotlib.pyplot as plt
+
+    run = _ageing_run(tmp_path / "relaxation")
+    fig = figures.figure_stress_time(run)
+    log_axes = [ax for ax in fig.axes if ax.get_xscale() == "log"]
+    dem_axes = [ax for ax in fig.axes if ax.get_xscale() == "linear"]
+    assert len(log_axes) == 1 and len(dem_axes) == 1
+    x_age = np.concatenate([ln.get_xdata() for ln in log_axes[0].get_lines()
+                            if len(ln.get_xdata()) > 2])
+    assert np.nanmax(x_age) > 1000.0 and np.nanmax(x_age) == pytest.approx(86400.0)
+    # The DEM-time panel holds the loading stage, up to the age stage's first row (in a run,
+    # the same state as the loading's last row).
+    d = plot.read_timeseries(run)
+    age_rows = np.flatnonzero(d["stage"] == 1)
+    x_dem = np.concatenate([ln.get_xdata()[np.isfinite(ln.get_ydata())]
+                            for ln in dem_axes[0].get_lines()])
+    assert np.nanmax(x_dem) == d["time_s"][age_rows[0]] < d["time_s"][age_rows[1]]
+    plt.close(fig)
+    # Without an age stage: one panel against DEM time.
+    fig = figures.figure_stress_time(_oedometer_run(tmp_path / "oedometer"))
+    assert [ax.get_xscale() for ax in fig.axes] == ["linear"]
+    plt.close(fig)
+
+
+def test_no_legend_repeats_a_label(tmp_path):
+    import matplotlib.pyplot as plt
+
+    run = _oedometer_run(tmp_path / "oedometer")
+    with open(os.path.join(run, "summary.json")) as f:
+        summary = json.load(f)
+    summary["stages"][0]["name"], summary["stages"][1]["name"] = "loading", "unloading"
+    with open(os.path.join(run, "summary.json"), "w") as f:
+        json.dump(summary, f)
+    runs = [run, _ageing_run(tmp_path / "relaxation"), _crushing_run(tmp_path / "crushing")]
+    for r in runs:
+        for name, fig in figures.draw_all(r):
+            for labels in _labels(fig):
+                assert len(labels) == len(set(labels)), (r, name, labels)
+                assert not any("loading, loading" in lab for lab in labels), (name, labels)
+            plt.close(fig)
+    fig = figures.figure_oedometer(run)
+    (labels,) = _labels(fig)
+    assert labels[0].startswith("stage 0: loading, $K_0$")
+    assert labels[1].startswith("stage 1: unloading, $K_0$")
+    plt.close(fig)
+    # A stage drawn in two segments has one legend entry.
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1], label="stage 0: loading")
+    ax.plot([2, 3], [1, 2], label="stage 0: loading")
+    ax.plot([2, 3], [0, 0], label="limit")
+    assert [t.get_text() for t in figures.unique_legend(ax).get_texts()] == [
+        "stage 0: loading", "limit"]
+    plt.close(fig)
+
+
+def test_triaxial_warning_is_below_the_axes(tmp_path):
+    import matplotlib.pyplot as plt
+
+    run = _triaxial_run(tmp_path / "triaxial")
+    with open(os.path.join(run, "summary.json")) as f:
+        summary = json.load(f)
+    summary["stages"][1]["warning"] = ("the inertial number reached 2.3e-3, above the "
+                                       "quasi-static limit 1e-3: lower the strain rate") * 2
+    with open(os.path.join(run, "summary.json"), "w") as f:
+        json.dump(summary, f)
+    fig = figures.figure_triaxial(run)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    assert not any("warning" in t.get_text() for ax in fig.axes for t in ax.texts)
+    notes = [t for t in fig.texts if t.get_text()]
+    assert notes and "warning" in notes[0].get_text()
+    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes]
+    boxes += [ax.get_legend().get_window_extent(renderer) for ax in fig.axes
+              if ax.get_legend() is not None]
+    for t in notes:
+        tb = t.get_window_extent(renderer)
+        assert tb.x0 >= 0 and tb.y0 >= 0 and tb.x1 <= fig.bbox.width
+        assert not any(tb.overlaps(b) for b in boxes), t.get_text()
+    plt.close(fig)
+
+
+def _prepared_sample_test_run(path):
+    """A test from a prepared sample: its first row has the wall stresses (0.1 MPa) but every
+    contact column 0, as the engine writes it; later rows are measured."""
+    rows = []
+    for i in range(6):
+        sig = 0.1e6 * (1 + i)
+        contacts = 0 if i == 0 else 1000 + 10 * i
+        rows.append(_row(i * 1e-5, sig, sig, 0.001 * i, 0.003 * i, 0.7 - 0.002 * i, stage=0,
+                         n_contacts=contacts, mean_Fn_N=0.0 if i == 0 else 0.01 * i,
+                         love_mean_stress_Pa=0.0 if i == 0 else sig))
+        rows[-1]["coordination_number"] = 0.0 if i == 0 else 4.4
+    return _write_run(path, rows, {"stages": [_stage_summary("isotropic", "isotropic")]})
+
+
+def test_rows_without_contact_measurements_are_not_drawn_as_zero(tmp_path):
+    import matplotlib.pyplot as plt
+
+    run = _prepared_sample_test_run(tmp_path / "from_sample")
+    d = rundir.read_run(run).timeseries
+    for c in ("n_contacts", "coordination_number", "mean_Fn_N", "love_mean_stress_Pa"):
+        assert math.isnan(d[c][0]) and np.all(np.isfinite(d[c][1:])), c
+    assert d["wall_zmax_stress_Pa"][0] == 0.1e6  # the walls' own measurement stays
+    fig = figures.figure_coordination(run)
+    (line,) = fig.axes[0].get_lines()
+    assert np.nanmin(line.get_ydata()) == pytest.approx(4.4)
+    plt.close(fig)
+
+
+def test_unmeasured_contact_rows_are_the_first_rows_of_stages_under_load():
+    n = 6
+    d = {"stage": np.array([0, 0, 0, 1, 1, 1], dtype=float),
+         "n_contacts": np.array([0, 0, 5, 0, 7, 0], dtype=float),
+         "wall_zmax_stress_Pa": np.array([0.0, 1e3, 1e5, 1e5, 1e5, 1e5])}
+    # Row 0: no load, so a real 0; row 1: grains not yet touching in the middle of a stage;
+    # row 3: first row of stage 1 under load without contacts: not computed; row 5: a real 0.
+    assert list(analysis.unmeasured_contact_rows(d)) == [False, False, False, True, False,
+                                                         False]
+    masked = analysis.mask_unmeasured_contacts(d)
+    assert math.isnan(masked["n_contacts"][3]) and masked["n_contacts"][5] == 0
+    assert d["n_contacts"][3] == 0  # the input is not changed
+    assert not analysis.unmeasured_contact_rows({"time_s": np.zeros(n)}).any()
+
+
+def test_rundir_readers_are_the_ones_plot_exports(tmp_path):
+    run = _crushing_run(tmp_path / "crushing")
+    assert plot.read_timeseries is rundir.read_timeseries
+    by_dir, by_file = plot.read_timeseries(run), plot.read_timeseries(
+        os.path.join(run, "timeseries.csv"))
+    assert by_dir.keys() == by_file.keys()
+    assert all(np.array_equal(by_dir[k], by_file[k], equal_nan=True) for k in by_dir)
+    data = rundir.read_run(run)
+    assert data.finished and data.title == "crushing" and data.grading is not None
+    assert data.breakage and data.events is None
