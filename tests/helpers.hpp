@@ -74,7 +74,7 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 #include <vector>
 
 #include "crushdem/io/config.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem::testing {

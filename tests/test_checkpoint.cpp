@@ -18,7 +18,7 @@
 #include "crushdem/core/part_clock.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/particles/generate.hpp"
 #include "helpers.hpp"

@@ -9,7 +9,7 @@
 
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP

@@ -28,7 +28,7 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP

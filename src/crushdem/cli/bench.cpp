@@ -25,7 +25,7 @@
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/io/packing.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_CUDA
 #include "crushdem/integrate/gpu_stepper.hpp"

@@ -7,7 +7,7 @@
 
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
-#include "crushdem/io/runner.hpp"
+#include "crushdem/run/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_CUDA
 #include <memory>

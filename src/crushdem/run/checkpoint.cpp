@@ -1,0 +1,151 @@
+#include "crushdem/run/checkpoint.hpp"
+
+#include <cstring>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/experiments/protocol.hpp"
+#include "crushdem/fracture/crushing.hpp"
+#include "crushdem/io/config.hpp"
+#include "crushdem/run/driver.hpp"
+
+namespace crushdem {
+
+namespace {
+
+void put_json(StateWriter& out, const JsonObject& o) {
+  std::vector<std::string> keys, values;
+  for (const auto& [k, v] : o.fields) {
+    keys.push_back(k);
+    values.push_back(v);
+  }
+  out.put(keys);
+  out.put(values);
+}
+
+JsonObject get_json(StateReader& in) {
+  std::vector<std::string> keys, values;
+  in.get(keys);
+  in.get(values);
+  JsonObject o;
+  for (std::size_t k = 0; k < keys.size() && k < values.size(); ++k) {
+    o.fields.emplace_back(keys[k], values[k]);
+  }
+  return o;
+}
+
+/// The version of a checkpoint's format tag, 0 if it is not one crushdem can read.
+int checkpoint_version(const std::string& format) {
+  for (int v = 1; v <= kStateVersion; ++v) {
+    if (format == checkpoint_tag(v)) return v;
+  }
+  return 0;
+}
+
+}  // namespace
+
+void RunPosition::save(StateWriter& out) const {
+  out.tag("progress");
+  out.put(part);
+  out.put(begun);
+  out.put(to_check);
+  out.put(wall_seconds);
+  out.put(part_seconds);
+  out.put(particle_steps);
+  out.put(has_sample_json);
+  put_json(out, sample_json);
+  out.put(static_cast<std::uint64_t>(stage_results.size()));
+  for (const JsonObject& o : stage_results) put_json(out, o);
+  out.put(warnings);
+  out.put(ref0);
+  out.put(ref);
+  out.put(d50);
+  out.put(has_crusher);
+}
+
+void RunPosition::load(StateReader& in) {
+  in.tag("progress");
+  in.get(part);
+  in.get(begun);
+  in.get(to_check);
+  in.get(wall_seconds);
+  if (in.version() >= 2) {
+    in.get(part_seconds);
+    in.get(particle_steps);
+  }
+  in.get(has_sample_json);
+  sample_json = get_json(in);
+  const auto n = in.value<std::uint64_t>();
+  stage_results.clear();
+  for (std::uint64_t k = 0; k < n; ++k) stage_results.push_back(get_json(in));
+  in.get(warnings);
+  in.get(ref0);
+  in.get(ref);
+  in.get(d50);
+  in.get(has_crusher);
+}
+
+std::string checkpoint_tag(int version) {
+  return "crushdem-checkpoint-" + std::to_string(version);
+}
+
+std::string checkpoint_bytes(const std::string& config_text, const RunPosition& position,
+                             const Driver& driver, const Simulation& sim, const Crusher* crusher,
+                             const Controller* running) {
+  StateWriter out;
+  out.tag(checkpoint_tag(kStateVersion).c_str());
+  out.put(config_text);
+  position.save(out);
+  driver.save_state(out);
+  sim.save_state(out);
+  if (crusher) crusher->save_state(out);
+  if (running) running->save_state(out);
+  out.put(fnv1a64(out.bytes().data(), out.bytes().size()));
+  return out.bytes();
+}
+
+OpenCheckpoint open_checkpoint(const std::string& path) {
+  std::string bytes = read_binary_file(path);
+  int version = 0;
+  {
+    StateReader head(bytes, path);
+    std::string format;
+    head.get(format);
+    version = checkpoint_version(format);
+    if (version == 0) {
+      throw ConfigError("'" + path + "' is not a crushdem checkpoint (format '" +
+                        format.substr(0, 40) + "', expected '" + checkpoint_tag(kStateVersion) +
+                        "')");
+    }
+  }
+  if (version >= 4) {  // the last 8 bytes: the checksum of the others
+    std::uint64_t saved = 0;
+    const bool sized = bytes.size() >= sizeof saved;
+    if (sized) std::memcpy(&saved, bytes.data() + bytes.size() - sizeof saved, sizeof saved);
+    if (!sized || saved != fnv1a64(bytes.data(), bytes.size() - sizeof saved)) {
+      throw ConfigError("'" + path +
+                        "' is damaged (its checksum does not match its contents), so it cannot "
+                        "be resumed; start the run again with `crushdem run ... --overwrite`");
+    }
+    bytes.resize(bytes.size() - sizeof saved);
+  }
+  OpenCheckpoint c;
+  c.reader = std::make_unique<StateReader>(std::move(bytes), path);
+  std::string format;
+  c.reader->get(format);
+  c.reader->set_version(version);
+  c.reader->get(c.config_text);
+  return c;
+}
+
+bool same_resolved_config(const std::string& saved, const std::string& current,
+                          const std::filesystem::path& dir) {
+  try {
+    const std::string source = (dir / "checkpoint.bin").string();
+    const RunConfig again = run_config_from_toml(toml::parse(saved, source), source, dir.string());
+    return toml::serialize(to_toml(again)) == current;
+  } catch (const std::exception&) {
+    return false;  // not readable as a configuration any more: certainly not the same run
+  }
+}
+
+}  // namespace crushdem

@@ -1,0 +1,76 @@
+// The checkpoint format (checkpoint.bin, and stages/stage_K.bin kept for branches), version
+// kStateVersion (core/state_io.hpp); older versions still resume. In order:
+//   format tag "crushdem-checkpoint-V", the resolved configuration text it was taken with,
+//   the run position (RunPosition), the result files (Driver), the simulation, the crusher (when
+//   grains break), the running controller (when one has begun), then from version 4 on an
+//   FNV-1a checksum of all the bytes before it.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "crushdem/core/part_clock.hpp"
+#include "crushdem/core/state_io.hpp"
+#include "crushdem/experiments/measurements.hpp"
+#include "crushdem/io/output.hpp"
+
+namespace crushdem {
+
+class Controller;
+class Crusher;
+class Driver;
+class Simulation;
+
+/// The run's parts in the order they run: preparation, a plain [run], then stage k at
+/// kPartFirstStage + k.
+constexpr std::uint32_t kPartPreparation = 0, kPartRun = 1, kPartFirstStage = 2;
+
+/// Where a run stands between steps, beyond the simulation and the controllers: which part it
+/// is in, and what earlier parts produced for summary.json.
+struct RunPosition {
+  std::uint32_t part = 0;
+  bool begun = false;          // the part's controller has begun (its state is saved too)
+  std::uint64_t to_check = 0;  // steps to the controller's next check
+  double wall_seconds = 0.0;   // wall-clock time of the run before this process
+  std::array<double, PartClock::kParts> part_seconds{};  // the run's seconds by part so far
+  double particle_steps = 0.0;                           // the run's particles times steps so far
+  bool has_sample_json = false;                          // preparation finished
+  JsonObject sample_json;
+  std::vector<JsonObject> stage_results;
+  std::vector<std::string> warnings;
+  StrainReference ref0, ref;  // strains of the preparation, and of the test
+  double d50 = 0.0;           // of the sample at the start of the test
+  bool has_crusher = false;
+
+  void save(StateWriter& out) const;
+  void load(StateReader& in);
+};
+
+/// The format tag of version `version`.
+std::string checkpoint_tag(int version);
+
+/// The bytes of a checkpoint at this point of a run (checksum included). `running`: the
+/// controller of the current part, null between two parts.
+std::string checkpoint_bytes(const std::string& config_text, const RunPosition& position,
+                             const Driver& driver, const Simulation& sim, const Crusher* crusher,
+                             const Controller* running);
+
+/// A checkpoint opened for reading: its version checked and its checksum verified (ConfigError
+/// naming the file otherwise); `reader` stands after the configuration text, at the position.
+struct OpenCheckpoint {
+  std::unique_ptr<StateReader> reader;
+  std::string config_text;
+};
+OpenCheckpoint open_checkpoint(const std::string& path);
+
+/// A later crushdem writes keys added since (at their defaults) into the resolved configuration
+/// as well: the saved text and the current one describe the same run when the saved one,
+/// resolved again, gives the current one.
+bool same_resolved_config(const std::string& saved, const std::string& current,
+                          const std::filesystem::path& dir);
+
+}  // namespace crushdem

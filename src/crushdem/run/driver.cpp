@@ -1,0 +1,262 @@
+#include "crushdem/run/driver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "crushdem/io/vtk.hpp"
+#include "crushdem/run/signals.hpp"
+
+namespace crushdem {
+
+std::string ordinal_stamp(std::size_t k) {
+  char b[24];  // any size_t
+  std::snprintf(b, sizeof b, "%06zu", k);
+  return b;
+}
+
+std::string step_stamp(std::uint64_t step) {
+  char b[24];  // any uint64
+  std::snprintf(b, sizeof b, "%010llu", static_cast<unsigned long long>(step));
+  return b;
+}
+
+// --- FixedLengthController ---------------------------------------------------------------------
+
+void FixedLengthController::begin(Simulation& sim) {
+  start_step_ = sim.step_count();
+  start_time_ = sim.time();
+}
+
+bool FixedLengthController::update(Simulation& sim) {
+  return steps_ > 0 ? sim.step_count() - start_step_ >= steps_
+                    : sim.time() - start_time_ >= duration_;
+}
+
+std::uint64_t FixedLengthController::steps_to_check(Simulation& sim) {
+  if (steps_ > 0) return std::max<std::uint64_t>(1, steps_ - (sim.step_count() - start_step_));
+  const double left = std::ceil((start_time_ + duration_ - sim.time()) / sim.dt());
+  return static_cast<std::uint64_t>(std::max(1.0, left));
+}
+
+void FixedLengthController::save_state(StateWriter& out) const {
+  out.tag("run");
+  out.put(start_step_);
+  out.put(start_time_);
+}
+
+void FixedLengthController::load_state(StateReader& in) {
+  in.tag("run");
+  in.get(start_step_);
+  in.get(start_time_);
+}
+
+double FixedLengthController::fraction(const Simulation& sim) const {
+  return steps_ > 0
+             ? static_cast<double>(sim.step_count() - start_step_) / static_cast<double>(steps_)
+             : (sim.time() - start_time_) / duration_;
+}
+
+// --- Driver ------------------------------------------------------------------------------------
+
+Driver::Driver(Simulation& sim, const RunConfig& cfg, const RunOptions& opt)
+    : sim_(sim),
+      cfg_(cfg),
+      opt_(opt),
+      dir_(opt.out_dir),
+      t0_(clock::now()),
+      last_(t0_),
+      last_checkpoint_(t0_) {}
+
+CsvWriter& Driver::file(const std::string& name) {
+  auto& f = files_[name];
+  if (!f) f = std::make_unique<CsvWriter>((dir_ / name).string());
+  return *f;
+}
+
+void Driver::snapshot() {
+  const PartScope timed(sim_.part_clock(), Part::Output);
+  const Snapshot now{sim_.step_count(), sim_.time()};
+  if (!snapshots_.empty() && snapshots_.back().step == now.step) return;  // written already
+  const std::filesystem::path vtk = dir_ / "vtk";
+  const std::string k = step_stamp(now.step);
+  write_vtp_particles((vtk / ("particles_" + k + ".vtp")).string(), sim_.particles(),
+                      sim_.resultant_force(0), sim_.resultant_force(1), sim_.resultant_force(2));
+  write_vtp_contacts((vtk / ("contacts_" + k + ".vtp")).string(), sim_.particles(),
+                     sim_.contacts());
+  double b[6];
+  for (int w = 0; w < kNumWalls; ++w) b[w] = sim_.walls().position(w);
+  write_vtp_box((vtk / ("box_" + k + ".vtp")).string(), b);
+  snapshots_.push_back(now);
+  write_collections();
+}
+
+void Driver::write_collections() const {
+  for (const char* kind : kSnapshotKinds) {
+    std::vector<PvdEntry> entries;
+    for (const Snapshot& s : snapshots_) {
+      entries.push_back({s.time, std::string(kind) + "_" + step_stamp(s.step) + ".vtp"});
+    }
+    write_pvd((dir_ / "vtk" / (std::string(kind) + ".pvd")).string(), entries);
+  }
+}
+
+void Driver::attach_crusher(Crusher* crusher, bool resumed) {
+  crusher_ = crusher;
+  if (!resumed) {
+    file("breakage.csv")
+        .start({"time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
+                "fragments", "removed_fragments", "fragment_ids"});
+  }
+}
+
+void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
+                   const std::string& label, const std::function<double()>& fraction, bool resumed,
+                   std::uint64_t to_check, std::function<std::string()> note) {
+  progress_note_ = std::move(note);
+  if (!resumed) {
+    c.begin(sim_);
+    csv.write(row());
+    to_check = c.steps_to_check(sim_);
+  }
+  bool finished = false;
+  const std::uint64_t interval = cfg_.output.interval, vtk = cfg_.output.vtk_interval;
+  while (!finished) {
+    const std::uint64_t s0 = sim_.step_count();
+    std::uint64_t n = std::min(interval - s0 % interval, to_check);
+    if (vtk > 0) n = std::min(n, vtk - s0 % vtk);
+    if (crusher_) {
+      const std::uint64_t k = crusher_->config().interval;
+      n = std::min(n, k - s0 % k);
+    }
+    // Short chunks on the CPU so that a stop request is answered within seconds (the chunking
+    // does not change the result); another backend keeps its long chunks.
+    if (!opt_.advance) n = std::min<std::uint64_t>(n, kMaxChunk);
+    if (opt_.advance) {
+      opt_.advance(sim_, n);
+    } else {
+      sim_.step(n);
+    }
+    if (opt_.sync) opt_.sync(sim_);
+    particle_steps_ += static_cast<double>(n) * static_cast<double>(sim_.particles().size());
+    to_check -= n;
+    const std::uint64_t s = sim_.step_count();
+    if (crusher_ && s % crusher_->config().interval == 0) {
+      const std::vector<BreakageEvent> events = crusher_->apply(sim_);
+      log(events);
+      // Outputs and checks at this step read forces: evaluate them for the new grains (what
+      // the next step would do first anyway, with no tangential increment).
+      if (!events.empty()) sim_.compute_forces();
+    }
+    if (to_check == 0) {
+      finished = c.update(sim_);
+      if (!finished) to_check = c.steps_to_check(sim_);
+    }
+    if (s % interval == 0 || finished) {
+      const Measurement m = row();
+      const PartScope timed(sim_.part_clock(), Part::Output);
+      csv.write(m);
+    }
+    if (vtk > 0 && s % vtk == 0 && !finished) snapshot();  // the final one follows the run
+    progress(label, fraction);
+    if (!finished && checkpoint) {
+      const int stop = stop_signal();
+      const double since = std::chrono::duration<double>(clock::now() - last_checkpoint_).count();
+      const double every = cfg_.output.checkpoint_seconds;
+      if (checkpoint_requested_ || stop != 0 || (every > 0.0 && since >= every)) {
+        checkpoint(c, to_check);
+        checkpoint_requested_ = false;
+      }
+      if (stop != 0) throw Interrupted(stop, opt_.out_dir);
+    }
+  }
+}
+
+std::vector<std::string> Driver::file_names() const {
+  std::vector<std::string> names;
+  for (const auto& [name, f] : files_) names.push_back(name);
+  return names;
+}
+
+void Driver::save_state(StateWriter& out) const {
+  out.tag("files");
+  out.put(static_cast<std::uint64_t>(legacy_snapshots_));
+  out.put(static_cast<std::uint64_t>(snapshots_.size()));
+  for (const Snapshot& snap : snapshots_) {
+    out.put(snap.step);
+    out.put(snap.time);
+  }
+  out.put(static_cast<std::uint64_t>(files_.size()));
+  for (const auto& [name, f] : files_) {
+    out.put(name);
+    out.put(f->size());
+    out.put(f->columns());
+  }
+}
+
+void Driver::load_state(StateReader& in) {
+  in.tag("files");
+  // Format 4 and older: a count of legacy .vtk snapshots only.
+  legacy_snapshots_ = static_cast<std::size_t>(in.value<std::uint64_t>());
+  snapshots_.clear();
+  if (in.version() >= 5) {
+    const auto count = in.value<std::uint64_t>();
+    for (std::uint64_t k = 0; k < count; ++k) {
+      Snapshot snap;
+      in.get(snap.step);
+      in.get(snap.time);
+      snapshots_.push_back(snap);
+    }
+  }
+  const auto n = in.value<std::uint64_t>();
+  for (std::uint64_t k = 0; k < n; ++k) {
+    std::string name;
+    in.get(name);
+    const auto size = in.value<long long>();
+    std::vector<std::string> columns;
+    in.get(columns);
+    file(name).resume(size, columns);
+  }
+}
+
+void Driver::progress(const std::string& label, const std::function<double()>& fraction) {
+  if (!opt_.progress || !(cfg_.output.progress_seconds > 0)) return;
+  const auto now = clock::now();
+  if (std::chrono::duration<double>(now - last_).count() < cfg_.output.progress_seconds) return;
+  last_ = now;
+  const Walls& w = sim_.walls();
+  const double sz = w.axial_stress(), sr = w.lateral_stress();
+  std::fprintf(stderr,
+               "[crushdem] %s  step %llu  t = %.4e s  sigma_z = %.4g MPa  sigma_r = %.4g MPa  "
+               "q = %.4g MPa",
+               label.c_str(), static_cast<unsigned long long>(sim_.step_count()), sim_.time(),
+               1e-6 * sz, 1e-6 * sr, 1e-6 * (sz - sr));
+  if (progress_note_) {
+    const std::string note = progress_note_();
+    if (!note.empty()) std::fprintf(stderr, "  %s", note.c_str());
+  }
+  if (fraction) {
+    const double f = fraction();
+    const double el = std::chrono::duration<double>(now - t0_).count();
+    std::fprintf(stderr, "  (%.1f %%, ETA %.0f s)", 100.0 * f, f > 0 ? el * (1 - f) / f : 0.0);
+  }
+  std::fprintf(stderr, "\n");
+}
+
+void Driver::log(const std::vector<BreakageEvent>& events) {
+  CsvWriter& out = file("breakage.csv");
+  for (const BreakageEvent& e : events) {
+    std::string line = format_double(e.time) + "," + std::to_string(e.step) + "," +
+                       std::to_string(e.id) + "," + format_double(e.diameter) + "," +
+                       to_string(e.cause) + "," + format_double(e.sigma) + "," +
+                       format_double(e.sigma_lim) + "," + std::to_string(e.fragments.size()) + "," +
+                       std::to_string(e.removed_fragments) + ",";
+    for (std::size_t k = 0; k < e.fragments.size(); ++k) {
+      if (k) line += ' ';
+      line += std::to_string(e.fragments[k]);
+    }
+    out.write_line(line);  // flushed: finished work is on disk
+  }
+}
+
+}  // namespace crushdem

@@ -1,0 +1,124 @@
+// The run driver: steps a Simulation under one controller after another, in chunks that end
+// exactly on the output points and the controller's checks (the same steps as one at a time, so
+// results depend neither on the chunking nor on a backend taking a chunk at once). It owns the
+// result files (CSV and ParaView snapshots), so that a checkpoint records how far each has been
+// written, and it writes progress lines and periodic checkpoints.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "crushdem/experiments/protocol.hpp"
+#include "crushdem/fracture/crushing.hpp"
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/output.hpp"
+#include "crushdem/run/options.hpp"
+
+namespace crushdem {
+
+/// "000012": legacy snapshot ordinals (format 4 and older checkpoints).
+std::string ordinal_stamp(std::size_t k);
+/// Snapshot file names carry the step, zero-padded so that they sort in order.
+std::string step_stamp(std::uint64_t step);
+
+/// A ParaView snapshot: the step (its files' names) and the simulated time (the .pvd's).
+struct Snapshot {
+  std::uint64_t step = 0;
+  double time = 0.0;
+};
+inline constexpr const char* kSnapshotKinds[] = {"particles", "contacts", "box"};
+
+/// The plain [run]: the walls as configured, for a number of steps or a duration.
+class FixedLengthController final : public Controller {
+ public:
+  FixedLengthController(std::uint64_t steps, double duration)
+      : steps_(steps), duration_(duration) {}
+  void begin(Simulation& sim) override;
+  bool update(Simulation& sim) override;
+  std::uint64_t steps_to_check(Simulation& sim) override;
+  Measurement columns(const Simulation&) const override { return {}; }
+  void save_state(StateWriter& out) const override;
+  void load_state(StateReader& in) override;
+  double fraction(const Simulation& sim) const;
+
+ private:
+  std::uint64_t steps_;
+  double duration_;
+  std::uint64_t start_step_ = 0;
+  double start_time_ = 0.0;
+};
+
+class Driver {
+ public:
+  Driver(Simulation& sim, const RunConfig& cfg, const RunOptions& opt);
+
+  /// The CSV file `name` in the output directory (opened when its first row is written).
+  CsvWriter& file(const std::string& name);
+
+  /// The state as ParaView files named by step (vtk/particles_, contacts_ and box_STEP.vtp),
+  /// listed with their times in vtk/particles.pvd, contacts.pvd and box.pvd.
+  void snapshot();
+  /// vtk/KIND.pvd for each kind of snapshot file, from the snapshots written so far.
+  void write_collections() const;
+
+  /// Grains break from now on: the criterion is checked every crushing.interval steps (counted
+  /// from step 0) and every breakage is appended to breakage.csv (started unless resumed).
+  void attach_crusher(Crusher* crusher, bool resumed);
+
+  /// Called with the running controller and the steps left to its next check whenever a
+  /// checkpoint is due inside drive(): at a requested event, every output.checkpoint_seconds of
+  /// wall-clock time, and on a stop request (after which drive() throws Interrupted).
+  std::function<void(const Controller&, std::uint64_t)> checkpoint;
+  void request_checkpoint() { checkpoint_requested_ = true; }
+  void checkpoint_written() { last_checkpoint_ = clock::now(); }
+
+  /// Runs `c` to its end; `row` gives the time-series row (written at the start, every output
+  /// interval and at the end). resumed: `c` was restored from a checkpoint taken inside this
+  /// loop, `to_check` steps before its next check (begin() and the first row are not repeated).
+  /// `fraction` (done share) adds a percentage and ETA to progress lines, `note` a text.
+  void drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
+             const std::string& label, const std::function<double()>& fraction = {},
+             bool resumed = false, std::uint64_t to_check = 0,
+             std::function<std::string()> note = {});
+
+  double seconds() const { return std::chrono::duration<double>(clock::now() - t0_).count(); }
+  /// Particles times steps over the run (the count is fixed within a chunk); a resumed run
+  /// starts from the total its checkpoint holds.
+  double particle_steps() const { return particle_steps_; }
+  void add_particle_steps(double earlier) { particle_steps_ += earlier; }
+  /// Snapshots written, by older releases' checkpoints (legacy .vtk, counted only) included.
+  std::size_t snapshots() const { return legacy_snapshots_ + snapshots_.size(); }
+  const std::vector<Snapshot>& snapshot_list() const { return snapshots_; }
+  std::size_t legacy_snapshots() const { return legacy_snapshots_; }
+  std::vector<std::string> file_names() const;
+
+  void save_state(StateWriter& out) const;
+  void load_state(StateReader& in);
+
+ private:
+  using clock = std::chrono::steady_clock;
+  static constexpr std::uint64_t kMaxChunk = 2000;
+  void progress(const std::string& label, const std::function<double()>& fraction);
+  void log(const std::vector<BreakageEvent>& events);
+
+  Simulation& sim_;
+  const RunConfig& cfg_;
+  const RunOptions& opt_;
+  Crusher* crusher_ = nullptr;
+  std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
+  std::filesystem::path dir_;
+  std::vector<Snapshot> snapshots_;
+  std::size_t legacy_snapshots_ = 0;
+  bool checkpoint_requested_ = false;
+  double particle_steps_ = 0.0;
+  std::function<std::string()> progress_note_;  // set by drive() from its caller's note
+  clock::time_point t0_, last_, last_checkpoint_;
+};
+
+}  // namespace crushdem

@@ -1,0 +1,42 @@
+// What the caller of a run chooses beyond its configuration (where it writes, progress, the
+// backend that steps it, resume or branch), and what a finished run reports back.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "crushdem/integrate/simulation.hpp"
+
+namespace crushdem {
+
+struct RunOptions {
+  std::string out_dir;
+  bool progress = true;  // progress lines on stderr
+  /// Advances the simulation by n steps; empty = Simulation::step. Another backend (the GPU
+  /// stepper) plugs in here, and `sync` then brings the Simulation up to date before each output.
+  std::function<void(Simulation&, std::uint64_t)> advance;
+  std::function<void(Simulation&)> sync;
+  std::string backend = "cpu";  // recorded in timing.json
+  bool resume = false;          // continue from out_dir/checkpoint.bin
+  /// A new run refuses a directory that holds files; with overwrite, a crushdem run directory
+  /// (one with config.toml) is emptied first.
+  bool overwrite = false;
+  /// A branch: start from the state of the finished (or stopped) run in branch_dir at the start
+  /// of stage branch_stage (its index or name; empty: the first stage the configuration
+  /// changes), with this run's configuration. What may differ from the original run: the stages
+  /// from that one on, the crushing keys that act at run time (crack_growth, v0, n, r_prime,
+  /// interval, density_scaling) and [output]; anything else is refused, naming the key.
+  std::string branch_dir, branch_stage;
+};
+
+struct RunSummary {
+  std::uint64_t steps = 0;
+  double time = 0.0;
+  double wall_seconds = 0.0;
+  std::size_t particles = 0;
+  std::string dominant_part;       // the part of the step that took most wall-clock time
+  double dominant_fraction = 0.0;  // its share of the wall-clock time
+};
+
+}  // namespace crushdem

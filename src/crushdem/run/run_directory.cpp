@@ -1,0 +1,223 @@
+#include "crushdem/run/run_directory.hpp"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <set>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/run/driver.hpp"
+
+namespace crushdem {
+
+namespace {
+
+constexpr const char* kLockName = ".lock";
+
+// One value as TOML text (for comparing two configurations key by key).
+std::string toml_text(const toml::Value& v) {
+  toml::Table t;
+  t["v"] = v;
+  return toml::serialize(t);
+}
+
+// The first key under `prefix` where two values differ ("" when they are equal).
+std::string first_difference(const toml::Value* a, const toml::Value* b, const std::string& prefix,
+                             const std::set<std::string>& ignored = {}) {
+  if (!a || !b) return prefix;
+  if (a->type == toml::Type::Table && b->type == toml::Type::Table) {
+    std::set<std::string> keys;
+    for (const auto& [k, v] : *a->table) keys.insert(k);
+    for (const auto& [k, v] : *b->table) keys.insert(k);
+    for (const std::string& k : keys) {
+      if (ignored.count(k)) continue;
+      const auto ia = a->table->find(k), ib = b->table->find(k);
+      std::string d =
+          first_difference(ia == a->table->end() ? nullptr : &ia->second,
+                           ib == b->table->end() ? nullptr : &ib->second, prefix + "." + k);
+      if (!d.empty()) return d;
+    }
+    return "";
+  }
+  return toml_text(*a) == toml_text(*b) ? "" : prefix;
+}
+
+}  // namespace
+
+void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  if (!fs::is_directory(dir, ec)) {
+    throw ConfigError("--out '" + dir.string() + "': exists and is not a directory");
+  }
+  std::vector<fs::path> entries;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    if (e.path().filename() != kLockName) entries.push_back(e.path());
+  }
+  if (ec) throw ConfigError("--out '" + dir.string() + "': cannot read it: " + ec.message());
+  if (entries.empty()) return;
+  const bool is_run = fs::exists(dir / "config.toml");
+  if (!overwrite) {
+    std::string what;
+    if (fs::exists(dir / "checkpoint.bin")) {
+      what =
+          "holds a run that stopped before its end (checkpoint.bin): continue it with "
+          "`crushdem resume " +
+          dir.string() + "`, or start it again with --overwrite";
+    } else if (fs::exists(dir / "summary.json")) {
+      what =
+          "holds a finished run (summary.json): choose another --out, or replace it with "
+          "--overwrite";
+    } else if (is_run) {
+      what =
+          "holds a run that stopped before its first checkpoint: start it again with "
+          "`crushdem resume " +
+          dir.string() + "` or --overwrite";
+    } else {
+      what =
+          "is not empty and is not a crushdem run directory: choose a new or empty "
+          "directory";
+    }
+    throw ConfigError("--out '" + dir.string() + "' " + what);
+  }
+  if (!is_run) {
+    throw ConfigError("--out '" + dir.string() +
+                      "' is not a crushdem run directory (no config.toml), and --overwrite "
+                      "replaces only crushdem runs: choose a new or empty directory");
+  }
+  for (const fs::path& p : entries) {
+    fs::remove_all(p, ec);
+    if (ec) throw ConfigError("--overwrite: cannot remove '" + p.string() + "': " + ec.message());
+  }
+}
+
+DirectoryLock::DirectoryLock(const std::filesystem::path& dir) {
+  const std::string path = (dir / kLockName).string();
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw ConfigError("cannot open the lock file '" + path + "'");
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd_);
+    throw ConfigError("'" + dir.string() +
+                      "' is being written by another crushdem run (its .lock is held); wait "
+                      "for it to end or stop it first");
+  }
+}
+
+DirectoryLock::~DirectoryLock() {
+  ::close(fd_);
+}
+
+std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
+                         const std::string& spec, const std::filesystem::path& from) {
+  const std::string src = (from / "config.toml").string();
+  const RunConfig old = run_config_from_toml(toml::parse(original_text, src), src, from.string());
+  const toml::Table a = to_toml(old), b = to_toml(cfg);
+  const auto stages_of = [](const toml::Table& t) {
+    const auto it = t.find("stage");
+    return it == t.end() ? std::vector<toml::Value>{} : it->second.array;
+  };
+  const std::vector<toml::Value> sa = stages_of(a), sb = stages_of(b);
+  if (sa.empty()) throw ConfigError("--from '" + from.string() + "': the run has no [[stage]]");
+  std::size_t k = 0;
+  if (spec.empty()) {
+    while (k < sa.size() && k < sb.size() && toml_text(sa[k]) == toml_text(sb[k])) ++k;
+    if (k == sa.size()) {
+      throw ConfigError("--from '" + from.string() +
+                        "': the stages are the original's; name the stage to branch from "
+                        "(--from DIR:STAGE, its index or name)");
+    }
+  } else if (std::all_of(spec.begin(), spec.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    k = std::stoul(spec);
+  } else {
+    k = sa.size();
+    for (std::size_t i = 0; i < old.stages.size(); ++i) {
+      if (old.stages[i].name == spec) k = std::min(k, i);
+    }
+    if (k == sa.size()) {
+      std::string names;
+      for (const auto& st : old.stages) names += (names.empty() ? "" : ", ") + st.name;
+      throw ConfigError(bad_value("--from", spec, "a stage of the original run (" + names + ")"));
+    }
+  }
+  if (k >= sa.size()) {
+    throw ConfigError(
+        bad_value("--from", spec, "a stage index below " + std::to_string(sa.size())));
+  }
+  for (std::size_t i = 0; i < k; ++i) {
+    const std::string d = i < sb.size()
+                              ? first_difference(&sa[i], &sb[i], "stage[" + std::to_string(i) + "]")
+                              : "stage[" + std::to_string(i) + "]";
+    if (!d.empty()) {
+      throw ConfigError(d + ": differs from the original run, but a branch at stage " +
+                        std::to_string(k) + " keeps the stages before it as they ran");
+    }
+  }
+  // Crushing keys that act at run time only (the strengths and cracks already drawn stay).
+  const std::set<std::string> runtime = {"crack_growth", "v0",       "n",
+                                         "r_prime",      "interval", "density_scaling"};
+  std::set<std::string> sections;
+  for (const auto& [key, v] : a) sections.insert(key);
+  for (const auto& [key, v] : b) sections.insert(key);
+  for (const std::string& key : sections) {
+    if (key == "stage" || key == "output") continue;
+    const auto ia = a.find(key), ib = b.find(key);
+    const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
+                                           ib == b.end() ? nullptr : &ib->second, key,
+                                           key == "crushing" ? runtime : std::set<std::string>{});
+    if (!d.empty()) {
+      throw ConfigError(d +
+                        ": cannot change in a branch (it sets the grains, the material or a "
+                        "state drawn before the branch; a branch may change the stages from its "
+                        "own on, [output] and crushing's " +
+                        "crack_growth, v0, n, r_prime, interval, density_scaling)");
+    }
+  }
+  return k;
+}
+
+void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  for (const fs::directory_entry& e : fs::directory_iterator(from)) {
+    if (e.is_regular_file() && e.path().extension() == ".csv") {
+      fs::copy_file(e.path(), dir / e.path().filename(), fs::copy_options::overwrite_existing);
+    }
+  }
+}
+
+void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
+                       const Driver& driver, std::size_t stage) {
+  namespace fs = std::filesystem;
+  const std::vector<std::string> listed = driver.file_names();
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() == ".csv" &&
+        std::find(listed.begin(), listed.end(), name) == listed.end()) {
+      fs::remove(e.path());
+    }
+  }
+  fs::create_directories(dir / "vtk");
+  const auto keep = [&](const std::string& file) {
+    const fs::path f = from / "vtk" / file;
+    if (fs::exists(f)) fs::copy_file(f, dir / "vtk" / file, fs::copy_options::overwrite_existing);
+  };
+  for (std::size_t k = 0; k < driver.legacy_snapshots(); ++k) {
+    for (const char* kind : {"particles_", "box_"}) keep(kind + ordinal_stamp(k) + ".vtk");
+  }
+  for (const Snapshot& snap : driver.snapshot_list()) {
+    for (const char* kind : kSnapshotKinds) {
+      keep(std::string(kind) + "_" + step_stamp(snap.step) + ".vtp");
+    }
+  }
+  driver.write_collections();
+  fs::create_directories(dir / "stages");
+  for (std::size_t k = 0; k < stage; ++k) {
+    const fs::path f = from / "stages" / ("stage_" + std::to_string(k) + ".bin");
+    if (fs::exists(f))
+      fs::copy_file(f, dir / "stages" / f.filename(), fs::copy_options::overwrite_existing);
+  }
+}
+
+}  // namespace crushdem

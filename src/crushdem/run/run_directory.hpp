@@ -1,0 +1,51 @@
+// The rules of a run directory: a new run starts in a new or empty directory (or replaces an
+// old crushdem run with overwrite), a lock keeps a second run out while one writes, and a branch
+// starts from another run's state at a stage boundary with that run's files as they stood there.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "crushdem/io/config.hpp"
+
+namespace crushdem {
+
+class Driver;
+
+/// A new run starts in a new or empty directory: finished or stopped work is never overwritten
+/// or mixed with a new run's files unless asked (overwrite), and then only a crushdem run
+/// directory (one with config.toml) is emptied. The errors say what the directory holds and how
+/// to go on (resume, another --out, --overwrite).
+void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite);
+
+/// An exclusive lock on DIR/.lock for the life of the run: a second run or resume into the
+/// same directory stops at once instead of splicing its rows into the first one's files.
+class DirectoryLock {
+ public:
+  explicit DirectoryLock(const std::filesystem::path& dir);
+  ~DirectoryLock();
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+/// Where a branch starts (the stage index, from `spec`: an index, a name, or empty for the first
+/// stage that differs) and whether its configuration may start there: the stages before it, the
+/// grains, the material and the strength draws must be the original's (compared key by key on
+/// the resolved TOML; errors name the first key that differs).
+std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
+                         const std::string& spec, const std::filesystem::path& from);
+
+/// Copies the original run's result files (CSV) into a branch's directory.
+void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir);
+
+/// After the branch state is loaded: the CSVs it does not list are removed (the original wrote
+/// them later), its snapshots and the states of the stages before the branch are copied.
+void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
+                       const Driver& driver, std::size_t stage);
+
+}  // namespace crushdem

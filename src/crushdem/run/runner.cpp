@@ -1,0 +1,519 @@
+#include "crushdem/run/runner.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/core/random.hpp"
+#include "crushdem/experiments/measurements.hpp"
+#include "crushdem/experiments/protocol.hpp"
+#include "crushdem/fracture/crushing.hpp"
+#include "crushdem/io/output.hpp"
+#include "crushdem/particles/generate.hpp"
+#include "crushdem/particles/grading.hpp"
+#include "crushdem/run/checkpoint.hpp"
+#include "crushdem/run/driver.hpp"
+#include "crushdem/run/results.hpp"
+#include "crushdem/run/run_directory.hpp"
+
+namespace crushdem {
+
+void add_packing_particles(Simulation& sim, const Packing& pk) {
+  for (const PackingRow& r : pk.rows) {
+    NewParticle np;
+    np.position = r.position;
+    np.radius = 0.5 * r.diameter;
+    np.density = sim.config().material.density;
+    sim.particles().insert_with_id(r.id, np);
+  }
+  sim.invalidate();
+}
+
+void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
+  const auto box = cfg.box();
+  if (!cfg.particles.file.empty()) {
+    const Packing pk = read_packing(cfg.particles.file);
+    for (const PackingRow& r : pk.rows) {
+      const double rad = 0.5 * r.diameter;
+      const double c[3] = {r.position.x, r.position.y, r.position.z};
+      for (int a = 0; a < 3; ++a) {
+        // The centre must lie inside the box (grains may overlap a wall: samples prepared
+        // under stress do); the grain must fit between the walls.
+        const double lo = box[static_cast<std::size_t>(2 * a)];
+        const double hi = box[static_cast<std::size_t>(2 * a + 1)];
+        const char axis = static_cast<char>('x' + a);
+        if (!(c[a] > lo && c[a] < hi)) {
+          throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) + " has " +
+                            axis + " = " + show_number(c[a]) +
+                            " m: expected a centre inside the box [" + show_number(lo) + ", " +
+                            show_number(hi) + "] given by [box]");
+        }
+        if (2.0 * rad > hi - lo) {
+          throw ConfigError(cfg.particles.file + ": particle id " + std::to_string(r.id) +
+                            " (diameter " + show_number(r.diameter) +
+                            " m) is wider than the box along " + axis);
+        }
+      }
+    }
+    add_packing_particles(sim, pk);
+    return;
+  }
+  const GenerateConfig& g = cfg.particles.generate;
+  RandomStream rng(g.seed, 0xD1A);
+  std::vector<double> radii(g.count);
+  for (double& r : radii) r = 0.5 * rng.uniform(g.diameter_min, g.diameter_max);
+  for (const PlacedSphere& s : random_sequential_addition(radii, box, g.seed)) {
+    sim.add_particle(s.position, s.radius);
+  }
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+void create_directory(const fs::path& dir, const std::string& out) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw ConfigError("--out '" + out + "': cannot create directory: " + ec.message());
+}
+
+/// One run, from its directory to its summary: open (directory, lock, a saved state to continue
+/// from), prepare (the sample or the configured grains), test (stage after stage, or a plain
+/// [run]), finish (summary.json, timing.json). Each part starts from the checkpoint when the run
+/// resumes inside it.
+class Run {
+ public:
+  Run(const RunConfig& cfg, const RunOptions& opt)
+      : cfg_(cfg),
+        opt_(opt),
+        dir_(opt.out_dir),
+        lock_(open_directory(opt)),
+        config_text_(toml::serialize(to_toml(cfg))),
+        branching_(!opt.branch_dir.empty()),
+        resumed_(opt.resume || branching_),
+        from_(branching_ ? fs::absolute(opt.branch_dir) : fs::path()) {}
+
+  RunSummary execute() {
+    if (!opt_.resume) write_text_file((dir_ / "config.toml").string(), config_text_);
+    if (resumed_) read_saved_position();
+    make_simulation();
+    if (resumed_) restore();
+    // Another backend (the GPU stepper) keeps its state on the device: no checkpoints there.
+    checkpoints_ = !opt_.advance;
+    if (checkpoints_) {
+      driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
+        save_checkpoint(&c, to_check);
+      };
+    }
+    prepare();
+    start_test();
+    if (!cfg_.stages.empty()) {
+      driver_->file("timeseries.csv");  // listed in every checkpoint of the test, as it began
+      const std::size_t first = in_test_ ? pos_.part - kPartFirstStage : 0;
+      for (std::size_t k = first; k < cfg_.stages.size(); ++k) run_stage(k);
+    } else if (!cfg_.has_sample) {
+      run_plain();
+    }
+    return finish();
+  }
+
+ private:
+  static std::unique_ptr<DirectoryLock> open_directory(const RunOptions& opt) {
+    clear_stop_request();
+    const fs::path dir(opt.out_dir);
+    create_directory(dir, opt.out_dir);
+    auto lock = std::make_unique<DirectoryLock>(dir);
+    if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite);
+    create_directory(dir / "vtk", opt.out_dir);
+    return lock;
+  }
+
+  // Resuming: the checkpoint says where the run stood; the state is read part by part after
+  // it. A branch reads the original run's state at the start of its branch stage the same way.
+  void read_saved_position() {
+    std::string path = (dir_ / "checkpoint.bin").string();
+    if (branching_) {
+      const std::string original = read_binary_file((from_ / "config.toml").string());
+      branch_k_ = branch_stage(original, cfg_, opt_.branch_stage, from_);
+      path = (from_ / "stages" / ("stage_" + std::to_string(branch_k_) + ".bin")).string();
+      if (!fs::exists(path)) {
+        throw ConfigError("--from '" + opt_.branch_dir +
+                          "': no saved state at the start of stage " + std::to_string(branch_k_) +
+                          " (" + path + "; runs keep one per stage they reached)");
+      }
+    } else if (!fs::exists(path)) {
+      throw ConfigError("crushdem resume: no checkpoint in '" + opt_.out_dir + "'" +
+                        (fs::exists(dir_ / "summary.json") ? " (the run has finished)" : ""));
+    }
+    OpenCheckpoint saved = open_checkpoint(path);
+    in_ = std::move(saved.reader);
+    if (!branching_ && saved.config_text != config_text_ &&
+        !same_resolved_config(saved.config_text, config_text_, dir_)) {
+      throw ConfigError("crushdem resume: " + (dir_ / "config.toml").string() +
+                        " differs from the configuration the checkpoint was taken with");
+    }
+    pos_.load(*in_);
+    if (branching_) {  // timing.json describes the branch's own work
+      pos_.wall_seconds = 0.0;
+      pos_.part_seconds = {};
+      pos_.particle_steps = 0.0;
+      JsonObject b;
+      b.string("run", from_.string());
+      b.integer("stage", static_cast<long long>(branch_k_));
+      write_text_file((dir_ / "branch.json").string(), b.dump() + "\n");
+    }
+  }
+
+  // A sample prepared here starts as a loose cloud in a cube of its own size.
+  void make_simulation() {
+    SimulationConfig sim_cfg = cfg_.simulation;
+    if (cfg_.has_sample && !resumed_) {
+      cloud_ = make_loose_cloud(cfg_.sample);
+      for (int a = 0; a < 3; ++a) {
+        sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = 0.0;
+        sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = cloud_.side;
+      }
+    }
+    sim_ = std::make_unique<Simulation>(sim_cfg);
+    driver_ = std::make_unique<Driver>(*sim_, cfg_, opt_);
+  }
+
+  void make_crusher() {
+    crusher_ = std::make_unique<Crusher>(cfg_.crushing,
+                                         cfg_.crushing.pattern.empty()
+                                             ? SplitPattern::default14()
+                                             : SplitPattern::from_file(cfg_.crushing.pattern));
+  }
+
+  // The files, the simulation and the crusher from the saved state. A branch starts with the
+  // original's result files as they stood at its state: each file the state lists (cut to its
+  // length there by load_state), the snapshots before it, and the states of the stages before
+  // it.
+  void restore() {
+    if (branching_) copy_run_files(from_, dir_);
+    driver_->load_state(*in_);
+    if (branching_) keep_branch_files(from_, dir_, *driver_, branch_k_);
+    sim_->load_state(*in_);
+    if (pos_.has_crusher) {
+      make_crusher();
+      crusher_->load_state(*in_);
+      driver_->attach_crusher(crusher_.get(), true);
+    }
+    // Timing totals go on from the checkpoint's.
+    sim_->part_clock().add(pos_.part_seconds);
+    driver_->add_particle_steps(pos_.particle_steps);
+    if (opt_.progress) {
+      std::fprintf(stderr, "[crushdem] resuming at step %llu, t = %.6e s\n",
+                   static_cast<unsigned long long>(sim_->step_count()), sim_->time());
+    }
+  }
+
+  std::string timing_path() const { return (dir_ / "timing.json").string(); }
+
+  // The whole state at this point of the run (checkpoint.bin). stage_state: the copy kept for
+  // branches (stages/stage_K.bin) instead, without the wall-clock times (a branch starts its
+  // own), so that it is a result like the others: the same bytes for any thread count and after
+  // any resume.
+  void save_checkpoint(const Controller* running, std::uint64_t to_check,
+                       const std::string& stage_state = "") {
+    const PartScope timed(sim_->part_clock(), Part::Output);
+    RunPosition saved = pos_;
+    saved.begun = running != nullptr;
+    saved.to_check = to_check;
+    saved.has_crusher = crusher_ != nullptr;
+    if (stage_state.empty()) {
+      saved.part_seconds = sim_->part_clock().seconds();
+      saved.particle_steps = driver_->particle_steps();
+      saved.wall_seconds += driver_->seconds();
+    } else {
+      saved.part_seconds = {};
+      saved.particle_steps = 0.0;
+      saved.wall_seconds = 0.0;
+    }
+    pos_.begun = saved.begun;
+    pos_.to_check = saved.to_check;
+    pos_.has_crusher = saved.has_crusher;
+    const std::string bytes =
+        checkpoint_bytes(config_text_, saved, *driver_, *sim_, crusher_.get(), running);
+    if (!stage_state.empty()) {
+      write_file_atomically(stage_state, bytes);
+      return;
+    }
+    write_file_atomically((dir_ / "checkpoint.bin").string(), bytes);
+    write_timing(timing_path(), opt_.backend, false, resumed_,
+                 pos_.wall_seconds + driver_->seconds(), driver_->particle_steps(), *sim_);
+    driver_->checkpoint_written();
+  }
+
+  // Between two parts: a checkpoint (and the state kept for branches at a stage), then stop here
+  // if asked to.
+  void boundary(std::uint32_t part) {
+    pos_.part = part;
+    if (!checkpoints_) return;
+    save_checkpoint(nullptr, 0);
+    if (part >= kPartFirstStage) {
+      create_directory(dir_ / "stages", opt_.out_dir);
+      save_checkpoint(
+          nullptr, 0,
+          (dir_ / "stages" / ("stage_" + std::to_string(part - kPartFirstStage) + ".bin"))
+              .string());
+    }
+    if (stop_signal() != 0) throw Interrupted(stop_signal(), opt_.out_dir);
+  }
+
+  // The controller of the part the checkpoint was taken in continues where it was.
+  bool resume_here(std::uint32_t part) const { return resumed_ && pos_.begun && pos_.part == part; }
+
+  void prepare() {
+    if (cfg_.has_sample && (!resumed_ || pos_.part == kPartPreparation)) {
+      prepare_sample();
+    } else if (!cfg_.has_sample && !resumed_) {
+      add_configured_particles(*sim_, cfg_);
+      sim_->compute_forces();
+      driver_->snapshot();
+    }
+  }
+
+  // The sample from a grading curve (PreparationController), then the sample file: grains and
+  // the box, reusable as particles.file by any test.
+  void prepare_sample() {
+    Simulation& sim = *sim_;
+    if (!resumed_) {
+      for (std::size_t i = 0; i < cloud_.radius.size(); ++i) {
+        sim.add_particle(cloud_.position[i], cloud_.radius[i]);
+      }
+      sim.compute_forces();
+      driver_->snapshot();
+      pos_.ref0 = StrainReference::from(sim.walls());
+      pos_.part = kPartPreparation;
+    }
+    PreparationController prep(cfg_.sample, cfg_.simulation.material.friction);
+    const bool cont = resume_here(kPartPreparation);
+    if (cont) prep.load_state(*in_);
+    CsvWriter& csv = driver_->file(cfg_.stages.empty() ? "timeseries.csv" : "preparation.csv");
+    driver_->drive(
+        prep, csv,
+        [&]() {
+          Measurement m = measure(sim, pos_.ref0);
+          for (auto& kv : prep.columns(sim)) m.push_back(kv);
+          return m;
+        },
+        "prepare", {}, cont, pos_.to_check);
+    Packing pk;
+    for (int k = 0; k < kNumWalls; ++k) {
+      pk.header[Packing::box_header_key(k)] = format_double(sim.walls().position(k));
+    }
+    pk.header["void_ratio"] = format_double(prep.void_ratio());
+    pk.header["preparation_friction"] = format_double(prep.preparation_friction());
+    pk.header["stress_Pa"] = format_double(cfg_.sample.stress);
+    pk.header["seed"] = std::to_string(cfg_.sample.seed);
+    const ParticleStore& p = sim.particles();
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      pk.rows.push_back({p.id[i], {p.x[i], p.y[i], p.z[i]}, 2.0 * p.radius[i]});
+    }
+    write_packing((dir_ / "sample.txt").string(), pk);
+    pos_.sample_json = sample_json(sim, cfg_.sample, prep);
+    pos_.has_sample_json = true;
+    if (!prep.warning().empty()) {
+      pos_.warnings.push_back(prep.warning());
+      std::fprintf(stderr, "[crushdem] warning: %s\n", prep.warning().c_str());
+    }
+    if (opt_.progress) {
+      std::fprintf(stderr,
+                   "[crushdem] sample: %zu grains, e = %.4f (target %.4f), preparation friction "
+                   "%.4g\n",
+                   p.size(), prep.void_ratio(), cfg_.sample.void_ratio,
+                   prep.preparation_friction());
+    }
+  }
+
+  // The test starts here: its strain reference and d50, and crushing (which acts during the
+  // test, not during preparation).
+  void start_test() {
+    in_test_ = resumed_ && pos_.part != kPartPreparation;
+    if (!in_test_) {
+      warn_about_timestep();
+      pos_.ref = StrainReference::from(sim_->walls());
+      pos_.d50 = diameter_at_fraction(sim_->particles().diameters(), 0.5);
+      if (cfg_.crushing.enabled) {
+        make_crusher();
+        crusher_->begin(*sim_);
+        driver_->attach_crusher(crusher_.get(), false);
+      }
+    }
+    if (crusher_) sieves_ = grading_sieves(*crusher_);
+  }
+
+  void warn_about_timestep() {
+    const double dt = cfg_.simulation.timestep.dt;
+    if (!(dt > 0.0)) return;
+    const double automatic = sim_->automatic_dt();
+    if (dt <= automatic) return;
+    const std::string w = "timestep.dt = " + show_number(dt) + " s is " +
+                          show_number(dt / automatic) + " times the automatic step " +
+                          show_number(automatic) +
+                          " s (rayleigh_fraction x the Rayleigh time, safety x sqrt(m / k)): "
+                          "the run may be unstable (0 = automatic)";
+    pos_.warnings.push_back(w);
+    if (opt_.progress) std::fprintf(stderr, "[crushdem] warning: %s\n", w.c_str());
+  }
+
+  // Every time-series row of the test: the crushing columns and a grading row when grains can
+  // break.
+  void add_crushing_columns(Measurement& m) {
+    if (!crusher_) return;
+    for (auto& kv : crushing_measurements(*sim_, *crusher_)) m.push_back(kv);
+    driver_->file("grading.csv").write(grading_measurements(*sim_, *crusher_, sieves_));
+  }
+
+  void run_stage(std::size_t k) {
+    Simulation& sim = *sim_;
+    const auto part = static_cast<std::uint32_t>(kPartFirstStage + k);
+    const bool cont = resume_here(part);
+    if (!cont) boundary(part);
+    StageController stage(cfg_.stages[k], pos_.d50, crusher_.get());
+    if (cfg_.stages[k].kind == StageKind::Age) {
+      stage.on_dynamic_phase_end = [this, k](const Simulation& s, double t_age,
+                                             std::uint64_t phase) {
+        Measurement m;
+        m.emplace_back("ageing_time_s", t_age);
+        m.emplace_back("stage", static_cast<double>(k));
+        m.emplace_back("dynamic_phase", static_cast<double>(phase));
+        for (auto& kv : measure(s, pos_.ref)) m.push_back(kv);
+        for (auto& kv : crushing_measurements(s, *crusher_)) m.push_back(kv);
+        driver_->file("events.csv").write(m);
+        driver_->request_checkpoint();  // every event is a checkpoint
+      };
+      stage.on_phase_record = [this, k](const Measurement& r) {
+        Measurement m;
+        m.emplace_back("stage", static_cast<double>(k));
+        for (const auto& kv : r) m.push_back(kv);
+        driver_->file("phases.csv").write(m);
+      };
+    }
+    if (cont) stage.load_state(*in_);
+    driver_->drive(
+        stage, driver_->file("timeseries.csv"),
+        [&]() {
+          stage.observe(sim);
+          Measurement m = measure(sim, pos_.ref);
+          m.emplace_back("stage", static_cast<double>(k));
+          for (auto& kv : stage.columns(sim)) m.push_back(kv);
+          add_crushing_columns(m);
+          return m;
+        },
+        cfg_.stages[k].label(), {}, cont, pos_.to_check, [&]() { return stage.progress_note(); });
+    JsonObject result = stage_json(stage.result());
+    if (crusher_) result.object("loaded_share", loaded_share_json(sim, *crusher_));
+    pos_.stage_results.push_back(result);
+    if (!stage.result().warning.empty()) pos_.warnings.push_back(stage.result().warning);
+    if (opt_.progress) {
+      std::fprintf(stderr, "[crushdem] stage '%s' ended (%s) after %llu steps\n",
+                   stage.result().name.c_str(), stage.result().end_reason.c_str(),
+                   static_cast<unsigned long long>(stage.result().steps));
+    }
+  }
+
+  void run_plain() {
+    const bool cont = resume_here(kPartRun);
+    if (!cont) boundary(kPartRun);
+    FixedLengthController run(cfg_.steps, cfg_.duration);
+    if (cont) run.load_state(*in_);
+    driver_->drive(
+        run, driver_->file("timeseries.csv"),
+        [&]() {
+          Measurement m = measure(*sim_, pos_.ref);
+          add_crushing_columns(m);
+          return m;
+        },
+        "run", [&]() { return run.fraction(*sim_); }, cont, pos_.to_check);
+  }
+
+  RunSummary finish() {
+    driver_->snapshot();
+    const double secs = pos_.wall_seconds + driver_->seconds();
+    const std::string branch =
+        fs::exists(dir_ / "branch.json") ? read_binary_file((dir_ / "branch.json").string()) : "";
+    const JsonObject summary =
+        summary_json(pos_, *sim_, driver_->snapshots(), crusher_.get(), branch);
+    write_text_file((dir_ / "summary.json").string(), summary.dump() + "\n");
+    const auto [dominant, dominant_fraction] = write_timing(
+        timing_path(), opt_.backend, true, resumed_, secs, driver_->particle_steps(), *sim_);
+    // The run is complete: its checkpoint is no longer needed.
+    std::error_code ec;
+    fs::remove(dir_ / "checkpoint.bin", ec);
+
+    RunSummary r;
+    r.steps = sim_->step_count();
+    r.time = sim_->time();
+    r.wall_seconds = secs;
+    r.particles = sim_->particles().size();
+    r.dominant_part = std::string(kPartNames[dominant]);
+    r.dominant_fraction = dominant_fraction;
+    return r;
+  }
+
+  const RunConfig& cfg_;
+  const RunOptions& opt_;
+  const fs::path dir_;
+  std::unique_ptr<DirectoryLock> lock_;
+  const std::string config_text_;
+  const bool branching_, resumed_;
+  const fs::path from_;  // the run a branch starts from
+  std::size_t branch_k_ = 0;
+  RunPosition pos_;
+  std::unique_ptr<StateReader> in_;  // the saved state, read part by part
+  LooseCloud cloud_;
+  std::unique_ptr<Simulation> sim_;
+  std::unique_ptr<Driver> driver_;
+  std::unique_ptr<Crusher> crusher_;
+  std::vector<double> sieves_;
+  bool checkpoints_ = false;
+  bool in_test_ = false;  // resumed inside the test (preparation done)
+};
+
+}  // namespace
+
+RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
+  Run run(cfg, opt);
+  return run.execute();
+}
+
+RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
+  const std::string path = (fs::path(dir) / "config.toml").string();
+  if (!fs::exists(path)) {
+    throw ConfigError("crushdem resume: '" + dir + "' has no config.toml (not a crushdem run)");
+  }
+  const RunConfig cfg = load_run_config(path);
+  RunOptions o = opt;
+  o.out_dir = dir;
+  o.resume = true;
+  const fs::path d(dir);
+  if (!fs::exists(d / "checkpoint.bin") && !fs::exists(d / "summary.json")) {
+    // Stopped before its first checkpoint (during sample preparation, say): nothing to continue
+    // from, and nothing finished to lose, so the run starts again from its config.toml.
+    if (opt.progress) {
+      std::fprintf(stderr, "[crushdem] %s has no checkpoint yet: starting the run again\n",
+                   dir.c_str());
+    }
+    o.resume = false;
+    o.overwrite = true;
+    if (fs::exists(d / "branch.json")) {  // a branch starts again from its state
+      const std::string b = read_binary_file((d / "branch.json").string());
+      const auto field = [&b](const std::string& key) {
+        const std::size_t k = b.find("\"" + key + "\"");
+        const std::size_t q0 = b.find_first_not_of(" :", k + key.size() + 2);
+        if (k == std::string::npos || q0 == std::string::npos) return std::string();
+        if (b[q0] == '"') return b.substr(q0 + 1, b.find('"', q0 + 1) - q0 - 1);
+        return b.substr(q0, b.find_first_of(",}\n", q0) - q0);
+      };
+      o.branch_dir = field("run");
+      o.branch_stage = field("stage");
+    }
+  }
+  return run_to_directory(cfg, o);
+}
+
+}  // namespace crushdem
