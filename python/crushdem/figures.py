@@ -176,7 +176,8 @@ def _time_figure(run: RunData, series: Sequence[Series], y_label: str, title: st
             m = _MARKERS[i % len(_MARKERS)]
             for col, label, color, ls in series_ev:
                 y = ev[col]
-                lab = f"{label} ({group})" if multi else label
+                # The DEM-time panel's legend names the colours already.
+                lab = f"{label} ({group})" if multi else None if with_dem else label
                 ax.plot(t_age[pos], y[pos], marker=m, ms=4, ls=ls, lw=0.9, color=color,
                         label=lab)
             # The state before the first jump has no place on a log axis: drawn open at a
