@@ -162,5 +162,62 @@ TEST(ParameterTables, AMadeUpKeyIsOneRow) {
   EXPECT_THROW(s3.finish(), ConfigError);
 }
 
+// Each stage kind reads, writes and checks the rows of its own table; a key of another kind is
+// named as such, and the stage built for a kind is that kind's class.
+TEST(ParameterTables, EachStageKindHasItsOwnTable) {
+  const std::string head =
+      "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles.generate]\ncount = 10\n"
+      "diameter_min = 1e-4\ndiameter_max = 1e-4\n";
+  const auto config = [&](const std::string& stages) {
+    return run_config_from_toml(toml::parse(head + stages, "s.toml"), "s.toml", ".");
+  };
+  const RunConfig c = config(
+      "[[stage]]\ntype = \"triaxial\"\nsigma_3 = 1e7\nstrain_rate = 50.0\naxial_strain = 0.3\n"
+      "[[stage]]\ntype = \"hold\"\nlateral = \"servo\"\nlateral_stress = 2e6\nsteps = 100\n");
+  ASSERT_EQ(c.stages.size(), 2u);
+  EXPECT_EQ(c.stages[0].sigma_3, 1e7);
+  EXPECT_EQ(c.stages[1].lateral, WallControl::Servo);
+  // Written back: exactly the kind's rows that apply (no servo target for the fixed top wall,
+  // no duration for a hold given in steps), plus type and name.
+  const toml::Table back = to_toml(c);
+  const auto& written = back.at("stage").array;
+  ASSERT_EQ(written.size(), 2u);
+  const toml::Table& hold = *written[1].table;
+  EXPECT_TRUE(hold.count("lateral_stress"));
+  EXPECT_FALSE(hold.count("axial_stress"));
+  EXPECT_FALSE(hold.count("duration"));
+  EXPECT_FALSE(hold.count("sigma_3"));
+  EXPECT_EQ(written[0].table->size(), stage_params(StageKind::Triaxial).size() + 2);
+  const RunConfig again = run_config_from_toml(back, "back.toml", ".");
+  EXPECT_EQ(toml::serialize(to_toml(again)), toml::serialize(back));
+  const auto message = [&](const std::string& stages) {
+    try {
+      config(stages);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("[[stage]]\ntype = \"isotropic\"\nstress = 1e5\nsigma_3 = 1e5\n")
+                .find("no 'sigma_3' in a \"isotropic\" stage"),
+            std::string::npos);
+  EXPECT_NE(message("[[stage]]\ntype = \"triaxial\"\nsigma_3 = 1e7\nstrain_rate = 50.0\n"
+                    "axial_strain = 0.95\n")
+                .find("stage[0].axial_strain"),
+            std::string::npos);
+  EXPECT_NE(
+      message("[[stage]]\ntype = \"hold\"\naxial = \"loose\"\nsteps = 10\n").find("stage[0].axial"),
+      std::string::npos);
+  EXPECT_NE(
+      message("[[stage]]\ntype = \"hold\"\nsteps = 10\nduration = 1.0\n").find("exactly one of"),
+      std::string::npos);
+  EXPECT_NE(dynamic_cast<TriaxialStage*>(make_stage(c.stages[0], 1e-4, nullptr).get()), nullptr);
+  EXPECT_NE(dynamic_cast<HoldStage*>(make_stage(c.stages[1], 1e-4, nullptr).get()), nullptr);
+  StageConfig age;
+  age.kind = StageKind::Age;
+  age.duration = 60.0;
+  EXPECT_THROW(make_stage(age, 1e-4, nullptr), ConfigError);  // an age stage needs a crusher
+}
+
 }  // namespace
 }  // namespace crushdem

@@ -43,6 +43,9 @@ struct Param {
   // Shown as the default in the docs instead of the default-constructed struct's value (for a
   // key whose effective default depends on where it is read).
   std::string_view default_doc = {};
+  // Written to config.toml only where this holds (a key that applies only with another key's
+  // value, such as a servo target); always written when null.
+  bool (*written)(const S&) = nullptr;
 };
 
 template <class S>

@@ -1,14 +1,8 @@
-// Laboratory tests as controllers acting on a Simulation (docs/model.md 4.1, 4.2, 4.5).
+// Controllers acting on a Simulation, and sample preparation (docs/model.md 4.1).
 //
-// A test is a sequence of stages; each stage sets the six walls (fixed, moving, or
-// servo-controlled) and says when it is finished. Sample preparation is a controller of the same
-// kind. Nothing here subclasses the engine: a controller is called between steps, every
+// Nothing here subclasses the engine: a controller is called between steps, every
 // `check_interval` steps, reads the state and changes wall modes, targets or the friction
-// coefficient.
-//
-// Axial is z; lateral is x and y. Strain rates are positive in compression and prescribed as
-// constant wall speeds: v = strain_rate * L_z at the start of the stage (a constant displacement
-// rate, as in a loading frame).
+// coefficient. The test stages are controllers of the same kind (experiments/stages.hpp).
 #pragma once
 
 #include <cstdint>
@@ -47,56 +41,6 @@ struct SampleConfig {
   std::uint64_t max_steps = 50000000;   // give up (error) after this many steps
   void validate(const SimulationConfig& sim) const;  // keys "sample.<key>"
   double cube_side() const;  // the side the sample has at the target void ratio
-};
-
-// ---------------------------------------------------------------------------------------------
-// Test stages
-// ---------------------------------------------------------------------------------------------
-
-enum class StageKind { Isotropic, Oedometric, Triaxial, Hold, Age };
-const char* to_string(StageKind k);
-StageKind parse_stage_kind(const std::string& s, const std::string& key);
-
-struct StageConfig {
-  StageKind kind = StageKind::Isotropic;
-  std::string name;  // for the outputs; defaults to the kind
-  // isotropic: all six walls servo-controlled to `stress`, until equilibrium.
-  // oedometric: lateral walls and the bottom fixed; the top moves at `strain_rate` (> 0 loading,
-  //   < 0 unloading) until the vertical stress reaches `stress`; strain_rate = 0 servo-controls
-  //   the top to `stress` until equilibrium.
-  double stress = 0.0;       // [Pa]
-  double strain_rate = 0.0;  // axial [1/s]
-  // triaxial: lateral walls servo-controlled to sigma_3, both axial walls moving at strain_rate
-  //   (compression), until `axial_strain` (from the stage start) or until q >= stop_q (> 0).
-  double sigma_3 = 0.0;       // [Pa]
-  double axial_strain = 0.0;  // [-]
-  double stop_q = 0.0;        // [Pa], 0 = not used
-  // hold: the walls keep still or are servo-controlled, for `steps` or `duration`.
-  // age (off-DEM ageing, docs/model.md 3.1; needs [crushing] crack_growth): dynamic phases of
-  //   min_cycles steps (walls as `axial` / `lateral` say) alternate with ageing jumps that grow
-  //   every crack at its frozen velocity until n_break grains would fail, until the ageing clock
-  //   reaches `duration` (ageing time, not DEM time).
-  std::string axial = "fixed";    // "fixed" | "servo"
-  std::string lateral = "fixed";  // "fixed" | "servo"
-  double axial_stress = 0.0;      // [Pa] for axial = "servo"
-  double lateral_stress = 0.0;    // [Pa] for lateral = "servo"
-  std::uint64_t steps = 0;
-  double duration = 0.0;                 // [s]
-  std::uint64_t min_cycles = 150000;     // age: steps per dynamic phase (STUDY)
-  std::uint64_t n_break = 30;            // age: grains brought to failure per jump (STUDY)
-  std::uint64_t record_interval = 1000;  // age: steps between rows of phases.csv within a phase
-  // Equilibrium (isotropic, servo oedometric) and limits.
-  double tolerance = 0.002;      // every servo wall within this relative error of its target
-  double unbalanced = 1e-3;      // and the unbalanced-force ratio below this
-  double max_strain_rate = 0.0;  // servo speed limit as a strain rate [1/s]: each servo wall
-                                 // moves at most max_strain_rate * L / 2. 0 = automatic: 10 /s
-                                 // (I ~ 3e-4 at 100 kPa), and for triaxial lateral walls at least
-                                 // 2 strain_rate (dilation must not outrun them)
-  double servo_strain_rate() const;
-  std::uint64_t check_interval = 200;
-  std::uint64_t max_steps = 20000000;  // the stage ends (with a warning) after this many steps
-  void validate(const std::string& prefix) const;
-  std::string label() const { return name.empty() ? to_string(kind) : name; }
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -156,64 +100,7 @@ class PreparationController final : public Controller {
   std::string warning_;
 };
 
-/// Results of one stage, for summary.json.
-struct StageResult {
-  std::string name, kind, end_reason, warning;
-  std::uint64_t steps = 0;
-  double q_max = 0.0, axial_strain_at_q_max = 0.0, sigma_3_at_q_max = 0.0;
-  double friction_angle_deg = 0.0;  // peak, from sin(phi) = q / (q + 2 sigma_3)
-  double K0 = 0.0;                  // lateral / vertical wall stress at the end
-  double max_inertial_number = 0.0;
-  double max_lateral_stress_error = 0.0;  // triaxial: max |sigma_lateral / sigma_3 - 1|
-  double max_lateral_strain = 0.0;        // oedometric: max |lateral strain|
-  std::uint64_t dynamic_phases = 0;       // age
-  double ageing_time = 0.0;               // age: the ageing clock at the end [s]
-};
-
-class Crusher;
-
-class StageController final : public Controller {
- public:
-  /// d50: of the sample, for the inertial number. crusher: needed by an "age" stage.
-  StageController(const StageConfig& cfg, double d50, Crusher* crusher = nullptr);
-  /// Called at the end of every dynamic phase of an "age" stage (ageing clock, phase index).
-  std::function<void(const Simulation&, double, std::uint64_t)> on_dynamic_phase_end;
-  /// Called every record_interval cycles of each dynamic phase, from cycle 0 (just after the
-  /// ageing jump, before the grains it brought to failure split) to its last cycle, with a
-  /// phase_record() row (the study's Figure 2: what a jump disturbs).
-  std::function<void(const Measurement&)> on_phase_record;
-  /// The row for phases.csv at the current state (age stages).
-  Measurement phase_record(const Simulation& sim) const;
-  void begin(Simulation& sim) override;
-  bool update(Simulation& sim) override;
-  std::uint64_t steps_to_check(Simulation& sim) override;
-  Measurement columns(const Simulation& sim) const override;
-  void save_state(StateWriter& out) const override;
-  void load_state(StateReader& in) override;
-  const StageResult& result() const { return res_; }
-  /// Where the stage stands, for progress lines: for an age stage the dynamic phase and the
-  /// ageing time against its duration; empty for the others (their lines give the stresses).
-  std::string progress_note() const;
-  /// Called for every time-series row (tracks peaks and limits at output resolution too).
-  void observe(const Simulation& sim);
-
- private:
-  void set_servo(Walls& w, int k, double stress) const;
-  double stage_axial_strain(const Simulation& sim) const;
-  StageConfig cfg_;
-  double d50_;
-  Crusher* crusher_ = nullptr;
-  double ageing_time_ = 0.0;
-  std::uint64_t phase_start_ = 0;
-  double phase_volume_ = 0.0;   // box volume at cycle 0 of the current phase [m^3]
-  double phase_lateral_ = 0.0;  // reference of the confining fluctuation [Pa]
-  void start_phase(const Simulation& sim);
-  StrainReference ref_;
-  std::uint64_t start_step_ = 0;
-  double start_time_ = 0.0;
-  bool warned_inertia_ = false;
-  bool observed_ = false;
-  StageResult res_;
-};
+/// Every servo wall within `tol` of its target.
+bool servo_walls_at_target(const Walls& w, double tol);
 
 }  // namespace crushdem

@@ -166,57 +166,20 @@ void read_stage(Section& s, StageConfig& c) {
   s.string("type", type);
   c.kind = parse_stage_kind(type, s.key("type"));
   s.string("name", c.name);
-  // Only the keys the stage type uses are accepted (a stray key is a mistake, not a no-op).
-  const auto uses = [&](const char* k) {
-    switch (c.kind) {
-      case StageKind::Isotropic: return std::string(k) == "stress";
-      case StageKind::Oedometric:
-        return std::string(k) == "stress" || std::string(k) == "strain_rate";
-      case StageKind::Triaxial:
-        return std::string(k) == "sigma_3" || std::string(k) == "strain_rate" ||
-               std::string(k) == "axial_strain" || std::string(k) == "stop_q";
-      case StageKind::Age:
-        for (const char* h : {"axial", "lateral", "axial_stress", "lateral_stress", "duration",
-                              "min_cycles", "n_break", "record_interval"}) {
-          if (std::string(k) == h) return true;
-        }
-        return false;
-      case StageKind::Hold:
-        for (const char* h :
-             {"axial", "lateral", "axial_stress", "lateral_stress", "steps", "duration"}) {
-          if (std::string(k) == h) return true;
-        }
-        return false;
-    }
-    return false;
-  };
-  for (const char* k : {"stress", "strain_rate", "sigma_3", "axial_strain", "stop_q", "axial",
-                        "lateral", "axial_stress", "lateral_stress", "steps", "duration",
-                        "min_cycles", "n_break", "record_interval"}) {
-    if (s.has(k) && !uses(k)) {
-      throw ConfigError(
-          bad_value(s.key(k), "given", std::string("no '") + k + "' in a \"" + type + "\" stage"));
+  // A key of another kind is a mistake, not a no-op: say so before the unknown-key check.
+  const ParamTable<StageConfig>& own = stage_params(c.kind);
+  for (const StageKind other : kStageKinds) {
+    for (const Param<StageConfig>& p : stage_params(other)) {
+      const std::string k(p.key);
+      const bool mine = std::any_of(own.begin(), own.end(),
+                                    [&](const Param<StageConfig>& q) { return q.key == p.key; });
+      if (s.has(k) && !mine) {
+        throw ConfigError(
+            bad_value(s.key(k), "given", "no '" + k + "' in a \"" + type + "\" stage"));
+      }
     }
   }
-  s.number("stress", c.stress);
-  s.number("strain_rate", c.strain_rate);
-  s.number("sigma_3", c.sigma_3);
-  s.number("axial_strain", c.axial_strain);
-  s.number("stop_q", c.stop_q);
-  s.string("axial", c.axial);
-  s.string("lateral", c.lateral);
-  s.number("axial_stress", c.axial_stress);
-  s.number("lateral_stress", c.lateral_stress);
-  s.count("steps", c.steps);
-  s.number("duration", c.duration);
-  s.count("min_cycles", c.min_cycles);
-  s.count("n_break", c.n_break);
-  s.count("record_interval", c.record_interval);
-  s.number("tolerance", c.tolerance);
-  s.number("unbalanced", c.unbalanced);
-  s.number("max_strain_rate", c.max_strain_rate);
-  s.count("check_interval", c.check_interval);
-  s.count("max_steps", c.max_steps);
+  read_params(s, c, own);
   s.finish();
 }
 
@@ -359,6 +322,11 @@ std::vector<std::pair<std::string, std::string>> parameter_reference() {
                  "(units of the parent radius, local axis z = the normal of the parent's largest "
                  "contact force); relative to the config file |"})},
       {"output", markdown(output_params())},
+      {"stage.isotropic", markdown(stage_params(StageKind::Isotropic))},
+      {"stage.oedometric", markdown(stage_params(StageKind::Oedometric))},
+      {"stage.triaxial", markdown(stage_params(StageKind::Triaxial))},
+      {"stage.hold", markdown(stage_params(StageKind::Hold))},
+      {"stage.age", markdown(stage_params(StageKind::Age))},
   };
 }
 
@@ -572,45 +540,9 @@ toml::Table to_toml(const RunConfig& c) {
   if (!c.stages.empty()) {
     std::vector<Value> arr;
     for (const StageConfig& s : c.stages) {
-      Table st;
+      Table st = write_params(s, stage_params(s.kind));
       st["type"] = Value::make_string(to_string(s.kind));
       st["name"] = Value::make_string(s.label());
-      switch (s.kind) {
-        case StageKind::Isotropic: st["stress"] = num(s.stress); break;
-        case StageKind::Oedometric:
-          st["stress"] = num(s.stress);
-          st["strain_rate"] = num(s.strain_rate);
-          break;
-        case StageKind::Triaxial:
-          st["sigma_3"] = num(s.sigma_3);
-          st["strain_rate"] = num(s.strain_rate);
-          st["axial_strain"] = num(s.axial_strain);
-          st["stop_q"] = num(s.stop_q);
-          break;
-        case StageKind::Hold:
-          st["axial"] = Value::make_string(s.axial);
-          st["lateral"] = Value::make_string(s.lateral);
-          if (s.axial == "servo") st["axial_stress"] = num(s.axial_stress);
-          if (s.lateral == "servo") st["lateral_stress"] = num(s.lateral_stress);
-          if (s.steps > 0) st["steps"] = cnt(s.steps);
-          if (s.duration > 0.0) st["duration"] = num(s.duration);
-          break;
-        case StageKind::Age:
-          st["axial"] = Value::make_string(s.axial);
-          st["lateral"] = Value::make_string(s.lateral);
-          if (s.axial == "servo") st["axial_stress"] = num(s.axial_stress);
-          if (s.lateral == "servo") st["lateral_stress"] = num(s.lateral_stress);
-          st["duration"] = num(s.duration);
-          st["min_cycles"] = cnt(s.min_cycles);
-          st["n_break"] = cnt(s.n_break);
-          st["record_interval"] = cnt(s.record_interval);
-          break;
-      }
-      st["tolerance"] = num(s.tolerance);
-      st["unbalanced"] = num(s.unbalanced);
-      st["max_strain_rate"] = num(s.max_strain_rate);
-      st["check_interval"] = cnt(s.check_interval);
-      st["max_steps"] = cnt(s.max_steps);
       arr.push_back(Value::make_table(st));
     }
     t["stage"] = Value::make_array(arr);

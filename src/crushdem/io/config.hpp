@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/experiments/stages.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/toml.hpp"

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/experiments/stages.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/run/checkpoint.hpp"

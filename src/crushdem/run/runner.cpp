@@ -9,6 +9,7 @@
 #include "crushdem/core/random.hpp"
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/experiments/stages.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/particles/generate.hpp"
@@ -373,10 +374,11 @@ class Run {
     const auto part = static_cast<std::uint32_t>(kPartFirstStage + k);
     const bool cont = resume_here(part);
     if (!cont) boundary(part);
-    StageController stage(cfg_.stages[k], pos_.d50, crusher_.get());
-    if (cfg_.stages[k].kind == StageKind::Age) {
-      stage.on_dynamic_phase_end = [this, k](const Simulation& s, double t_age,
-                                             std::uint64_t phase) {
+    const std::unique_ptr<Stage> made = make_stage(cfg_.stages[k], pos_.d50, crusher_.get());
+    Stage& stage = *made;
+    if (auto* age = dynamic_cast<AgeStage*>(made.get())) {
+      age->on_dynamic_phase_end = [this, k](const Simulation& s, double t_age,
+                                            std::uint64_t phase) {
         Measurement m;
         m.emplace_back("ageing_time_s", t_age);
         m.emplace_back("stage", static_cast<double>(k));
@@ -386,7 +388,7 @@ class Run {
         driver_->file("events.csv").write(m);
         driver_->request_checkpoint();  // every event is a checkpoint
       };
-      stage.on_phase_record = [this, k](const Measurement& r) {
+      age->on_phase_record = [this, k](const Measurement& r) {
         Measurement m;
         m.emplace_back("stage", static_cast<double>(k));
         for (const auto& kv : r) m.push_back(kv);
