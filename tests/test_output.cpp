@@ -1,12 +1,16 @@
 // Result files: a write that fails (full disk: /dev/full) stops the run at once with the file
-// named, instead of leaving a silently truncated series (io/output.cpp).
+// named, instead of leaving a silently truncated series (io/output.cpp); the first row of a test
+// measures the contacts of the state it starts from.
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/output.hpp"
+#include "crushdem/run/runner.hpp"
+#include "helpers.hpp"
 
 namespace crushdem {
 namespace {
@@ -24,6 +28,29 @@ TEST(Output, AFailedWriteStopsWithTheFileNamed) {
     EXPECT_NE(what.find("checkpoint is kept"), std::string::npos) << what;
   }
   EXPECT_THROW(write_text_file("/dev/full", std::string(100000, 'x')), ConfigError);
+}
+
+// With crushing on, the crusher's set-up invalidates the forces; the first row of the test must
+// still see the two touching grains (and their Love-Weber stress), not an empty contact list.
+TEST(Output, TheFirstRowOfACrushingTestMeasuresTheContacts) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "crushdem_first_row";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "pair.txt") << "1 0.0005 0.0005 0.00041 0.0002\n"
+                                     "2 0.0005 0.0005 0.00059 0.0002\n";
+  std::ofstream(dir / "run.toml")
+      << "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles]\nfile = \"pair.txt\"\n"
+         "[crushing]\nd0 = 1e-3\n[[stage]]\ntype = \"hold\"\nsteps = 10\n";
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (dir / "out").string();
+  run_to_directory(load_run_config((dir / "run.toml").string()), opt);
+  const auto rows = testing::read_csv((dir / "out" / "timeseries.csv").string());
+  ASSERT_FALSE(rows.at("n_contacts").empty());
+  EXPECT_EQ(rows.at("n_contacts").front(), 1.0);
+  EXPECT_GT(rows.at("mean_Fn_N").front(), 0.0);
+  fs::remove_all(dir);
 }
 
 }  // namespace
