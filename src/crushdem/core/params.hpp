@@ -43,9 +43,9 @@ struct Param {
   // Shown as the default in the docs instead of the default-constructed struct's value (for a
   // key whose effective default depends on where it is read).
   std::string_view default_doc = {};
-  // Written to config.toml only where this holds (a key that applies only with another key's
-  // value, such as a servo target); always written when null.
-  bool (*written)(const S&) = nullptr;
+  // The key applies only where this holds (a servo target with a servo wall): written to
+  // config.toml and range-checked only then; always when null.
+  bool (*applies)(const S&) = nullptr;
 };
 
 template <class S>
@@ -55,7 +55,7 @@ using ParamTable = std::vector<Param<S>>;
 template <class S>
 void validate_params(const S& obj, const ParamTable<S>& table, const std::string& section) {
   for (const Param<S>& p : table) {
-    if (!p.ok) continue;
+    if (!p.ok || (p.applies && !p.applies(obj))) continue;
     double v = 0.0;
     if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
       v = obj.*(*num);

@@ -34,6 +34,55 @@ namespace {
 constexpr double kLoosestVoidRatio = 1.2;
 }  // namespace
 
+const ParamTable<SampleConfig>& sample_params() {
+  using Row = Param<SampleConfig>;
+  static const ParamTable<SampleConfig> table = {
+      Row{"side", &SampleConfig::side, "m",
+          "cube side at the target void ratio (give side or count)",
+          [](double v) { return v >= 0.0; }, "a cube side in m (> 0)", "4e-3 (unless count)",
+          [](const SampleConfig& c) { return c.count == 0; }},
+      Row{"count",
+          &SampleConfig::count,
+          "",
+          "about how many grains; sets the side",
+          nullptr,
+          {},
+          "-",
+          [](const SampleConfig& c) { return c.count > 0; }},
+      Row{"void_ratio", &SampleConfig::void_ratio, "-", "target void ratio e (STUDY)",
+          [](double v) { return v > 0.0 && v < kLoosestVoidRatio; },
+          "a void ratio in (0, 1.2): random packings of spheres in equilibrium are not looser "
+          "than about e = 0.8-1.0"},
+      Row{"tolerance", &SampleConfig::tolerance, "-",
+          "accepted abs(e - void_ratio); a warning (summary.json, terminal) if missed",
+          [](double v) { return v > 0.0 && v < 0.1; }, "a void-ratio tolerance in (0, 0.1)"},
+      Row{"stress", &SampleConfig::stress, "Pa", "isotropic stress of the prepared sample",
+          [](double v) { return v > 0.0; }, "a positive isotropic stress in Pa"},
+      Row{"seed", &SampleConfig::seed, "", "grain sizes and positions; same seed, same sample"},
+      Row{"friction_start", &SampleConfig::friction_start, "-",
+          "preparation friction to start from (in [material.friction, 2])"},
+      Row{"friction_factor", &SampleConfig::friction_factor, "-",
+          "each lowering multiplies the preparation friction by this",
+          [](double v) { return v > 0.0 && v < 1.0; }, "a factor in (0, 1)"},
+      Row{"placement_fraction", &SampleConfig::placement_fraction, "-",
+          "solid fraction of the loose initial cloud", [](double v) { return v > 0.0 && v <= 0.3; },
+          "a solid fraction in (0, 0.3] (random placement jams above)"},
+      Row{"max_speed", &SampleConfig::max_speed, "m/s", "wall speed limit during preparation",
+          [](double v) { return v > 0.0; }, "a positive speed in m/s"},
+      Row{"unbalanced", &SampleConfig::unbalanced, "-",
+          "equilibrium: unbalanced-force ratio below this",
+          [](double v) { return v > 0.0 && v < 1.0; }, "an unbalanced-force ratio in (0, 1)"},
+      Row{"stress_tolerance", &SampleConfig::stress_tolerance, "-",
+          "equilibrium: every wall within this relative error of stress",
+          [](double v) { return v > 0.0 && v < 0.5; }, "a relative tolerance in (0, 0.5)"},
+      Row{"check_interval", &SampleConfig::check_interval, "", "steps between checks",
+          [](double v) { return v >= 1.0; }, "> 0 steps"},
+      Row{"max_steps", &SampleConfig::max_steps, "", "error after this many steps",
+          [](double v) { return v >= 1.0; }, "> 0 steps"},
+  };
+  return table;
+}
+
 void SampleConfig::validate(const SimulationConfig& sim) const {
   grading.validate("sample.grading");
   if (side != 0.0 && count != 0) {
@@ -41,13 +90,7 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
         "sample: give either 'sample.side' (the cube side in m) or 'sample.count' (about how "
         "many grains), not both");
   }
-  require_value(side >= 0.0 && std::isfinite(side), "sample.side", side, "a cube side in m (> 0)");
-  // A random packing of spheres brought to equilibrium is not looser than about e = 0.8-1.0
-  // (random loose packing of frictional spheres); the preparation cannot reach more.
-  require_value(void_ratio > 0.0 && void_ratio < kLoosestVoidRatio, "sample.void_ratio", void_ratio,
-                "a void ratio in (0, " + show_number(kLoosestVoidRatio) +
-                    "): random packings of spheres in equilibrium are not looser than about "
-                    "e = 0.8-1.0");
+  validate_params(*this, sample_params(), "sample");
   const double e_min = densest_void_ratio(grading, cube_side());
   if (void_ratio < e_min) {
     throw ConfigError(bad_value(
@@ -57,25 +100,9 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
             " here (Desmond & Weeks 2014, with a looser layer along the walls), and no random "
             "packing is denser: more grains than fit (a wider cube packs denser)"));
   }
-  require_value(tolerance > 0.0 && tolerance < 0.1, "sample.tolerance", tolerance,
-                "a void-ratio tolerance in (0, 0.1)");
-  require_value(stress > 0.0 && std::isfinite(stress), "sample.stress", stress,
-                "a positive isotropic stress in Pa");
   require_value(friction_start >= sim.material.friction && friction_start <= 2.0,
                 "sample.friction_start", friction_start,
                 "a friction coefficient in [material.friction, 2] to start the preparation from");
-  require_value(friction_factor > 0.0 && friction_factor < 1.0, "sample.friction_factor",
-                friction_factor, "a factor in (0, 1)");
-  require_value(placement_fraction > 0.0 && placement_fraction <= 0.3, "sample.placement_fraction",
-                placement_fraction, "a solid fraction in (0, 0.3] (random placement jams above)");
-  require_value(max_speed > 0.0 && std::isfinite(max_speed), "sample.max_speed", max_speed,
-                "a positive speed in m/s");
-  require_value(unbalanced > 0.0 && unbalanced < 1.0, "sample.unbalanced", unbalanced,
-                "an unbalanced-force ratio in (0, 1)");
-  require_value(stress_tolerance > 0.0 && stress_tolerance < 0.5, "sample.stress_tolerance",
-                stress_tolerance, "a relative tolerance in (0, 0.5)");
-  if (check_interval == 0) throw ConfigError(bad_value("sample.check_interval", "0", "> 0 steps"));
-  if (max_steps == 0) throw ConfigError(bad_value("sample.max_steps", "0", "> 0 steps"));
   const double L = cube_side();
   const double d_max = grading.diameter.back();
   if (L < 5.0 * d_max) {

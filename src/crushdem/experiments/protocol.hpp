@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/core/params.hpp"
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/particles/grading.hpp"
@@ -42,6 +43,9 @@ struct SampleConfig {
   void validate(const SimulationConfig& sim) const;  // keys "sample.<key>"
   double cube_side() const;  // the side the sample has at the target void ratio
 };
+
+/// The scalar keys of [sample] (core/params.hpp); the grading is its own sub-table.
+const ParamTable<SampleConfig>& sample_params();
 
 // ---------------------------------------------------------------------------------------------
 // Controllers

@@ -56,23 +56,16 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     for (int k = 0; k < kNumWalls; ++k) {
       Section s = walls.sub(wall_name(k));
       WallConfig& w = c.walls[static_cast<std::size_t>(k)];
-      std::string mode = to_string(w.mode);
-      s.string("mode", mode);
-      w.mode = parse_wall_mode(mode, s.key("mode"));
+      read_params(s, w, wall_params());
       // A key that the chosen mode does not use is almost always a forgotten `mode` line.
-      for (const char* key : {"velocity", "target_stress", "servo_alpha", "max_speed"}) {
-        const bool used = std::string(key) == "velocity" ? w.mode == WallMode::Velocity
-                                                         : w.mode == WallMode::Servo;
-        if (s.has(key) && !used) {
+      for (const Param<WallConfig>& p : wall_params()) {
+        const std::string key(p.key);
+        if (p.applies && !p.applies(w) && s.has(key)) {
           throw ConfigError(bad_value(s.key(key), "given",
-                                      std::string("no '") + key + "' for a wall in mode \"" + mode +
+                                      "no '" + key + "' for a wall in mode \"" + to_string(w.mode) +
                                           "\" (set mode or remove the key)"));
         }
       }
-      s.number("velocity", w.velocity);
-      s.number("target_stress", w.target_stress);
-      s.number("servo_alpha", w.servo_alpha);
-      s.number("max_speed", w.max_speed);
       s.finish();
     }
     walls.finish();
@@ -136,23 +129,10 @@ void read_sample(Section& s, SampleConfig& c) {
   g.numbers("passing", c.grading.passing,
             "an array of mass fractions passing (0 ... 1), one per size");
   g.finish();
-  s.number("side", c.side);
-  s.count("count", c.count);
+  read_params(s, c, sample_params());
   if (s.has("count") && c.count == 0) {
     throw ConfigError(bad_value(s.key("count"), "0", "a positive number of grains"));
   }
-  s.number("void_ratio", c.void_ratio);
-  s.number("tolerance", c.tolerance);
-  s.number("stress", c.stress);
-  s.count("seed", c.seed);
-  s.number("friction_start", c.friction_start);
-  s.number("friction_factor", c.friction_factor);
-  s.number("placement_fraction", c.placement_fraction);
-  s.number("max_speed", c.max_speed);
-  s.number("unbalanced", c.unbalanced);
-  s.number("stress_tolerance", c.stress_tolerance);
-  s.count("check_interval", c.check_interval);
-  s.count("max_steps", c.max_steps);
   s.finish();
 }
 
@@ -217,10 +197,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
               .string();
     }
     Section g = s.sub("generate");
-    g.count("count", c.particles.generate.count);
-    g.number("diameter_min", c.particles.generate.diameter_min);
-    g.number("diameter_max", c.particles.generate.diameter_max);
-    g.count("seed", c.particles.generate.seed);
+    read_params(g, c.particles.generate, generate_params());
     g.finish();
     if (!c.particles.file.empty() && s.has("generate")) {
       throw ConfigError(
@@ -309,6 +286,18 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
   return c;
 }
 
+const ParamTable<GenerateConfig>& generate_params() {
+  using Row = Param<GenerateConfig>;
+  static const ParamTable<GenerateConfig> table = {
+      Row{"count", &GenerateConfig::count, "", "number of grains placed at random without overlap"},
+      Row{"diameter_min", &GenerateConfig::diameter_min, "m",
+          "smallest diameter (uniform by number in [min, max])"},
+      Row{"diameter_max", &GenerateConfig::diameter_max, "m", "largest diameter"},
+      Row{"seed", &GenerateConfig::seed, "", "random seed; same seed, same sample"},
+  };
+  return table;
+}
+
 std::vector<std::pair<std::string, std::string>> parameter_reference() {
   return {
       {"material", markdown(material_params())},
@@ -322,6 +311,14 @@ std::vector<std::pair<std::string, std::string>> parameter_reference() {
                  "(units of the parent radius, local axis z = the normal of the parent's largest "
                  "contact force); relative to the config file |"})},
       {"output", markdown(output_params())},
+      {"walls.NAME", markdown(wall_params())},
+      {"particles.generate", markdown(generate_params())},
+      {"sample",
+       markdown(
+           sample_params(),
+           {"| `grading.diameter` | NE34-like: 0.12 ... 0.27 mm | m | sieve sizes, increasing |",
+            "| `grading.passing` | 0, 0.1, 0.3, 0.5, 0.7, 0.9, 1 | - | mass fraction passing "
+            "each size (0 ... 1, first 0, last 1) |"})},
       {"stage.isotropic", markdown(stage_params(StageKind::Isotropic))},
       {"stage.oedometric", markdown(stage_params(StageKind::Oedometric))},
       {"stage.triaxial", markdown(stage_params(StageKind::Triaxial))},
@@ -484,14 +481,7 @@ toml::Table to_toml(const SimulationConfig& c) {
   Table walls;
   for (int k = 0; k < kNumWalls; ++k) {
     const WallConfig& w = c.walls[static_cast<std::size_t>(k)];
-    Table wt;
-    wt["mode"] = Value::make_string(to_string(w.mode));
-    if (w.mode == WallMode::Velocity) wt["velocity"] = num(w.velocity);
-    if (w.mode == WallMode::Servo) {
-      wt["target_stress"] = num(w.target_stress);
-      wt["servo_alpha"] = num(w.servo_alpha);
-      wt["max_speed"] = num(w.max_speed);
-    }
+    const Table wt = write_params(w, wall_params());
     walls[wall_name(k)] = Value::make_table(wt);
   }
   t["walls"] = Value::make_table(walls);
@@ -518,23 +508,8 @@ toml::Table to_toml(const RunConfig& c) {
     g["diameter"] = Value::make_array(d);
     g["passing"] = Value::make_array(pa);
     st["grading"] = Value::make_table(g);
-    if (s.count > 0) {
-      st["count"] = cnt(s.count);
-    } else {
-      st["side"] = num(s.cube_side());
-    }
-    st["void_ratio"] = num(s.void_ratio);
-    st["tolerance"] = num(s.tolerance);
-    st["stress"] = num(s.stress);
-    st["seed"] = cnt(s.seed);
-    st["friction_start"] = num(s.friction_start);
-    st["friction_factor"] = num(s.friction_factor);
-    st["placement_fraction"] = num(s.placement_fraction);
-    st["max_speed"] = num(s.max_speed);
-    st["unbalanced"] = num(s.unbalanced);
-    st["stress_tolerance"] = num(s.stress_tolerance);
-    st["check_interval"] = cnt(s.check_interval);
-    st["max_steps"] = cnt(s.max_steps);
+    for (auto& [key, value] : write_params(s, sample_params())) st[key] = value;
+    if (s.count == 0) st["side"] = num(s.cube_side());  // the side in use (4 mm when not given)
     t["sample"] = Value::make_table(st);
   }
   if (!c.stages.empty()) {
@@ -561,12 +536,7 @@ toml::Table to_toml(const RunConfig& c) {
   if (!c.particles.file.empty()) {
     p["file"] = Value::make_string(c.particles.file);
   } else {
-    Table g;
-    g["count"] = cnt(c.particles.generate.count);
-    g["diameter_min"] = num(c.particles.generate.diameter_min);
-    g["diameter_max"] = num(c.particles.generate.diameter_max);
-    g["seed"] = cnt(c.particles.generate.seed);
-    p["generate"] = Value::make_table(g);
+    p["generate"] = Value::make_table(write_params(c.particles.generate, generate_params()));
   }
   t["particles"] = Value::make_table(p);
   if (!c.stages.empty()) return t;

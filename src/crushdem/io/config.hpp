@@ -26,6 +26,9 @@ struct GenerateConfig {
   void validate(const std::array<double, 6>& box) const;
 };
 
+/// The keys of [particles.generate] (core/params.hpp).
+const ParamTable<GenerateConfig>& generate_params();
+
 struct ParticlesConfig {
   std::string file;         // "id x y z diameter" rows (relative to the config file); a
                             // "# box_xmin=..." header (written by sample preparation) gives the

@@ -167,7 +167,7 @@ template <class S>
 Table write_params(const S& obj, const ParamTable<S>& table) {
   Table t;
   for (const Param<S>& p : table) {
-    if (p.written && !p.written(obj)) continue;
+    if (p.applies && !p.applies(obj)) continue;
     const std::string k(p.key);
     if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
       t[k] = Value::make_float(obj.*(*num));

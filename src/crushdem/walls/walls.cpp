@@ -30,22 +30,58 @@ WallMode parse_wall_mode(const std::string& s, const std::string& key) {
   throw ConfigError(bad_value(key, "\"" + s + "\"", "\"fixed\", \"velocity\" or \"servo\""));
 }
 
-void WallConfig::validate(const std::string& prefix) const {
-  auto bad = [&](const std::string& key, double v, const std::string& what) {
-    throw ConfigError(bad_value(prefix + "." + key, show_number(v), what));
+const ParamTable<WallConfig>& wall_params() {
+  using Row = Param<WallConfig>;
+  static const ParamTable<WallConfig> table = {
+      Row{"mode",
+          ParamChoice<WallConfig>{
+              [](const WallConfig& w) -> std::string { return to_string(w.mode); },
+              [](WallConfig& w, const std::string& v, const std::string& key) {
+                w.mode = parse_wall_mode(v, key);
+              },
+              "\"fixed\", \"velocity\" or \"servo\""},
+          "", "fixed, moving at `velocity`, or servo-controlled to `target_stress`"},
+      Row{"velocity",
+          &WallConfig::velocity,
+          "m/s",
+          "velocity mode: velocity along the coordinate axis (negative moves a max wall inwards)",
+          [](double) { return true; },
+          "a finite velocity in m/s",
+          {},
+          [](const WallConfig& w) { return w.mode == WallMode::Velocity; }},
+      Row{"target_stress",
+          &WallConfig::target_stress,
+          "Pa",
+          "servo mode: compressive normal stress to hold",
+          [](double v) { return v > 0.0; },
+          "a positive compressive stress in Pa for a servo wall",
+          {},
+          [](const WallConfig& w) { return w.mode == WallMode::Servo; }},
+      Row{"servo_alpha",
+          &WallConfig::servo_alpha,
+          "-",
+          "servo gain alpha in v = alpha A (sigma - sigma_target) / (sum k_n dt) (docs/model.md "
+          "4.2)",
+          [](double v) { return v > 0.0 && v <= 1.0; },
+          "a gain in (0, 1]",
+          {},
+          [](const WallConfig& w) { return w.mode == WallMode::Servo; }},
+      Row{"max_speed",
+          &WallConfig::max_speed,
+          "m/s",
+          "servo mode: speed limit",
+          [](double v) { return v > 0.0; },
+          "a positive speed in m/s",
+          {},
+          [](const WallConfig& w) { return w.mode == WallMode::Servo; }},
   };
-  if (!std::isfinite(position)) bad("position", position, "a finite coordinate in m");
-  if (!std::isfinite(velocity)) bad("velocity", velocity, "a finite velocity in m/s");
-  if (mode == WallMode::Servo) {
-    if (!(target_stress > 0.0) || !std::isfinite(target_stress)) {
-      bad("target_stress", target_stress, "a positive compressive stress in Pa for a servo wall");
-    }
-    if (!(servo_alpha > 0.0 && servo_alpha <= 1.0))
-      bad("servo_alpha", servo_alpha, "a gain in (0, 1]");
-    if (!(max_speed > 0.0) || !std::isfinite(max_speed)) {
-      bad("max_speed", max_speed, "a positive speed in m/s");
-    }
-  }
+  return table;
+}
+
+void WallConfig::validate(const std::string& prefix) const {
+  require_value(std::isfinite(position), prefix + ".position", position,
+                "a finite coordinate in m");
+  validate_params(*this, wall_params(), prefix);
 }
 
 Walls::Walls(const std::array<WallConfig, kNumWalls>& cfg) : cfg_(cfg) {

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/core/params.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/core/types.hpp"
 
@@ -44,6 +45,9 @@ struct WallConfig {
   double max_speed = 0.05;     // Servo speed limit [m/s]
   void validate(const std::string& prefix) const;
 };
+
+/// The keys of a [walls.NAME] section (core/params.hpp); the position comes from [box].
+const ParamTable<WallConfig>& wall_params();
 
 struct WallState {
   double position = 0.0;
