@@ -6,12 +6,17 @@ Each variant changes one choice of the base settings (Table 1 and the documented
 growth) and runs the same test on the same prepared sample: isotropic compression to sigma_3,
 then drained shear at ``strain_rate`` to ``axial_strain`` with the lateral walls at sigma_3.
 
-Writes ``DIR/<variant>/`` (a run directory each), ``DIR/qmax_sensitivity.csv`` and
+The variants are a preset sweep (``crushdem sweep``): ``DIR/sensitivity_base.toml`` is the test
+on the sample, ``DIR/sensitivity_sweep.toml`` names each variant as a ``[[variant]]`` with the
+keys it changes, and the sweep runs them as Dask tasks, ``--workers`` at a time (default: the
+cores divided by ``--threads``), into ``DIR/runs/<variant>/`` (a run directory each), with
+the sweep's ``DIR/results.csv`` beside the sensitivity tables. Writes ``DIR/qmax_sensitivity.csv`` and
 ``DIR/qmax_sensitivity.md`` (q_max, q_max / sigma_3, the axial strain at q_max, the peak friction
 angle, breakages, B_r, grains and wall-clock time per variant, and which comes closest to the
 study's 22.6 MPa) and ``DIR/sensitivity.json`` (the settings). A variant that has finished is not
 run again and an interrupted one resumes from its checkpoint, so the command can be repeated
-until every variant is done, or run on several machines with ``--only``.
+until every variant is done, or run on several machines with ``--only``. Variant directories
+directly under ``DIR`` (an older layout) are read as well.
 
 A name joined with ``+`` (``r_prime_2R_star+d0_2mm+rolling_0.3``) is a combination: it makes
 every change of its parts at once (parts that set one key two ways are refused). The tables list
@@ -35,7 +40,6 @@ import numpy as np
 from .analysis import as_float
 from .reproduce import triaxial_stage
 from .rundir import read_summary, read_timeseries, read_timing
-from .runs import run_step, set_threads
 from .study import (MATERIAL, SIGMA_3_PA, STUDY_Q_MAX_PA,  # noqa: F401  (re-exported)
                     TABLE1_CONTACT, TABLE1_CRUSHING)
 
@@ -116,22 +120,78 @@ def variant_settings(base: Mapping[str, Any], name: str) -> Dict[str, Any]:
     return s
 
 
+def run_dir(out: str, name: str) -> str:
+    """The run directory of variant ``name`` under ``out``: DIR/runs/NAME (the sweep's), or
+    DIR/NAME where an older layout left it."""
+    old = os.path.join(out, name)
+    new = os.path.join(out, "runs", name)
+    return old if os.path.isdir(old) and not os.path.isdir(new) else new
+
+
 def known_runs(out: str) -> List[str]:
     """Variant names with a run directory under ``out``: single variants in the order of
     VARIANTS, then combinations in name order."""
-    if not os.path.isdir(out):
-        return []
-    found = []
-    for entry in sorted(os.listdir(out)):
-        if not os.path.isdir(os.path.join(out, entry)):
+    found = set()
+    for where in (out, os.path.join(out, "runs")):
+        if not os.path.isdir(where):
             continue
-        try:
-            variant_parts(entry)
-        except ValueError:
-            continue
-        found.append(entry)
+        for entry in sorted(os.listdir(where)):
+            if not os.path.isdir(os.path.join(where, entry)):
+                continue
+            try:
+                variant_parts(entry)
+            except ValueError:
+                continue
+            found.add(entry)
     singles = [n for n in VARIANTS if n in found]
-    return singles + [n for n in found if n not in VARIANTS]
+    return singles + sorted(n for n in found if n not in VARIANTS)
+
+
+def toml_value(v: Any) -> str:
+    """A scalar as TOML (strings quoted, booleans lower case, numbers that read back exactly)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (int, float)):
+        return repr(v)
+    raise ValueError(f"not a TOML scalar: {v!r}")
+
+
+def base_config(s: Mapping[str, Any], sample: str) -> Dict[str, Any]:
+    """The test every variant runs: isotropic compression to sigma_3, then drained shear, on the
+    prepared ``sample``, with the sections of settings ``s``."""
+    tri = s["triaxial"]
+    return {"material": dict(s["material"]), "contact": dict(s["contact"]),
+            "crushing": dict(s["crushing"]), "output": dict(s["output"]),
+            "particles": {"file": os.path.abspath(sample)},
+            "stage": [{"type": "isotropic", "name": "isotropic", "stress": tri["sigma_3"]},
+                      {"type": "triaxial", "name": "shear", "sigma_3": tri["sigma_3"],
+                       "strain_rate": tri["strain_rate"], "axial_strain": tri["axial_strain"]}]}
+
+
+def write_sweep(out: str, sample: str, names: Sequence[str], base: Mapping[str, Any]) -> str:
+    """Writes DIR/sensitivity_base.toml (the resolved base test) and DIR/sensitivity_sweep.toml
+    (one [[variant]] per name with the keys it changes); returns the sweep file's path."""
+    from . import _core
+
+    text = _core.resolved_run_config(base_config(base, sample), out)
+    with open(os.path.join(out, "sensitivity_base.toml"), "w") as f:
+        f.write(text)
+    lines = ["# crushdem sensitivity: each variant changes the base test's choices below",
+             'base = "sensitivity_base.toml"', ""]
+    for name in names:
+        changed = variant_settings(base, name)
+        lines += ["[[variant]]", f"name = {toml_value(name)}"]
+        for section in ("contact", "crushing"):
+            for key, value in changed[section].items():
+                if base[section].get(key, None) != value or key not in base[section]:
+                    lines.append(f'"{section}.{key}" = {toml_value(value)}')
+        lines.append("")
+    path = os.path.join(out, "sensitivity_sweep.toml")
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+    return path
 
 
 def solid_volume(sample: str) -> float:
@@ -210,7 +270,7 @@ def table(out: str, names: Sequence[str], sigma_3: float,
     rows = []
     listed = known_runs(out)
     for name in listed + [n for n in names if n not in listed]:
-        row = read_variant(os.path.join(out, name), sigma_3, solids_m3)
+        row = read_variant(run_dir(out, name), sigma_3, solids_m3)
         row["variant"], row["changes"] = name, describe(name)
         rows.append(row)
     with open(os.path.join(out, "qmax_sensitivity.csv"), "w", newline="") as f:
@@ -249,9 +309,11 @@ def table(out: str, names: Sequence[str], sigma_3: float,
 def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None,
                     threads: Optional[int] = None, sigma_3: float = SIGMA_3_PA,
                     strain_rate: float = 50.0, axial_strain: float = 0.30,
-                    log: Callable[[str], None] = print) -> List[Dict[str, Any]]:
-    """Runs the variants ``names`` (default: all) on the prepared ``sample`` into ``out``."""
-    from . import _core, lab
+                    log: Callable[[str], None] = print,
+                    workers: Optional[int] = None) -> List[Dict[str, Any]]:
+    """Runs the variants ``names`` (default: all) on the prepared ``sample`` into ``out``, as a
+    sweep of ``workers`` runs at a time with ``threads`` threads each."""
+    from . import sweep
 
     names = list(names or VARIANTS)
     base = settings(sigma_3, strain_rate, axial_strain)
@@ -279,20 +341,17 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
     with open(json_path, "w") as f:
         json.dump({"sample": os.path.abspath(sample), "base": base, "variants": variants}, f,
                   indent=1)
-    if threads:
-        set_threads(threads)
     solids = solid_volume(sample)
-    record: Dict[str, Any] = {}
-    for n, s in chosen.items():
-        run_dir = os.path.join(out, n)
-        tri = s["triaxial"]
-        run_step(n, run_dir,
-                  lambda s=s, run_dir=run_dir, tri=tri: lab.triaxial_test(
-                      run_dir, sample, sigma_3=tri["sigma_3"], strain_rate=tri["strain_rate"],
-                      axial_strain=tri["axial_strain"], material=s["material"],
-                      contact=s["contact"], crushing=s["crushing"], output=s["output"]),
-                  log, record, _core.resume)
-        table(out, names, sigma_3, solids)  # after every variant: finished work is never lost
+    # Variants finished in the older layout (DIR/NAME) are not run again.
+    todo = [n for n in names
+            if not os.path.isfile(os.path.join(run_dir(out, n), "summary.json"))]
+    if todo:
+        path = write_sweep(out, sample, todo, base)
+        threads_per_run = threads or 1
+        try:
+            sweep.sweep(path, out, workers=workers, threads_per_run=threads_per_run, log=log)
+        finally:
+            table(out, names, sigma_3, solids)  # finished work is never lost
     return table(out, names, sigma_3, solids)
 
 
@@ -310,7 +369,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E")
     parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R")
     parser.add_argument("--sigma-3", type=float, default=SIGMA_3_PA, metavar="PA")
-    parser.add_argument("--threads", type=int, default=None, metavar="N")
+    parser.add_argument("--threads", type=int, default=None, metavar="N",
+                        help="OpenMP threads of each variant run (default 1)")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="variants run at once (default: the cores divided by --threads)")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     names = [n.strip() for n in args.only.split(",")] if args.only else None
 
@@ -319,7 +381,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         run_sensitivity(args.out, args.sample, names, args.threads, args.sigma_3,
-                        args.strain_rate, args.axial_strain, log)
+                        args.strain_rate, args.axial_strain, log, args.workers)
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem sensitivity: error: {e}", file=sys.stderr)
         return 2

@@ -11,7 +11,12 @@ A sweep file names a base configuration and the values to vary::
     [zip]                               # optional: varied together (equal lengths), one factor
     "crushing.r_prime" = ["R_star", "2R_star"]
     "crushing.d0" = [0.0, 2e-3]
+    [[variant]]                         # optional: named variants, one factor; each sets its
+    name = "rolling_0.3"                # own keys (none: the base as it is)
+    "contact.rotation" = "rolling"
+    "contact.rolling_friction" = 0.3
 
+Named variants give their directory names (joined with ``__`` to the other factors' values).
 A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
 and a key: ``stage.1.strain_rate`` (by index) or ``stage.shear.strain_rate`` (by name). Each
 variant is one task: ``crushdem run`` in a subprocess with ``--threads-per-run`` threads, on a
@@ -86,17 +91,21 @@ def read_file_and_base(path: str, what: str, keys: Sequence[str]) -> Tuple[Dict,
 
 def read_sweep(path: str) -> Dict[str, Any]:
     """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]],
-    "keys", "from"}; every problem named by file and key."""
-    doc, base, base_path = read_file_and_base(path, "sweep", ("base", "from", "vary", "zip"))
+    "keys", "from"}; every problem named by file and key. A named variant's element of its
+    factor carries its name under NAME_KEY."""
+    doc, base, base_path = read_file_and_base(path, "sweep",
+                                              ("base", "from", "vary", "zip", "variant"))
     branch = doc.get("from")
     if branch is not None:
         if not isinstance(branch, str):
             raise ValueError(f"{path}: from = \"DIR[:STAGE]\" (a finished run to branch from)")
         branch = os.path.join(os.path.dirname(os.path.abspath(path)), branch)
     factors: List[List[Dict[str, Any]]] = []
+    keys: List[str] = []
     for key, values in (doc.get("vary") or {}).items():
         _check_values(path, "vary", key, values)
         factors.append([{key: v} for v in values])
+        keys.append(key)
     zipped = doc.get("zip") or {}
     if zipped:
         lengths = set()
@@ -108,15 +117,52 @@ def read_sweep(path: str) -> Dict[str, Any]:
                              f"{', '.join(str(n) for n in sorted(lengths))})")
         n = lengths.pop()
         factors.append([{k: v[i] for k, v in zipped.items()} for i in range(n)])
+        keys.extend(zipped)
+    named = doc.get("variant")
+    if named is not None:
+        factor, named_keys = _named_variants(path, named)
+        factors.append(factor)
+        keys.extend(named_keys)
     if not factors:
-        raise ValueError(f"{path}: nothing to vary ([vary] or [zip] with at least one key)")
-    keys = [k for f in factors for k in f[0]]
+        raise ValueError(f"{path}: nothing to vary ([vary], [zip] or [[variant]] with at least "
+                         "one entry)")
     if len(set(keys)) != len(keys):
         raise ValueError(f"{path}: a key is varied twice")
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
             "factors": factors, "keys": keys, "from": branch}
+
+
+# The name of a [[variant]] inside its factor's element (not a configuration key: no dot).
+NAME_KEY = "name"
+
+
+def _named_variants(path: str, named: Any) -> Tuple[List[Dict[str, Any]], List[str]]:
+    """The [[variant]] tables as one factor, and the keys they set (each once, in order)."""
+    if not isinstance(named, list) or not named or not all(isinstance(v, dict) for v in named):
+        raise ValueError(f"{path}: [[variant]] must be tables, each with a name")
+    factor, keys, names = [], [], set()
+    for i, v in enumerate(named):
+        name = v.get(NAME_KEY)
+        if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9._+-]+", name):
+            raise ValueError(f"{path}: variant[{i}].name must be a directory name (letters, "
+                             f"digits and ._+-), got {name!r}")
+        if name in names:
+            raise ValueError(f"{path}: two variants are named '{name}'")
+        names.add(name)
+        for key, value in v.items():
+            if key == NAME_KEY:
+                continue
+            if "." not in key:
+                raise ValueError(f"{path}: variant '{name}': '{key}' is not a dotted key "
+                                 "(SECTION.KEY or stage.INDEX|NAME.KEY)")
+            if isinstance(value, (list, dict)):
+                raise ValueError(f"{path}: variant '{name}': \"{key}\" must be one value")
+            if key not in keys:
+                keys.append(key)
+        factor.append(dict(v))
+    return factor, keys
 
 
 def _check_values(path: str, table: str, key: str, values: Any) -> None:
@@ -161,12 +207,20 @@ def variants(sweep: Mapping[str, Any]) -> List[Dict[str, Any]]:
     out = []
     for combo in itertools.product(*sweep["factors"]):
         values: Dict[str, Any] = {}
+        names: List[str] = []
         for part in combo:
+            part = dict(part)
+            name = part.pop(NAME_KEY, None)
+            if name is not None:
+                names.append(name)
             values.update(part)
         cfg = copy.deepcopy(sweep["base"])
         for k, v in values.items():
             set_dotted(cfg, k, v)
-        out.append({"name": variant_name(values), "values": values, "config": cfg})
+        unnamed = {k: v for k, v in values.items()
+                   if not any(k in p and NAME_KEY in p for p in combo)}
+        label = "__".join(names + ([variant_name(unnamed)] if unnamed else []))
+        out.append({"name": label or "base", "values": values, "config": cfg})
     return out
 
 
@@ -288,7 +342,7 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
     for v in listed:
         run_dir = os.path.join(out, "runs", v["name"])
         row: Dict[str, Any] = {"variant": v["name"]}
-        row.update({k: v["values"][k] for k in keys})
+        row.update({k: v["values"].get(k) for k in keys})
         figures = summary_figures(run_dir)
         done = os.path.isfile(os.path.join(run_dir, "summary.json"))
         row["status"] = "done" if done else ("failed" if v["name"] in errors else "not run")
@@ -311,11 +365,13 @@ def figure(df, keys: Sequence[str], path: str) -> Optional[str]:
     """Each summary figure against each varied key (numeric keys only), one panel each."""
     from matplotlib.figure import Figure  # no pyplot: no backend is chosen for the caller
 
+    from pandas.api.types import is_numeric_dtype  # pandas' own string columns too
+
     skip = {"variant", "status", "error", "run_dir", "wall_s", *keys}
     done = df[df["status"] == "done"] if "status" in df else df
-    figures = [c for c in df.columns if c not in skip and np.issubdtype(df[c].dtype, np.number)
+    figures = [c for c in df.columns if c not in skip and is_numeric_dtype(df[c].dtype)
                and np.isfinite(done[c].to_numpy(dtype=float)).any()] if len(done) else []
-    numeric = [k for k in keys if np.issubdtype(df[k].dtype, np.number)]
+    numeric = [k for k in keys if is_numeric_dtype(df[k].dtype)]
     if not figures or not numeric:
         return None
     fig = Figure(figsize=(3.6 * len(numeric), 2.6 * len(figures)))

@@ -156,3 +156,49 @@ def test_rotation_variants_cannot_be_combined_with_each_other():
     assert s["contact"]["rotation"] == "blocked" and s["crushing"]["enabled"] is False
     with pytest.raises(ValueError, match="set contact.rotation differently"):
         sensitivity.variant_settings(base, "blocked+rolling_0.3")
+
+
+DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
+LATTICE = os.path.join(DATA, "lattice_64.txt")
+
+
+def test_the_preset_sweep_makes_each_variant_s_configuration(tmp_path):
+    """The sweep file that ``crushdem sensitivity`` writes gives, for every variant, the same
+    resolved configuration as the variant's settings applied to the base test directly."""
+    from crushdem import sweep
+
+    out = str(tmp_path)
+    base = sensitivity.settings()
+    names = list(sensitivity.VARIANTS) + ["r_prime_2R_star+d0_2mm+rolling_0.3"]
+    path = sensitivity.write_sweep(out, LATTICE, names, base)
+    listed = sweep.variants(sweep.read_sweep(path))
+    assert [v["name"] for v in listed] == names
+    for v in listed:
+        direct = sensitivity.base_config(sensitivity.variant_settings(base, v["name"]), LATTICE)
+        assert (_core.resolved_run_config(v["config"], out)
+                == _core.resolved_run_config(direct, out)), v["name"]
+    no_crushing = next(v for v in listed if v["name"] == "no_crushing")
+    assert "[crushing]" not in _core.resolved_run_config(no_crushing["config"], out)
+
+
+def test_sensitivity_runs_its_variants_as_a_sweep(tmp_path):
+    """Two variants on the 64-grain lattice, two workers: each is a run of the sweep under
+    DIR/runs, the table has both, and the blocked variant ran with rotation blocked."""
+    pytest.importorskip("distributed")
+    out = str(tmp_path / "sens")
+    rows = sensitivity.run_sensitivity(out, LATTICE, ["base", "blocked"], threads=1,
+                                       sigma_3=1e6, strain_rate=50.0, axial_strain=0.005,
+                                       log=lambda m: None, workers=2)
+    by = {r["variant"]: r for r in rows}
+    assert set(by) == {"base", "blocked"}
+    assert all(r["finished"] and r["q_max_MPa"] > 0 for r in rows), rows
+    with open(os.path.join(out, "runs", "blocked", "config.toml")) as f:
+        assert 'rotation = "blocked"' in f.read()
+    assert os.path.isfile(os.path.join(out, "results.csv"))
+    with open(os.path.join(out, "qmax_sensitivity.csv")) as f:
+        assert [r["variant"] for r in csv.DictReader(f)] == ["base", "blocked"]
+    # Run again: nothing left to run, the same table.
+    again = sensitivity.run_sensitivity(out, LATTICE, ["base", "blocked"], threads=1,
+                                        sigma_3=1e6, strain_rate=50.0, axial_strain=0.005,
+                                        log=lambda m: None, workers=2)
+    assert [r["q_max_MPa"] for r in again] == [r["q_max_MPa"] for r in rows]

@@ -235,3 +235,24 @@ def test_a_sweep_branches_from_a_loaded_state(tmp_path):
         assert row["isotropic.K0_end"] == orig["isotropic.K0_end"]
         summary = json.load(open(os.path.join(row["run_dir"], "summary.json")))
         assert summary["branched_from"]["stage"] == 1
+
+
+def test_named_variants_set_their_own_keys(tmp_path):
+    """[[variant]] tables: one factor whose entries set their own keys and name their runs;
+    combined with [vary] as a product; bad names and nested values are refused by name."""
+    path = _write_sweep(tmp_path, {"output.interval": [1000, 2000]}, extra=(
+        '[[variant]]\nname = "plain"\n'
+        '[[variant]]\nname = "soft"\n"stage.isotropic.stress" = 5e5\n"contact.law" = "rough"\n'))
+    listed = sweep.variants(sweep.read_sweep(path))
+    assert [v["name"] for v in listed] == [
+        "plain__output.interval=1000", "soft__output.interval=1000",
+        "plain__output.interval=2000", "soft__output.interval=2000"]
+    soft = listed[1]["config"]
+    assert soft["stage"][0]["stress"] == 5e5 and soft["contact"]["law"] == "rough"
+    assert listed[0]["config"]["stage"][0]["stress"] == 1e6  # the base's value
+    for bad, message in (('[[variant]]\nname = "a b"\n', "directory name"),
+                         ('[[variant]]\nname = "a"\n[[variant]]\nname = "a"\n', "two variants"),
+                         ('[[variant]]\nname = "a"\n"contact.law" = ["x"]\n', "one value"),
+                         ('[[variant]]\nname = "a"\nlaw = "rough"\n', "not a dotted key")):
+        with pytest.raises(ValueError, match=message):
+            sweep.read_sweep(_write_sweep(tmp_path, {"output.interval": [1000]}, extra=bad))
