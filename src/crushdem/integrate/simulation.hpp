@@ -111,6 +111,11 @@ class Simulation {
   /// Adds one grain with the configured density; returns its id.
   ParticleId add_particle(Vec3 position, double radius, Vec3 velocity = {},
                           Vec3 angular_velocity = {});
+  /// Adds grains given from outside (Python, a user's program) with the configured density, or
+  /// none: each must have a positive radius, finite position and velocity, and a centre inside
+  /// the walls that overlaps none by more than a tenth of its radius (a grain far into a wall
+  /// meets it with an enormous force). ConfigError names the first grain that fails.
+  std::vector<ParticleId> add_particles(std::vector<NewParticle> grains);
   /// The explicit topology phase: removals and insertions, then a forced neighbour rebuild.
   std::vector<ParticleId> apply_topology(const TopologyChange& change);
 
