@@ -13,12 +13,12 @@ bench_setup() {
   export RHO G_SHEAR NU YOUNG MU REST DT SKIN
 }
 
-# Pauses background `crushdem run`/`resume` jobs (SIGSTOP) until the script exits; a timing
+# Pauses background `crushdem run`/`resume`/`reproduce`/`sensitivity` jobs (SIGSTOP) until the script exits; a timing
 # made beside them measures the sharing, not the build. Extra cleanup commands may be appended
 # to BENCH_ON_EXIT before exit.
 BENCH_ON_EXIT=":"
 pause_background_jobs() {
-  BG=$(pgrep -f "crushdem[^ ]* (run|resume) " | tr '\n' ' ' || true)
+  BG=$(pgrep -f "crushdem[^ ]* (run|resume|reproduce|sensitivity) " | tr '\n' ' ' || true)
   if [ -n "$BG" ]; then
     echo "# stopping background crushdem jobs: $BG" >&2
     # shellcheck disable=SC2086  # one word per process id
