@@ -74,8 +74,8 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 #include <vector>
 
 #include "crushdem/io/config.hpp"
-#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
+#include "crushdem/run/runner.hpp"
 
 namespace crushdem::testing {
 

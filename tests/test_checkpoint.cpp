@@ -18,9 +18,9 @@
 #include "crushdem/core/part_clock.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/particles/generate.hpp"
+#include "crushdem/run/runner.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {

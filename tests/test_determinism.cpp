@@ -9,8 +9,8 @@
 
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/io/config.hpp"
-#include "crushdem/run/runner.hpp"
 #include "crushdem/io/toml.hpp"
+#include "crushdem/run/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
