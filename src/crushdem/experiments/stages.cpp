@@ -86,23 +86,20 @@ const Row kMaxSteps{"max_steps",  &StageConfig::max_steps,
                     "",           "the stage stops (with a warning) after this many steps",
                     at_least_one, "> 0 steps"};
 
-const Row kAxial{"axial",
-                 ParamChoice<StageConfig>{
-                     [](const StageConfig& c) -> std::string { return wall_control_name(c.axial); },
-                     [](StageConfig& c, const std::string& v, const std::string& key) {
-                       c.axial = parse_wall_control(v, key);
-                     },
-                     "\"fixed\" or \"servo\""},
-                 "", "the top wall: fixed, or servo-controlled to axial_stress"};
-const Row kLateral{
-    "lateral",
-    ParamChoice<StageConfig>{
-        [](const StageConfig& c) -> std::string { return wall_control_name(c.lateral); },
-        [](StageConfig& c, const std::string& v, const std::string& key) {
-          c.lateral = parse_wall_control(v, key);
-        },
-        "\"fixed\" or \"servo\""},
-    "", "the four lateral walls: fixed, or servo-controlled to lateral_stress"};
+// How the walls of one axis are held (`member`: axial or lateral), as a string choice.
+template <WallControl StageConfig::*member>
+ParamChoice<StageConfig> wall_control_choice() {
+  return {[](const StageConfig& c) -> std::string { return wall_control_name(c.*member); },
+          [](StageConfig& c, const std::string& v, const std::string& key) {
+            c.*member = parse_wall_control(v, key);
+          },
+          "\"fixed\" or \"servo\""};
+}
+
+const Row kAxial{"axial", wall_control_choice<&StageConfig::axial>(), "",
+                 "the top wall: fixed, or servo-controlled to axial_stress"};
+const Row kLateral{"lateral", wall_control_choice<&StageConfig::lateral>(), "",
+                   "the four lateral walls: fixed, or servo-controlled to lateral_stress"};
 const Row kAxialStress{"axial_stress",
                        &StageConfig::axial_stress,
                        "Pa",
