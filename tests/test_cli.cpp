@@ -1,4 +1,4 @@
-// The command line (cli/cli.cpp, CLI11) and the run-directory rules (io/runner.cpp): every
+// The command line (cli/cli.cpp, CLI11) and the run-directory rules (run/run_directory.cpp): every
 // command has -h/--help and --version, misuse exits with 2 and names the option, a run never
 // overwrites or mixes with an old run's files without --overwrite, a run stopped before its
 // first checkpoint starts again on resume, and a locked directory is refused.
