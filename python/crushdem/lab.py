@@ -188,11 +188,15 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
                           progress: bool = False, overwrite: bool = False,
                           stage: Optional[Mapping[str, Any]] = None,
                           age_stage: Optional[Mapping[str, Any]] = None,
+                          branch_from: Union[str, os.PathLike, None] = None,
                           **sections: Any) -> Result:
     """Oedometric stress relaxation (study section 3.1): load to the vertical ``stress`` with
     crushing on, fix the walls, age for ``duration`` seconds of ageing time with the on-off
     scheme. ``crushing`` keys pass through (crack growth is turned on). ``age_stage``: keys for
-    the age stage only (e.g. ``max_strain_rate``), on top of the common ``stage`` keys."""
+    the age stage only (e.g. ``max_strain_rate``), on top of the common ``stage`` keys.
+    ``branch_from``: an oedometric relaxation with the same loading whose state at the start of
+    its ageing this run starts from (another ``n_break`` or ``min_cycles`` without loading
+    again)."""
     common = stage or {}
     _crushing_with_cracks(sections)
     cfg = _base(sample, sections)
@@ -201,7 +205,8 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
         _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
                min_cycles=min_cycles, n_break=n_break),
     ]
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, branch_from=branch_from,
+               branch_stage=None if branch_from is None else "relaxation")
 
 
 def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,

@@ -66,13 +66,17 @@ from .analysis import (DAY_S, HOUR_S, N_BREAK_TOLERANCE,  # noqa: F401  (re-expo
                        fit_log_t, has_values, lateral_stress, value_at, vertical_stress)
 from .figures import MPA, mark_times, use_file_backend_without_display
 from .rundir import read_events, read_phases, read_summary, read_timeseries  # noqa: F401
-from .runs import run_step, set_threads
+from .rundir import is_finished
+from .runs import run_step, set_threads, timing_record
 from .study import (CONTACT, CRUSHING, MATERIAL, NE34,  # noqa: F401  (re-exported)
                     OEDOMETRIC_STRESS_PA, PARAMETER_SETS, SIGMA_3_PA, TABLE1_CONTACT,
                     TABLE1_CRUSHING)
 
 FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
 RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
+TESTS = ("oedometric", "triaxial")  # --only: the runs of each besides the sample
+TEST_RUNS = {"oedometric": ("oedometric_relaxation",),
+             "triaxial": ("triaxial_shear", "triaxial_relaxation")}
 
 def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
     """The parameters of every run, study scale or ``--quick``, with the named parameter set
@@ -429,7 +433,7 @@ def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
     return os.path.join(run_dir, "sample.txt")
 
 
-def _age_stage(cfg: Mapping[str, Any]) -> Dict[str, Any]:
+def age_stage_keys(cfg: Mapping[str, Any]) -> Dict[str, Any]:
     """Keys for the age stage only: the settings' ``age_stage`` plus ``record_interval``."""
     age_stage = dict(cfg["age_stage"])
     if cfg["record_interval"]:
@@ -448,7 +452,7 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
     run_step(name, run_dir,
               lambda: lab.oedometric_relaxation(
                   run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
-                  crushing=dict(cfg["crushing"]), age_stage=_age_stage(cfg), **cfg["age"],
+                  crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
                   material=cfg["material"], contact=cfg["contact"], output=cfg["output"]),
               log, record, _core.resume)
 
@@ -517,12 +521,17 @@ def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, 
 
 def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
               sample: Optional[str] = None, log: Callable[[str], None] = print,
-              overrides: Sequence[str] = (), parameters: str = "crushdem") -> Dict[str, Any]:
+              overrides: Sequence[str] = (), parameters: str = "crushdem",
+              tests: Sequence[str] = TESTS) -> Dict[str, Any]:
     """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json.
     parameters: a named parameter set (PARAMETER_SETS); overrides: "SECTION.KEY=VALUE" changes
-    of the settings on top of it (apply_overrides)."""
-    from . import lab
-
+    of the settings on top of it (apply_overrides); tests: which of TESTS to run ("oedometric":
+    the oedometric relaxation; "triaxial": the shear and the triaxial relaxation), so that two
+    processes can run them side by side into one ``out`` (the sample first, by either); the
+    figures and reproduce.json then cover the tests whose runs have finished."""
+    unknown = [t for t in tests if t not in TESTS]
+    if unknown or not tests:
+        raise ValueError(f"--only {','.join(tests)}: expected one or more of {', '.join(TESTS)}")
     cfg = apply_overrides(settings(quick, parameters), overrides)
     if sample is not None:
         if not os.path.isfile(sample):
@@ -544,12 +553,8 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     used_threads = set_threads(threads) if threads else None
 
     t_start = time.perf_counter()
-    from . import _core
-
-    resume = _core.resume
     runs: Dict[str, Any] = {}
     dirs = {name: os.path.join(out, name) for name in RUNS}
-    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"]}
 
     # 1. The sample (or a given sample file), prepared once and read by every test.
     if sample is not None:
@@ -560,15 +565,65 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         info = read_summary(dirs["sample"]).get("sample") or {}
         runs["sample"].update(grains=info.get("grains"), void_ratio=info.get("void_ratio"))
 
+    # 2. Oedometric relaxation.
+    if "oedometric" in tests:
+        run_oedometric_relaxation(cfg, dirs["oedometric_relaxation"], sample_file, log, runs)
+    if is_finished(dirs["oedometric_relaxation"]):
+        runs.setdefault("oedometric_relaxation", {"skipped": True,
+                                                  **timing_record(dirs["oedometric_relaxation"])})
+        runs["oedometric_relaxation"].update(_age_counts(dirs["oedometric_relaxation"]))
+
+    q_max = math.nan
+    if "triaxial" in tests:
+        q_max = _run_triaxial(cfg, dirs, sample_file, log, runs)
+    elif is_finished(dirs["triaxial_relaxation"]):
+        q_max = _read_triaxial(dirs, runs)
+
+    # Figures of the tests that have finished (a test that another process still runs is left
+    # out here and drawn by the call that finishes it, or by a later one).
+    written: List[str] = []
+    result: Dict[str, Any] = {"mode": cfg["mode"], "threads": used_threads,
+                              "settings": "settings.json", "runs": runs}
+    relaxations = []
+    if is_finished(dirs["oedometric_relaxation"]):
+        result["oedometric_relaxation"] = figure_oedometric(dirs["oedometric_relaxation"], out,
+                                                            written)
+    else:
+        log("oedometric relaxation: not finished, its figure is left out")
+    if math.isfinite(q_max):
+        result["dynamic_phase"] = figure_dynamic_phase(dirs["triaxial_relaxation"], out, written)
+        if "skipped" in result["dynamic_phase"]:
+            log(f"Figure 2 left out: {result['dynamic_phase']['skipped']}")
+        tri = figure_triaxial(dirs["triaxial_relaxation"], out, written, q_max)
+        tri.update(q_max_Pa=q_max, stop_q_Pa=cfg["relaxation"]["q_fraction"] * q_max,
+                   q_fraction=cfg["relaxation"]["q_fraction"])
+        result["triaxial_relaxation"] = tri
+        relaxations.append(("triaxial relaxation", dirs["triaxial_relaxation"]))
+    else:
+        log("triaxial relaxation: not finished, its figures are left out")
+    if is_finished(dirs["oedometric_relaxation"]):
+        relaxations.append(("oedometric relaxation", dirs["oedometric_relaxation"]))
+    if relaxations:
+        result["force_statistics"] = figure_forces(relaxations, out, written)
+    result["figures"] = [os.path.basename(p) for p in written]
+    result["wall_s_total"] = time.perf_counter() - t_start
+    with open(os.path.join(out, "reproduce.json"), "w") as f:
+        json.dump(_json_safe(result), f, indent=2)
+        f.write("\n")
+    return result
+
+
+def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: str,
+                  log: Callable[[str], None], runs: Dict[str, Any]) -> float:
+    """The triaxial shear (to find q_max), then the triaxial relaxation at q_fraction q_max,
+    each a ``run_step``; returns q_max."""
+    from . import _core, lab
+
+    resume = _core.resume
+    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"]}
     crushing = dict(cfg["crushing"])
     age = dict(cfg["age"])
-    age_stage = _age_stage(cfg)
-
-    # 2. Oedometric relaxation.
-    run_oedometric_relaxation(cfg, dirs["oedometric_relaxation"], sample_file, log, runs)
-    runs["oedometric_relaxation"].update(_age_counts(dirs["oedometric_relaxation"]))
-
-    # 3. Triaxial shear to find q_max.
+    age_stage = age_stage_keys(cfg)
     tx = cfg["triaxial"]
     run_step("triaxial_shear", dirs["triaxial_shear"],
               lambda: lab.triaxial_test(dirs["triaxial_shear"], sample_file,
@@ -576,18 +631,10 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
                                         axial_strain=tx["axial_strain"], crushing=crushing,
                                         **common),
               log, runs, resume)
-    shear = triaxial_stage(read_summary(dirs["triaxial_shear"]))
-    q_max = float(shear.get("q_max_Pa", math.nan))
-    if not (math.isfinite(q_max) and q_max > 0):
-        raise ValueError(f"{dirs['triaxial_shear']}/summary.json: no positive q_max_Pa")
+    q_max = _shear_q_max(dirs["triaxial_shear"], runs)
     stop_q = cfg["relaxation"]["q_fraction"] * q_max
-    runs["triaxial_shear"].update(q_max_Pa=q_max,
-                                  axial_strain_at_q_max=shear.get("axial_strain_at_q_max"),
-                                  max_inertial_number=shear.get("max_inertial_number"),
-                                  grains_end=read_summary(dirs["triaxial_shear"]).get(
-                                      "particles"))
 
-    # 4. Triaxial relaxation at 0.7 q_max (the same shear, stopped there).
+    # The triaxial relaxation at 0.7 q_max: the same shear, stopped there.
     run_step("triaxial_relaxation", dirs["triaxial_relaxation"],
               lambda: lab.triaxial_relaxation(
                   dirs["triaxial_relaxation"], sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
@@ -595,29 +642,31 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
                   crushing=crushing, age_stage=age_stage, **age, **common),
               log, runs, resume)
     runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
+    return q_max
 
-    # Figures.
-    written: List[str] = []
-    result: Dict[str, Any] = {"mode": cfg["mode"], "threads": used_threads,
-                              "settings": "settings.json", "runs": runs}
-    result["oedometric_relaxation"] = figure_oedometric(dirs["oedometric_relaxation"], out,
-                                                        written)
-    result["dynamic_phase"] = figure_dynamic_phase(dirs["triaxial_relaxation"], out, written)
-    if "skipped" in result["dynamic_phase"]:
-        log(f"Figure 2 left out: {result['dynamic_phase']['skipped']}")
-    tri = figure_triaxial(dirs["triaxial_relaxation"], out, written, q_max)
-    tri.update(q_max_Pa=q_max, stop_q_Pa=stop_q,
-               q_fraction=cfg["relaxation"]["q_fraction"])
-    result["triaxial_relaxation"] = tri
-    result["force_statistics"] = figure_forces(
-        [("triaxial relaxation", dirs["triaxial_relaxation"]),
-         ("oedometric relaxation", dirs["oedometric_relaxation"])], out, written)
-    result["figures"] = [os.path.basename(p) for p in written]
-    result["wall_s_total"] = time.perf_counter() - t_start
-    with open(os.path.join(out, "reproduce.json"), "w") as f:
-        json.dump(_json_safe(result), f, indent=2)
-        f.write("\n")
-    return result
+
+def _shear_q_max(shear_dir: str, runs: Dict[str, Any]) -> float:
+    """q_max of the finished triaxial shear in ``shear_dir``, recorded in runs["triaxial_shear"]."""
+    summary = read_summary(shear_dir)
+    shear = triaxial_stage(summary)
+    q_max = float(shear.get("q_max_Pa", math.nan))
+    if not (math.isfinite(q_max) and q_max > 0):
+        raise ValueError(f"{shear_dir}/summary.json: no positive q_max_Pa")
+    runs.setdefault("triaxial_shear", {"skipped": True, **timing_record(shear_dir)})
+    runs["triaxial_shear"].update(q_max_Pa=q_max,
+                                  axial_strain_at_q_max=shear.get("axial_strain_at_q_max"),
+                                  max_inertial_number=shear.get("max_inertial_number"),
+                                  grains_end=summary.get("particles"))
+    return q_max
+
+
+def _read_triaxial(dirs: Mapping[str, str], runs: Dict[str, Any]) -> float:
+    """q_max and the records of a triaxial test that an earlier or another call finished."""
+    q_max = _shear_q_max(dirs["triaxial_shear"], runs)
+    runs.setdefault("triaxial_relaxation",
+                    {"skipped": True, **timing_record(dirs["triaxial_relaxation"])})
+    runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
+    return q_max
 
 
 def _json_safe(x: Any) -> Any:
@@ -729,6 +778,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="change one setting, e.g. --set contact.rotation=free or --set "
                              "crushing.r_prime=2R_star (repeatable; sections: "
                              f"{', '.join(SETTABLE)}); recorded in DIR/settings.json")
+    parser.add_argument("--only", default=",".join(TESTS), metavar="TEST[,TEST]",
+                        help="run only these tests (" + ", ".join(TESTS) + "; default: both), "
+                             "e.g. two processes side by side, one per test, into one DIR once "
+                             "the sample is prepared; the figures cover what has finished")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.threads is not None and args.threads < 1:
         parser.error("--threads must be >= 1")
@@ -740,7 +793,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
-                           log=log, overrides=args.set, parameters=args.parameters)
+                           log=log, overrides=args.set, parameters=args.parameters,
+                           tests=[t.strip() for t in args.only.split(",") if t.strip()])
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2

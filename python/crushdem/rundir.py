@@ -82,6 +82,25 @@ def is_finished(run_dir: PathLike) -> bool:
     return os.path.isfile(os.path.join(run_dir, "summary.json"))
 
 
+def is_being_written(run_dir: PathLike) -> bool:
+    """Whether a crushdem run is writing the directory now: it holds an exclusive ``flock`` on
+    DIR/.lock while it runs (released by the kernel when its process ends, however it ends)."""
+    import fcntl
+
+    path = os.path.join(run_dir, ".lock")
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing drops a lock taken here
+    return False
+
+
 def stages_from_config(run_dir: PathLike) -> List[Dict[str, Any]]:
     """The stages (type and name) of DIR/config.toml, which a run writes when it starts: the
     stage types for a run still going or stopped before summary.json exists. [] when the file

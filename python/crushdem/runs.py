@@ -10,7 +10,7 @@ import time
 from typing import Any, Callable, Dict, Optional
 
 from .analysis import as_float
-from .rundir import is_finished, read_timing
+from .rundir import is_being_written, is_finished, read_timing
 
 
 def set_threads(n: int) -> int:
@@ -37,12 +37,16 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
 
     An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
     instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
-    the run starts over.
+    the run starts over. A run that another process is writing (DIR/.lock held) raises
+    RuntimeError: it is neither resumed nor removed.
     """
     if is_finished(run_dir):
         log(f"{name}: {run_dir} has finished (summary.json): not run again")
         record[name] = {"skipped": True, **timing_record(run_dir)}
         return
+    if is_being_written(run_dir):  # never resumed or removed under a running process
+        raise RuntimeError(f"{name}: {run_dir} is being written by another crushdem process "
+                           "(its .lock is held); wait for it to finish, then call again")
     t0 = time.perf_counter()
     resumed = False
     if resume is not None and os.path.isfile(os.path.join(run_dir, "checkpoint.bin")):

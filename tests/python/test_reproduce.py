@@ -277,13 +277,24 @@ def _finite(x):
 
 
 def test_reproduce_quick_end_to_end(tmp_path):
-    """The whole pipeline on the quick settings (about two minutes on one core)."""
+    """The whole pipeline on the quick settings (about two minutes on one core), one test per
+    call (--only), as two processes side by side would run it."""
     pytest.importorskip("crushdem._core")
     out = tmp_path / "rq"
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
-                          str(out), "--threads", "1"], capture_output=True, text=True,
-                         timeout=900)
+                          str(out), "--threads", "1", "--only", "oedometric"],
+                         capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert not os.path.exists(out / "triaxial_shear")
+    assert os.path.isfile(out / "fig1_oedometric_relaxation.png")
+    assert not os.path.exists(out / "fig3_triaxial_relaxation.png")
+    with open(out / "reproduce.json") as f:
+        assert "triaxial_relaxation" not in json.load(f)
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+                          str(out), "--threads", "1", "--only", "triaxial"],
+                         capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    assert "oedometric_relaxation: running" not in res.stdout
     assert "q_max" in res.stdout
     for run in rp.RUNS:
         assert os.path.isfile(out / run / "summary.json"), run
@@ -359,3 +370,32 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",
                           "--parameters", "pfc"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--parameters" in res.stderr
+
+
+def test_only_names_what_is_wrong(tmp_path):
+    with pytest.raises(ValueError, match="expected one or more of oedometric, triaxial"):
+        rp.reproduce(str(tmp_path / "x"), quick=True, tests=["shear"])
+
+
+def test_a_run_another_process_writes_is_neither_resumed_nor_removed(tmp_path):
+    """run_step leaves a directory alone while another crushdem run holds its .lock."""
+    import fcntl
+
+    run_dir = tmp_path / "busy"
+    run_dir.mkdir()
+    (run_dir / "checkpoint.bin").write_bytes(b"x")
+    fd = os.open(run_dir / ".lock", os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # as a running crushdem holds it
+        called = []
+        with pytest.raises(RuntimeError, match="being written by another crushdem process"):
+            runs.run_step("busy", str(run_dir), lambda: called.append(1), lambda m: None, {},
+                          resume=lambda d, p: called.append(2))
+        assert not called and (run_dir / "checkpoint.bin").exists()
+    finally:
+        os.close(fd)
+    # Once the holder is gone the run is resumed as usual.
+    resumed = []
+    runs.run_step("busy", str(run_dir), lambda: None, lambda m: None, {},
+                  resume=lambda d, p: resumed.append(d))
+    assert resumed == [str(run_dir)]

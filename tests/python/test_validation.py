@@ -3,17 +3,24 @@
 Set CRUSHDEM_VALIDATION_DIR to a directory; runs that have finished there (summary.json) are
 reused, interrupted ones are resumed from their checkpoint, missing ones are run. The sample is
 CRUSHDEM_VALIDATION_SAMPLE (a particle file, e.g. runs/sample_rev/sample.txt) or is prepared
-into DIR/sample with the settings of ``crushdem reproduce``.
+into DIR/sample with the settings of ``crushdem reproduce``. With CRUSHDEM_VALIDATION_REPRODUCE
+set to the directory of a study-scale ``crushdem reproduce``, its oedometric relaxation is the
+N_break = 30 run and its sample the sample (nothing is run twice).
 
-    CRUSHDEM_VALIDATION_DIR=runs/validation CRUSHDEM_VALIDATION_SAMPLE=runs/sample_rev/sample.txt \
+    CRUSHDEM_VALIDATION_DIR=runs/validation CRUSHDEM_VALIDATION_REPRODUCE=runs/reproduce_rev \
         .venv/bin/python -m pytest -q tests/python/test_validation.py
+
+The N_break = 10 run branches from the N_break = 30 run at the start of its ageing (the same
+loading, not repeated).
 """
 
+import json
 import os
 
 import pytest
 
 DIR = os.environ.get("CRUSHDEM_VALIDATION_DIR")
+REPRODUCE = os.environ.get("CRUSHDEM_VALIDATION_REPRODUCE")
 pytestmark = pytest.mark.skipif(not DIR, reason="opt-in: set CRUSHDEM_VALIDATION_DIR")
 
 
@@ -21,23 +28,49 @@ def _sample(rp):
     given = os.environ.get("CRUSHDEM_VALIDATION_SAMPLE")
     if given:
         return os.path.abspath(given)
+    if REPRODUCE:
+        return os.path.join(os.path.abspath(REPRODUCE), "sample", "sample.txt")
     return rp.run_sample(rp.settings(quick=False), os.path.join(DIR, "sample"), print, {})
 
 
+def _reproduce_settings(rp):
+    """The settings of the reproduce directory (its own parameter set), or reproduce's."""
+    if REPRODUCE:
+        with open(os.path.join(REPRODUCE, "settings.json")) as f:
+            cfg = json.load(f)
+        assert cfg["mode"] == "study", f"{REPRODUCE}: a --quick reproduce"
+        return cfg
+    return rp.settings(quick=False)
+
+
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
+    from crushdem import lab
     from crushdem import reproduce as rp
     from crushdem.analysis import age_rows, vertical_stress
     from crushdem.rundir import read_events
+    from crushdem.runs import run_step
 
     os.makedirs(DIR, exist_ok=True)
     sample = _sample(rp)
+    cfg = _reproduce_settings(rp)
+    runs = {30: os.path.join(REPRODUCE, "oedometric_relaxation") if REPRODUCE
+            else os.path.join(DIR, "oedometric_relaxation_nbreak30"),
+            10: os.path.join(DIR, "oedometric_relaxation_nbreak10")}
+    cfg30 = json.loads(json.dumps(cfg))
+    cfg30["age"]["n_break"] = 30
+    rp.run_oedometric_relaxation(cfg30, runs[30], sample, print, {}, name="n_break 30")
+    # N_break = 10: the same loading, so a branch of the N_break = 30 run at its ageing.
+    oe = cfg["oedometric"]
+    age = dict(cfg["age"], n_break=10)
+    run_step("n_break 10", runs[10],
+             lambda: lab.oedometric_relaxation(
+                 runs[10], sample, stress=oe["stress"], strain_rate=oe["strain_rate"],
+                 crushing=dict(cfg["crushing"]), age_stage=rp.age_stage_keys(cfg), **age,
+                 material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
+                 branch_from=runs[30]),
+             print, {})
     curves = {}
-    for n_break in (30, 10):
-        # The reproduce settings with this N_break.
-        cfg = rp.settings(quick=False)
-        cfg["age"]["n_break"] = n_break
-        out = os.path.join(DIR, f"oedometric_relaxation_nbreak{n_break}")
-        rp.run_oedometric_relaxation(cfg, out, sample, print, {}, name=f"n_break {n_break}")
+    for n_break, out in runs.items():
         ev = read_events(out)
         idx = age_rows(ev)
         curves[n_break] = (ev["ageing_time_s"][idx], vertical_stress(ev)[idx])
