@@ -96,35 +96,17 @@ double Walls::area(int k) const {
   return length((a + 1) % 3) * length((a + 2) % 3);
 }
 
-Vec3 Walls::outward_normal(int k) const {
-  Vec3 n{};
-  const double s = wall_is_low(k) ? -1.0 : 1.0;
-  if (wall_axis(k) == 0) n.x = s;
-  if (wall_axis(k) == 1) n.y = s;
-  if (wall_axis(k) == 2) n.z = s;
-  return n;
-}
-
 void Walls::update_velocities(double dt) {
   for (int k = 0; k < kNumWalls; ++k) {
     const WallConfig& c = cfg_[static_cast<std::size_t>(k)];
     WallState& s = st_[static_cast<std::size_t>(k)];
-    const double out = wall_is_low(k) ? -1.0 : 1.0;  // axis component of the outward normal
     switch (c.mode) {
       case WallMode::Fixed: s.velocity = 0.0; break;
       case WallMode::Velocity: s.velocity = c.velocity; break;
-      case WallMode::Servo: {
-        const double error = stress(k) - c.target_stress;
-        double v_out;
-        if (s.stiffness > 0.0 && dt > 0.0) {
-          v_out = c.servo_alpha * area(k) / (s.stiffness * dt) * error;
-        } else {
-          v_out = error > 0.0 ? c.max_speed : -c.max_speed;  // no contact yet: approach
-        }
-        v_out = std::clamp(v_out, -c.max_speed, c.max_speed);
-        s.velocity = out * v_out;
+      case WallMode::Servo:
+        s.velocity = servo_wall_velocity(k, s.normal_force, area(k), s.stiffness, dt,
+                                         c.target_stress, c.servo_alpha, c.max_speed);
         break;
-      }
     }
   }
 }
@@ -152,6 +134,27 @@ void WallContacts::resize(std::size_t n) {
   for (auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
     a->assign(n, 0.0);
   }
+}
+
+void WallContacts::build(const std::vector<double>& x, const std::vector<double>& y,
+                         const std::vector<double>& z, const std::vector<double>& radius,
+                         const Walls& walls, double skin) {
+  const std::size_t N = x.size();
+  std::vector<std::uint32_t> wp;
+  std::vector<std::uint8_t> ww;
+  offsets.assign(N + 1, 0);
+  for (std::size_t i = 0; i < N; ++i) {
+    for (int k = 0; k < kNumWalls; ++k) {
+      if (wall_gap(k, walls.position(k), x[i], y[i], z[i]) - radius[i] < skin) {
+        wp.push_back(static_cast<std::uint32_t>(i));
+        ww.push_back(static_cast<std::uint8_t>(k));
+      }
+    }
+    offsets[i + 1] = static_cast<std::uint32_t>(wp.size());
+  }
+  resize(wp.size());
+  particle = std::move(wp);
+  wall = std::move(ww);
 }
 
 void Walls::save_state(StateWriter& out) const {

@@ -19,17 +19,11 @@
 #include "crushdem/core/params.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/core/types.hpp"
+#include "crushdem/walls/wall_geometry.hpp"
 
 namespace crushdem {
 
-inline constexpr int kNumWalls = 6;
 const char* wall_name(int k);  // "xmin" ... "zmax"
-inline int wall_axis(int k) {
-  return k / 2;
-}
-inline bool wall_is_low(int k) {
-  return k % 2 == 0;
-}
 
 enum class WallMode { Fixed, Velocity, Servo };
 const char* to_string(WallMode m);
@@ -81,7 +75,7 @@ class Walls {
   double axial_stress() const { return axis_stress(2); }
   double lateral_stress() const { return 0.5 * (axis_stress(0) + axis_stress(1)); }
   /// Outward unit normal of wall k (from the sample into the wall).
-  Vec3 outward_normal(int k) const;
+  Vec3 outward_normal(int k) const { return wall_outward_normal(k); }
 
   /// Sets wall velocities for the next step (fixed, prescribed or servo).
   void update_velocities(double dt);
@@ -99,16 +93,24 @@ class Walls {
 };
 
 /// Candidate particle-wall contacts (within the skin at the last build), with tangential
-/// history keyed by (particle id, wall) so it survives rebuilds and compaction.
+/// history keyed by (particle id, wall) so it survives rebuilds and compaction (the engine's
+/// ContactHistory carries it over). Entries are sorted by particle: those of particle i are
+/// offsets[i] .. offsets[i + 1] (CSR).
 struct WallContacts {
   std::vector<std::uint32_t> particle;
   std::vector<std::uint8_t> wall;
+  std::vector<std::uint32_t> offsets;
   std::vector<double> ft_x, ft_y, ft_z;  // tangential force on the particle [N]
   // Results of the last force evaluation (per entry):
   std::vector<double> fx, fy, fz, tx, ty, tz, F_n, k_n, delta;
 
   std::size_t size() const { return particle.size(); }
   void resize(std::size_t n);
+  /// The entries (with zero history) of every grain whose gap to a wall is below r + skin.
+  void build(const std::vector<double>& x, const std::vector<double>& y,
+             const std::vector<double>& z, const std::vector<double>& radius, const Walls& walls,
+             double skin);
+  /// Entry list, history and last results (offsets are the engine's to save, see Simulation).
   void save_state(StateWriter& out) const;
   void load_state(StateReader& in);
 };

@@ -1,0 +1,105 @@
+#include "crushdem/integrate/contact_history.hpp"
+
+#include <algorithm>
+#include <cstddef>
+#include <tuple>
+
+#include "crushdem/core/deterministic.hpp"
+
+namespace crushdem {
+
+namespace {
+
+bool wall_key_less(const ContactHistory::WallVector& u, const ContactHistory::WallVector& v) {
+  return std::tie(u.id, u.wall) < std::tie(v.id, v.wall);
+}
+
+}  // namespace
+
+void ContactHistory::capture_pair_vectors(const ParticleStore& p, const NeighborList& nl,
+                                          const std::vector<double>& x,
+                                          const std::vector<double>& y,
+                                          const std::vector<double>& z,
+                                          std::vector<PairVector>& out) const {
+  out.clear();
+  for (std::size_t e = 0; e < x.size(); ++e) {
+    if (x[e] == 0.0 && y[e] == 0.0 && z[e] == 0.0) continue;
+    const ParticleId ia = p.id[nl.owner[e]], ib = p.id[nl.neighbors[e]];
+    if (ia < ib) {
+      out.push_back({ia, ib, x[e], y[e], z[e]});
+    } else {
+      out.push_back({ib, ia, -x[e], -y[e], -z[e]});
+    }
+  }
+  std::sort(out.begin(), out.end());
+}
+
+void ContactHistory::restore_pair_vectors(const ParticleStore& p, const NeighborList& nl,
+                                          const std::vector<PairVector>& saved,
+                                          std::vector<double>& x, std::vector<double>& y,
+                                          std::vector<double>& z) {
+  if (saved.empty()) return;
+  const std::size_t M = nl.neighbors.size();
+#pragma omp parallel for schedule(static) if (worth_threading(M))
+  for (std::ptrdiff_t ee = 0; ee < static_cast<std::ptrdiff_t>(M); ++ee) {
+    const auto e = static_cast<std::size_t>(ee);
+    const ParticleId ia = p.id[nl.owner[e]], ib = p.id[nl.neighbors[e]];
+    const ParticleId a = std::min(ia, ib), b = std::max(ia, ib);
+    auto it = std::lower_bound(saved.begin(), saved.end(), PairVector{a, b, 0, 0, 0});
+    if (it != saved.end() && it->a == a && it->b == b) {
+      const double s = ia == a ? 1.0 : -1.0;
+      x[e] = s * it->x;
+      y[e] = s * it->y;
+      z[e] = s * it->z;
+      touching[e] = 1;  // makes the force pass clear it if the pair has separated
+    }
+  }
+}
+
+void ContactHistory::capture(const ParticleStore& p, const NeighborList& nl,
+                             const WallContacts& wc) {
+  if (kept) return;
+  capture_pair_vectors(p, nl, ft_x, ft_y, ft_z, kept_pairs);
+  capture_pair_vectors(p, nl, mr_x, mr_y, mr_z, kept_rolling);  // empty without rolling
+  kept_walls.clear();
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    if (wc.ft_x[e] == 0.0 && wc.ft_y[e] == 0.0 && wc.ft_z[e] == 0.0) continue;
+    kept_walls.push_back({p.id[wc.particle[e]], wc.wall[e], wc.ft_x[e], wc.ft_y[e], wc.ft_z[e]});
+  }
+  std::sort(kept_walls.begin(), kept_walls.end(), wall_key_less);
+  kept = true;
+}
+
+void ContactHistory::rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc,
+                             bool rolling) {
+  const std::size_t M = nl.neighbors.size();
+  for (auto* a : {&ft_x, &ft_y, &ft_z}) a->assign(M, 0.0);
+  for (auto* a : {&mr_x, &mr_y, &mr_z}) a->assign(rolling ? M : 0, 0.0);
+  touching.assign(M, 0);
+  if (!kept) return;
+  restore_pair_vectors(p, nl, kept_pairs, ft_x, ft_y, ft_z);
+  if (rolling) restore_pair_vectors(p, nl, kept_rolling, mr_x, mr_y, mr_z);
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    const WallVector key{p.id[wc.particle[e]], wc.wall[e], 0, 0, 0};
+    auto it = std::lower_bound(kept_walls.begin(), kept_walls.end(), key, wall_key_less);
+    if (it != kept_walls.end() && it->id == key.id && it->wall == key.wall) {
+      wc.ft_x[e] = it->x;
+      wc.ft_y[e] = it->y;
+      wc.ft_z[e] = it->z;
+    }
+  }
+  kept_pairs.clear();
+  kept_rolling.clear();
+  kept_walls.clear();
+  kept = false;
+}
+
+std::size_t ContactHistory::memory_bytes() const {
+  std::size_t b = 0;
+  for (const auto* v : {&ft_x, &ft_y, &ft_z, &mr_x, &mr_y, &mr_z}) {
+    b += v->capacity() * sizeof(double);
+  }
+  return b + touching.capacity();
+}
+
+}  // namespace crushdem

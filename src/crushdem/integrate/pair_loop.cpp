@@ -1,0 +1,739 @@
+#include "crushdem/integrate/pair_loop.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <type_traits>
+
+#include "crushdem/contact/contact_kernel.hpp"
+#include "crushdem/core/deterministic.hpp"
+
+namespace crushdem {
+
+namespace {
+
+using Idx = std::ptrdiff_t;
+
+// Everything the pair loop touches, passed by value into the per-column worker so the compiler
+// sees plain locals (inside an OpenMP region shared variables are reached through a pointer and
+// reloaded after every store, which cost 10 % of the step).
+template <class Law>
+struct PairLoopView {
+  Law law;
+  ContactParams cp;
+  double h;
+  const NeighborList::Index *off, *nb, *col_off, *col_mem;
+  const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ;
+  double *ftx, *fty, *ftz;
+  std::uint8_t* touch;
+  double *mrx = nullptr, *mry = nullptr, *mrz = nullptr;  // rolling moment (Rolling only)
+  // Contact load (crushing), null when not tracked: max sigma_c, max F_n and its normal.
+  double *LS = nullptr, *LF = nullptr, *LNX = nullptr, *LNY = nullptr, *LNZ = nullptr;
+  double inv_pi_k = 0.0;                // 1 / (pi r'/R*)
+  detail::PackedPosition* P = nullptr;  // filled at the start of the loop from X .. R
+  detail::PackedVelocity* V = nullptr;  // from VX .. WZ
+  detail::PackedForce* PF = nullptr;    // the sums, zeroed at the start of the loop
+  const double* IM = nullptr;           // inverse masses (into V)
+  // The pruned list (PruneMode::Build writes it, Use reads it) and its inner skin.
+  PrunedList::Entry* near = nullptr;
+  NeighborList::Index* near_count = nullptr;
+  double inner_skin = 0.0;
+};
+
+// The CPU pair loop works on batches of touching contacts, in three passes per batch:
+//   1. collect: walk the column's particles and their entries in order, test the overlap, and
+//      copy each touching pair's inputs into a struct-of-arrays batch (clearing the history of
+//      pairs that separated);
+//   2. evaluate: one `omp simd` loop over the batch calls the same pair_contact() kernel as the
+//      GPU, so the compiler vectorises it (8 contacts per AVX-512 instruction);
+//   3. scatter: replay the batch in the collect order, adding each contact to both grains
+//      exactly as the one-pass loop did.
+// Vector lanes compute each contact with the same IEEE operations as a scalar evaluation (no
+// contraction, no reassociation), and the sums are made in the same order as before, so the
+// results are bit-identical to the one-pass loop and independent of the thread count.
+// clang-format off
+enum BatchField : std::size_t {
+  // inputs
+  kDX, kDY, kDZ, kD2, kRI, kRJ, kDVX, kDVY, kDVZ, kWIX, kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ,
+  // inputs (the rolling moment's: overwritten by the new one)
+  kFTX, kFTY, kFTZ, kMRX, kMRY, kMRZ,
+  // outputs
+  kFX, kFY, kFZ, kTNX, kTNY, kTNZ, kAI, kAJ, kFN, kDELTA, kNX, kNY, kNZ,
+  // the new history
+  kNFTX, kNFTY, kNFTZ,
+  kBatchFields
+};
+// clang-format on
+
+// Each column of a batch ends in kBatchPad spare slots, so that a group of four slots starting at
+// any used slot stays inside its column (scatter_sums() reads whole groups and ignores the lanes
+// past the fill).
+inline constexpr std::size_t kBatchPad = 4;
+
+// The kBatchFields columns of a batch, column k at data + k (cap + kBatchPad). kCap: the cap as
+// a compile-time constant, for the fixed-size batch that holds nearly every contact: each column
+// is then one register plus a constant offset. With the cap a run-time value (kCap = 0, the
+// batch of a grain with more list entries than the fixed one holds) the loops over a batch need
+// the 40 column addresses in registers, x86-64 has 16, and every load or store first reloaded
+// its address from the stack (a fifth of the collect pass's instructions).
+template <std::size_t kCap>
+struct BatchView {
+  double* data;
+  std::size_t cap;  // read only when kCap == 0
+  double* f(BatchField k) const { return data + k * ((kCap != 0 ? kCap : cap) + kBatchPad); }
+};
+
+// One thread's batch: kBatchFields arrays of `cap` (+ kBatchPad) doubles, plus the entry, partner
+// and owner bookkeeping of the scatter pass, and a second set of arrays for the contacts that need
+// the exact evaluation (evaluate_batch()).
+struct PairBatch {
+  // Slots of the fixed-size batch (about 43 KB, fits in L2): the list entries of the grains in
+  // it, of which the touching ones are kept. That batch is reserved once with exactly this
+  // capacity and never grown, so its views may use the constant (view<kTarget>()).
+  static constexpr std::size_t kTarget = 136;
+  std::size_t cap = 0;
+  std::vector<double> data, exact_data;
+  std::vector<NeighborList::Index> entry, partner;
+  // Particles of the batch with a touching contact (at most cap), the end of each one's contacts.
+  std::vector<NeighborList::Index> owner, owner_end;
+  std::size_t owners = 0;
+  std::vector<std::size_t> exact_lane;  // batch slot of each exact contact
+  std::size_t exact_only = 0;  // batches still to evaluate exactly at once (evaluate_batch())
+  void reserve(std::size_t n) {
+    if (n <= cap) return;
+    cap = std::max(n, kTarget);
+    data.assign((cap + kBatchPad) * kBatchFields, 0.0);
+    exact_data.assign((cap + kBatchPad) * kBatchFields, 0.0);
+    entry.resize(cap);
+    partner.resize(cap);
+    owner.resize(cap);
+    owner_end.resize(cap);
+    exact_lane.resize(cap);
+  }
+  template <std::size_t kCap>
+  BatchView<kCap> view() {
+    return {data.data(), cap};
+  }
+  template <std::size_t kCap>
+  BatchView<kCap> exact_view() {
+    return {exact_data.data(), cap};
+  }
+};
+
+// Evaluates contacts 0 .. n-1 of a batch in vector lanes; kFastPath: without the rare steps
+// (contact_plane_spring()).
+// Not inlined: inlined into evaluate_batch() with a fixed-size batch, GCC sees every column as
+// one base plus a constant offset, stops trusting the restrict pointers, and (for the rough
+// law) left the loop scalar.
+// `law` is the pair loop's law or a variant of it for this batch (evaluate_batch()); by value,
+// with cp and h, so that the loop reads them from registers.
+template <bool Rolling, bool kFastPath, class LaneLaw, class View>
+[[gnu::noinline]] void evaluate_lanes(const LaneLaw law, const ContactParams cp, const double h,
+                                      View b, std::size_t n) {
+  // Named restrict pointers (not an array of them): the compiler must see that the stores
+  // into the batch cannot change where its columns are, or it does not vectorise.
+  double* __restrict const bDX = b.f(kDX);
+  double* __restrict const bDY = b.f(kDY);
+  double* __restrict const bDZ = b.f(kDZ);
+  double* __restrict const bD2 = b.f(kD2);
+  double* __restrict const bRI = b.f(kRI);
+  double* __restrict const bRJ = b.f(kRJ);
+  double* __restrict const bDVX = b.f(kDVX);
+  double* __restrict const bDVY = b.f(kDVY);
+  double* __restrict const bDVZ = b.f(kDVZ);
+  double* __restrict const bWIX = b.f(kWIX);
+  double* __restrict const bWIY = b.f(kWIY);
+  double* __restrict const bWIZ = b.f(kWIZ);
+  double* __restrict const bWJX = b.f(kWJX);
+  double* __restrict const bWJY = b.f(kWJY);
+  double* __restrict const bWJZ = b.f(kWJZ);
+  double* __restrict const bIMI = b.f(kIMI);
+  double* __restrict const bIMJ = b.f(kIMJ);
+  double* __restrict const bFTX = b.f(kFTX);
+  double* __restrict const bFTY = b.f(kFTY);
+  double* __restrict const bFTZ = b.f(kFTZ);
+  double* __restrict const bMRX = b.f(kMRX);
+  double* __restrict const bMRY = b.f(kMRY);
+  double* __restrict const bMRZ = b.f(kMRZ);
+  double* __restrict const bFX = b.f(kFX);
+  double* __restrict const bFY = b.f(kFY);
+  double* __restrict const bFZ = b.f(kFZ);
+  double* __restrict const bTNX = b.f(kTNX);
+  double* __restrict const bTNY = b.f(kTNY);
+  double* __restrict const bTNZ = b.f(kTNZ);
+  double* __restrict const bAI = b.f(kAI);
+  double* __restrict const bAJ = b.f(kAJ);
+  double* __restrict const bFN = b.f(kFN);
+  double* __restrict const bDELTA = b.f(kDELTA);
+  double* __restrict const bNX = b.f(kNX);
+  double* __restrict const bNY = b.f(kNY);
+  double* __restrict const bNZ = b.f(kNZ);
+  double* __restrict const bNFTX = b.f(kNFTX);
+  double* __restrict const bNFTY = b.f(kNFTY);
+  double* __restrict const bNFTZ = b.f(kNFTZ);
+#pragma omp simd
+  for (std::size_t m = 0; m < n; ++m) {
+    // R*, its root and the effective mass: cheaper here, in vector lanes, than cached per entry
+    // and read (the GPU upload computes the same expressions).
+    const double R_star = pair_R_star(bRI[m], bRJ[m]);
+    const double m_eff = pair_m_eff(bIMI[m], bIMJ[m]);
+    const PairContact pc = pair_contact<LaneLaw, kFastPath>(
+        law, Vec3{bDX[m], bDY[m], bDZ[m]}, bD2[m], bRI[m], bRJ[m], Vec3{bDVX[m], bDVY[m], bDVZ[m]},
+        Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, std::sqrt(R_star),
+        m_eff, Vec3{bFTX[m], bFTY[m], bFTZ[m]}, cp, h);
+    bFX[m] = pc.c.force.x;
+    bFY[m] = pc.c.force.y;
+    bFZ[m] = pc.c.force.z;
+    bNFTX[m] = pc.c.F_t.x;
+    bNFTY[m] = pc.c.F_t.y;
+    bNFTZ[m] = pc.c.F_t.z;
+    bTNX[m] = pc.tn.x;
+    bTNY[m] = pc.tn.y;
+    bTNZ[m] = pc.tn.z;
+    bAI[m] = pc.a_i;
+    bAJ[m] = pc.a_j;
+    bFN[m] = pc.c.F_n;
+    bDELTA[m] = pc.delta;
+    bNX[m] = pc.n.x;
+    bNY[m] = pc.n.y;
+    bNZ[m] = pc.n.z;
+    if constexpr (Rolling) {
+      const Vec3 M_r = pair_rolling_moment(
+          pc.n, pc.c.k_n, pc.c.F_n, Vec3{bMRX[m], bMRY[m], bMRZ[m]},
+          Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, cp, h);
+      bMRX[m] = M_r.x;
+      bMRY[m] = M_r.y;
+      bMRZ[m] = M_r.z;
+    }
+  }
+}
+
+// Evaluates a batch: every contact on the fast path, in vector lanes; then the few that need
+// the exact path (a sliding contact, a turned contact plane) copied into the second arrays,
+// evaluated exactly (also in vector lanes) and copied back. Each contact gets the bits of an
+// exact evaluation either way, so the results do not depend on how contacts fall into batches.
+// (The rolling moment is exact in the first pass and not evaluated again.)
+template <bool Rolling, std::size_t kCap, class LaneLaw>
+void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, PairBatch& b,
+                         std::size_t n) {
+  const BatchView<kCap> main = b.view<kCap>();
+  // Where most contacts slide (shearing, a sample out of equilibrium) the fast path only adds a
+  // second evaluation: after a batch with more than a quarter of its contacts on the exact path,
+  // the next kExactOnly batches go straight to it. Both paths give the same bits, so which one
+  // runs changes no result (and may differ between threads).
+  constexpr std::size_t kExactOnly = 64;
+  if (b.exact_only > 0) {
+    --b.exact_only;
+    evaluate_lanes<Rolling, false>(law, cp, h, main, n);
+    return;
+  }
+  evaluate_lanes<Rolling, true>(law, cp, h, main, n);
+  // The contacts where a rare step applies (branch-free, as in the collect pass).
+  const double* nftx = main.f(kNFTX);
+  std::size_t* const lane = b.exact_lane.data();
+  std::size_t ne = 0;
+  for (std::size_t m = 0; m < n; ++m) {
+    lane[ne] = m;
+    ne += fast_path_inexact(nftx[m]) ? 1 : 0;
+  }
+  if (ne == 0) return;
+  if (4 * ne > n) b.exact_only = kExactOnly;
+  constexpr BatchField kInputs[] = {kDX,  kDY,  kDZ,  kD2,  kRI,  kRJ,  kDVX, kDVY, kDVZ, kWIX,
+                                    kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ, kFTX, kFTY, kFTZ};
+  constexpr BatchField kOutputs[] = {kFX,  kFY, kFZ, kNFTX, kNFTY,  kNFTZ, kTNX, kTNY,
+                                     kTNZ, kAI, kAJ, kFN,   kDELTA, kNX,   kNY,  kNZ};
+  const BatchView<kCap> side = b.exact_view<kCap>();
+  for (const BatchField f : kInputs) {
+    const double* from = main.f(f);
+    double* to = side.f(f);
+    for (std::size_t k = 0; k < ne; ++k) to[k] = from[lane[k]];
+  }
+  evaluate_lanes<false, false>(law, cp, h, side, ne);
+  for (const BatchField f : kOutputs) {
+    const double* from = side.f(f);
+    double* to = main.f(f);
+    for (std::size_t k = 0; k < ne; ++k) to[lane[k]] = from[k];
+  }
+}
+
+// Whether any of contacts 0 .. n-1 of a batch may be in the rough law's Hertz regime (p: its
+// grain-grain constants), from the collected distances and radii: a vector reduction without
+// square roots. (The same test in the collect pass, on scalars, cost more instructions than the
+// regime saves: callgrind.)
+template <std::size_t kCap>
+bool batch_may_reach_hertz(const RoughHertzParams& p, const BatchView<kCap> b, std::size_t n) {
+  const double* __restrict const d2 = b.f(kD2);
+  const double* __restrict const r_i = b.f(kRI);
+  const double* __restrict const r_j = b.f(kRJ);
+  int any = 0;
+#pragma omp simd reduction(| : any)
+  for (std::size_t m = 0; m < n; ++m)
+    any |= rough_may_reach_hertz(d2[m], r_i[m] + r_j[m], p) ? 1 : 0;
+  return any != 0;
+}
+
+// Evaluates a batch with the pair loop's law, or, for the rough law where none of the batch's
+// contacts can be in its Hertz regime (a sample at rest under a few MPa: none is), with the law
+// that leaves that regime out: the same bits for every contact, without a square root per lane.
+template <class Law, bool Rolling, std::size_t kCap>
+void evaluate_batch(const PairLoopView<Law>& L, PairBatch& b, std::size_t n) {
+  if constexpr (std::is_same_v<Law, RoughHertzLaw>) {
+    if (!batch_may_reach_hertz(L.law.rough, b.view<kCap>(), n)) {
+      evaluate_batch_with<Rolling, kCap>(L.law.without_hertz_regime(), L.cp, L.h, b, n);
+      return;
+    }
+  }
+  evaluate_batch_with<Rolling, kCap>(L.law, L.cp, L.h, b, n);
+}
+
+// The contact load of one contact (crushing): the largest contact stress on each grain, and the
+// largest normal force with its normal. j is safe to write for the same reason as its sums
+// (column colouring).
+template <class Law, std::size_t kCap>
+inline void record_contact_load(const PairLoopView<Law>& L, const BatchView<kCap> b, std::size_t m,
+                                std::size_t i, std::size_t j) {
+  const double F_n = b.f(kFN)[m];
+  const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
+  const double sig =
+      pair_contact_stress(F_n, L.inv_pi_k, pair_R_star(b.f(kRI)[m], b.f(kRJ)[m]), b.f(kDELTA)[m]);
+  take_contact_load(L.LS[i], L.LF[i], L.LNX[i], L.LNY[i], L.LNZ[i], sig, F_n, normal);
+  take_contact_load(L.LS[j], L.LF[j], L.LNX[j], L.LNY[j], L.LNZ[j], sig, F_n, -normal);
+}
+
+// Four doubles in one vector register (AVX), or two SSE registers where there is no AVX: GCC
+// lowers the same code either way.
+using v4d = double __attribute__((vector_size(32)));
+using v2d = double __attribute__((vector_size(16)));
+inline v4d load4(const double* p) {
+  v4d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline v2d load2(const double* p) {
+  v2d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4(double* p, v4d v) {
+  std::memcpy(p, &v, sizeof v);
+}
+inline void store2(double* p, v2d v) {
+  std::memcpy(p, &v, sizeof v);
+}
+// Rows k = 0..3 of the 4 x 4 matrix whose columns are a, b, c, d: (a[k], b[k], c[k], d[k]).
+inline void transpose4(v4d a, v4d b, v4d c, v4d d, v4d row[4]) {
+  const v4d ab_even = __builtin_shufflevector(a, b, 0, 4, 2, 6);  // a0 b0 a2 b2
+  const v4d ab_odd = __builtin_shufflevector(a, b, 1, 5, 3, 7);   // a1 b1 a3 b3
+  const v4d cd_even = __builtin_shufflevector(c, d, 0, 4, 2, 6);
+  const v4d cd_odd = __builtin_shufflevector(c, d, 1, 5, 3, 7);
+  row[0] = __builtin_shufflevector(ab_even, cd_even, 0, 1, 4, 5);
+  row[1] = __builtin_shufflevector(ab_odd, cd_odd, 0, 1, 4, 5);
+  row[2] = __builtin_shufflevector(ab_even, cd_even, 2, 3, 6, 7);
+  row[3] = __builtin_shufflevector(ab_odd, cd_odd, 2, 3, 6, 7);
+}
+
+// The scatter pass without rolling resistance: each contact's force and torques added to both
+// grains' sums (PackedForce: fx fy fz tx | ty tz) and its new history stored, in the collect
+// order. Each grain's sums get the same IEEE operations in the same order as a scalar loop
+// (x - (-y) is x + y exactly), so the bits do not change; but four contacts at a time are turned
+// from the batch's columns into rows, so that a partner's six sums take one 4-wide and one
+// 2-wide subtraction instead of six scalar ones.
+template <class Law, std::size_t kCap>
+void scatter_sums(const PairLoopView<Law>& L, PairBatch& pb, std::size_t n) {
+  const BatchView<kCap> b = pb.view<kCap>();
+  const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
+  const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
+  const double *ai = b.f(kAI), *aj = b.f(kAJ);
+  const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
+  const NeighborList::Index* const entry = pb.entry.data();
+  const NeighborList::Index* const partner = pb.partner.data();
+  const NeighborList::Index* const owner = pb.owner.data();
+  const NeighborList::Index* const owner_end = pb.owner_end.data();
+  double* const PF = &L.PF->fx;  // eight doubles per grain
+  const v4d zero{0.0, 0.0, 0.0, 0.0};
+  std::size_t q = 0;       // the owner of contact m
+  v4d F = zero, T = zero;  // its sums so far: force (lanes 0-2), torque (lanes 0-2)
+  const auto finish_owner = [&] {
+    double* const sum = PF + 8 * std::size_t{owner[q]};
+    store4(sum, load4(sum) + __builtin_shufflevector(F, T, 0, 1, 2, 4));    // fx fy fz tx
+    store2(sum + 4, load2(sum + 4) + __builtin_shufflevector(T, T, 1, 2));  // ty tz
+    F = T = zero;
+    ++q;
+  };
+  for (std::size_t m0 = 0; m0 < n; m0 += 4) {
+    // Columns m0 .. m0+3 (kBatchPad; lanes past n are never used).
+    const v4d AI = load4(ai + m0), AJ = load4(aj + m0);
+    const v4d TX = load4(tnx + m0), TY = load4(tny + m0), TZ = load4(tnz + m0);
+    v4d on_j[4], on_i_torque[4];
+    // On j: fx fy fz subtracted, and aj tn_x added as the subtraction of its negative.
+    transpose4(load4(fx + m0), load4(fy + m0), load4(fz + m0), -(AJ * TX), on_j);
+    transpose4(AI * TX, AI * TY, AI * TZ, zero, on_i_torque);
+    const v4d ajy = AJ * TY, ajz = AJ * TZ;
+    const v4d yz_lo = __builtin_shufflevector(ajy, ajz, 0, 4, 1, 5);  // y0 z0 y1 z1
+    const v4d yz_hi = __builtin_shufflevector(ajy, ajz, 2, 6, 3, 7);  // y2 z2 y3 z3
+    const v2d on_j_yz[4] = {
+        __builtin_shufflevector(yz_lo, yz_lo, 0, 1), __builtin_shufflevector(yz_lo, yz_lo, 2, 3),
+        __builtin_shufflevector(yz_hi, yz_hi, 0, 1), __builtin_shufflevector(yz_hi, yz_hi, 2, 3)};
+    const std::size_t group = std::min<std::size_t>(4, n - m0);
+    for (std::size_t k = 0; k < group; ++k) {
+      const std::size_t m = m0 + k;
+      if (m == owner_end[q]) finish_owner();
+      const std::size_t e = entry[m];
+      L.ftx[e] = ftx[m];
+      L.fty[e] = fty[m];
+      L.ftz[e] = ftz[m];
+      F += on_j[k];  // lanes 0-2 (lane 3 is not used)
+      T += on_i_torque[k];
+      double* const sum = PF + 8 * std::size_t{partner[m]};
+      store4(sum, load4(sum) - on_j[k]);
+      store2(sum + 4, load2(sum + 4) + on_j_yz[k]);
+    }
+  }
+  if (n > 0) finish_owner();
+  if (L.LS) {  // the contact load, in the same order (a tie keeps the first normal)
+    std::size_t m = 0;
+    for (std::size_t r = 0; r < pb.owners; ++r) {
+      for (; m < owner_end[r]; ++m) record_contact_load<Law, kCap>(L, b, m, owner[r], partner[m]);
+    }
+  }
+}
+
+// The scatter pass with rolling resistance (scalar): as scatter_sums(), plus the rolling moment
+// on both grains and its new history.
+template <class Law, std::size_t kCap>
+void scatter_sums_rolling(const PairLoopView<Law> L, PairBatch& pb) {
+  const BatchView<kCap> b = pb.view<kCap>();
+  const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
+  const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
+  const double *ai = b.f(kAI), *aj = b.f(kAJ);
+  const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
+  const double *mrx = b.f(kMRX), *mry = b.f(kMRY), *mrz = b.f(kMRZ);
+  // Local copies of the bookkeeping pointers: they stay in registers through the stores below.
+  const NeighborList::Index* const entry = pb.entry.data();
+  const NeighborList::Index* const partner = pb.partner.data();
+  const NeighborList::Index* const owner = pb.owner.data();
+  const NeighborList::Index* const owner_end = pb.owner_end.data();
+  const std::size_t owners = pb.owners;
+  std::size_t m = 0;
+  for (std::size_t q = 0; q < owners; ++q) {
+    const std::size_t i = owner[q];
+    Vec3 F{}, T{};
+    for (; m < owner_end[q]; ++m) {
+      const std::size_t e = entry[m], j = partner[m];
+      L.ftx[e] = ftx[m];
+      L.fty[e] = fty[m];
+      L.ftz[e] = ftz[m];
+      const Vec3 force{fx[m], fy[m], fz[m]};
+      const Vec3 tn{tnx[m], tny[m], tnz[m]};
+      F += force;
+      T += ai[m] * tn;
+      L.PF[j].fx -= force.x;
+      L.PF[j].fy -= force.y;
+      L.PF[j].fz -= force.z;
+      L.PF[j].tx += aj[m] * tn.x;
+      L.PF[j].ty += aj[m] * tn.y;
+      L.PF[j].tz += aj[m] * tn.z;
+      const Vec3 M_r{mrx[m], mry[m], mrz[m]};
+      L.mrx[e] = M_r.x;
+      L.mry[e] = M_r.y;
+      L.mrz[e] = M_r.z;
+      T += M_r;
+      L.PF[j].tx -= M_r.x;
+      L.PF[j].ty -= M_r.y;
+      L.PF[j].tz -= M_r.z;
+      if (L.LS) record_contact_load<Law, kCap>(L, b, m, i, j);
+    }
+    L.PF[i].fx += F.x;
+    L.PF[i].fy += F.y;
+    L.PF[i].fz += F.z;
+    L.PF[i].tx += T.x;
+    L.PF[i].ty += T.y;
+    L.PF[i].tz += T.z;
+  }
+}
+
+template <class Law, bool Rolling, std::size_t kCap>
+void flush_batch(const PairLoopView<Law> L, PairBatch& pb, std::size_t n) {
+  evaluate_batch<Law, Rolling, kCap>(L, pb, n);
+  if constexpr (Rolling) {
+    scatter_sums_rolling<Law, kCap>(L, pb);
+  } else {
+    scatter_sums<Law, kCap>(L, pb, n);
+  }
+  pb.owners = 0;
+}
+
+// A pair's batch inputs beyond the overlap test: radius of i, relative velocity, spins,
+// inverse masses and the history of entry e, into slot m. (A transposed copy, four partners'
+// velocity lines turned into columns with vector shuffles, measured 5 % slower on the whole
+// step: bench/README.md, session 14.)
+template <class Law, bool Rolling, std::size_t kCap>
+inline void write_motion_inputs(const PairLoopView<Law>& L, const BatchView<kCap> in, std::size_t m,
+                                std::size_t e, double r_i, const detail::PackedVelocity& vi,
+                                const detail::PackedVelocity& vj) {
+  in.f(kRI)[m] = r_i;
+  in.f(kDVX)[m] = vi.vx - vj.vx;
+  in.f(kDVY)[m] = vi.vy - vj.vy;
+  in.f(kDVZ)[m] = vi.vz - vj.vz;
+  in.f(kWIX)[m] = vi.wx;
+  in.f(kWIY)[m] = vi.wy;
+  in.f(kWIZ)[m] = vi.wz;
+  in.f(kWJX)[m] = vj.wx;
+  in.f(kWJY)[m] = vj.wy;
+  in.f(kWJZ)[m] = vj.wz;
+  in.f(kIMI)[m] = vi.inv_mass;
+  in.f(kIMJ)[m] = vj.inv_mass;
+  in.f(kFTX)[m] = L.ftx[e];
+  in.f(kFTY)[m] = L.fty[e];
+  in.f(kFTZ)[m] = L.ftz[e];
+  if constexpr (Rolling) {
+    in.f(kMRX)[m] = L.mrx[e];
+    in.f(kMRY)[m] = L.mry[e];
+    in.f(kMRZ)[m] = L.mrz[e];
+  }
+}
+
+// Appends the touching pairs of particle i to the batch from slot n on (the batch has room for
+// all of i's entries); returns the new fill.
+template <class Law, bool Rolling, PruneMode kMode, std::size_t kCap>
+std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatch& b,
+                             std::size_t n) {
+  const BatchView<kCap> in = b.view<kCap>();
+  const detail::PackedPosition pi = L.P[i];
+  const detail::PackedVelocity vi = L.V[i];
+  // Overlap test without a branch on its outcome: every entry is written to slot n and n
+  // advances only for a touching pair. Whether a pair in the skin touches is a coin toss for
+  // the branch predictor, and each mispredicted branch used to stall on the next partner's
+  // position (a third of the pair loop's time).
+  const std::size_t n_first = n;
+  NeighborList::Index* const slot_entry = b.entry.data();  // in registers through the stores
+  NeighborList::Index* const slot_partner = b.partner.data();
+  const auto first = L.off[i];
+  NeighborList::Index kept = 0;  // PruneMode::Build: entries written to the pruned list
+  const auto visit = [&](NeighborList::Index e, NeighborList::Index j) {
+    const detail::PackedPosition pj = L.P[j];
+    const double dx = pj.x - pi.x, dy = pj.y - pi.y, dz = pj.z - pi.z;
+    const double d2 = dx * dx + dy * dy + dz * dz;
+    const double rsum = pi.r + pj.r;
+    const bool touching = d2 < rsum * rsum;
+    if (static_cast<int>(!touching) & static_cast<int>(L.touch[e])) {
+      // The pair separated (rare): forget its history.
+      L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
+      if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
+    }
+    L.touch[e] = static_cast<std::uint8_t>(touching);
+    slot_entry[n] = e;
+    slot_partner[n] = j;
+    in.f(kDX)[n] = dx;
+    in.f(kDY)[n] = dy;
+    in.f(kDZ)[n] = dz;
+    in.f(kD2)[n] = d2;
+    in.f(kRJ)[n] = pj.r;
+    if constexpr (kMode == PruneMode::Use) {
+      // Nearly every pruned entry touches: its other inputs are written here, in the same pass,
+      // rather than in a second pass over the kept slots.
+      write_motion_inputs<Law, Rolling, kCap>(L, in, n, e, pi.r, vi, L.V[j]);
+    }
+    n += touching ? 1 : 0;
+    if constexpr (kMode == PruneMode::Build) {
+      // Kept when the gap is below the inner skin (every touching pair is); written to the next
+      // slot either way, without a branch, like the batch.
+      const double reach = rsum + L.inner_skin;
+      L.near[first + kept] = {e, j};
+      kept += d2 < reach * reach ? 1 : 0;
+    }
+  };
+  if constexpr (kMode == PruneMode::Use) {
+    const PrunedList::Entry* const near = L.near + first;
+    const NeighborList::Index count = L.near_count[i];
+    for (NeighborList::Index k = 0; k < count; ++k) visit(near[k].e, near[k].j);
+  } else {
+    for (auto e = first; e < L.off[i + 1]; ++e) visit(e, L.nb[e]);
+    if constexpr (kMode == PruneMode::Build) L.near_count[i] = kept;
+  }
+  // The touching pairs' other inputs (a second pass over the kept slots: with the full list
+  // about a third of the entries do not touch).
+  if constexpr (kMode != PruneMode::Use) {
+    for (std::size_t m = n_first; m < n; ++m) {
+      write_motion_inputs<Law, Rolling, kCap>(L, in, m, slot_entry[m], pi.r, vi,
+                                              L.V[slot_partner[m]]);
+    }
+  }
+  // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
+  // left out, so that owners never outnumber contacts.
+  if (n > n_first) {
+    b.owner[b.owners] = static_cast<NeighborList::Index>(i);
+    b.owner_end[b.owners] = static_cast<NeighborList::Index>(n);
+    ++b.owners;
+  }
+  return n;
+}
+
+// One column: its particles' pairs in batches of at most PairBatch::kTarget (`batch`, fixed
+// size); a particle with more pairs than that (a large grain among fragments) gets a batch of
+// its own (`grown`). A grain's pairs are never split between batches, and each contact gets the
+// same bits in any batch, so where the batches end changes no result.
+template <class Law, bool Rolling, PruneMode kMode>
+void pair_column(const PairLoopView<Law> L, Idx col, PairBatch& batch, PairBatch& grown) {
+  constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap
+  std::size_t n = 0;
+  for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
+    const std::size_t i = L.col_mem[k];
+    // The entries collect_particle() will walk (each needs a slot in the batch).
+    const std::size_t degree = kMode == PruneMode::Use ? L.near_count[i] : L.off[i + 1] - L.off[i];
+    if (n > 0 && n + degree > kFixed) {
+      flush_batch<Law, Rolling, kFixed>(L, batch, n);
+      n = 0;
+    }
+    if (degree > kFixed) {  // rare
+      grown.reserve(degree);
+      const std::size_t m = collect_particle<Law, Rolling, kMode, 0>(L, i, grown, 0);
+      flush_batch<Law, Rolling, 0>(L, grown, m);
+      continue;
+    }
+    n = collect_particle<Law, Rolling, kMode, kFixed>(L, i, batch, n);
+  }
+  flush_batch<Law, Rolling, kFixed>(L, batch, n);
+}
+
+}  // namespace
+
+template <class Law, bool Rolling>
+void CpuPairLoop::evaluate(const Law& law, const ContactParams& cp, double h,
+                           const ParticleStore& p, const NeighborList& nl, bool prune,
+                           ContactHistory& history, ContactLoad* load, double load_factor) {
+  const std::size_t N = p.size();
+  PairLoopView<Law> loop{law,
+                         cp,
+                         h,
+                         nl.offsets.data(),
+                         nl.neighbors.data(),
+                         nl.column_offsets.data(),
+                         nl.column_members.data(),
+                         p.x.data(),
+                         p.y.data(),
+                         p.z.data(),
+                         p.radius.data(),
+                         p.vx.data(),
+                         p.vy.data(),
+                         p.vz.data(),
+                         p.wx.data(),
+                         p.wy.data(),
+                         p.wz.data(),
+                         history.ft_x.data(),
+                         history.ft_y.data(),
+                         history.ft_z.data(),
+                         history.touching.data()};
+  const bool pack = !packed_fresh_ || positions_.size() != N || velocities_.size() != N;
+  const bool zero = !sums_zero_ || sums_.size() != N;
+  const PruneMode mode = pruned_.begin(nl, prune, pack);
+  loop.near = pruned_.entries.data();
+  loop.near_count = pruned_.count.data();
+  loop.inner_skin = pruned_.inner_skin();
+  packed_fresh_ = sums_zero_ = false;  // consumed: the next loop refreshes unless told
+  positions_.resize(N);
+  velocities_.resize(N);
+  loop.P = positions_.data();
+  loop.V = velocities_.data();
+  loop.IM = p.inv_mass.data();
+  sums_.resize(N);
+  loop.PF = sums_.data();
+  if constexpr (Rolling) {
+    loop.mrx = history.mr_x.data();
+    loop.mry = history.mr_y.data();
+    loop.mrz = history.mr_z.data();
+  }
+  if (load != nullptr) {
+    for (auto* a : {&load->sigma, &load->F_n_max, &load->nx, &load->ny, &load->nz}) {
+      a->assign(N, 0.0);
+    }
+    loop.LS = load->sigma.data();
+    loop.LF = load->F_n_max.data();
+    loop.LNX = load->nx.data();
+    loop.LNY = load->ny.data();
+    loop.LNZ = load->nz.data();
+    loop.inv_pi_k = 1.0 / (kPi * load_factor);
+  }
+  const std::vector<NeighborList::Index>& colors = nl.color_offsets;
+  const std::uint64_t* work = nl.column_work.data();
+  WorkShares& shares = shares_;
+  shares.reset(NeighborList::kColors, static_cast<std::size_t>(max_team_size()));
+#pragma omp parallel if (worth_threading(N))
+  {
+    const auto threads = static_cast<std::uint64_t>(team_size());
+    const auto t = static_cast<std::uint64_t>(thread_index());
+    // Each thread's contiguous share of each colour's columns, balanced by their work: columns
+    // are in z order and particles in cell order, so a thread keeps to the same slab of the
+    // sample in every colour and in the integration loops, and its share of the data stays in
+    // its cache. A thread done with its share takes columns from the back of the others'
+    // (WorkShares): which thread runs a column does not change any result.
+    for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
+      const std::uint64_t* first = work + colors[color];
+      const std::uint64_t* last = work + colors[color + 1];
+      const auto share_start = [&](std::uint64_t k) {
+        if (k == threads) return last;
+        return std::lower_bound(first, last, *first + (*last - *first) * k / threads);
+      };
+      shares.set(color, t, static_cast<std::uint32_t>(share_start(t) - work),
+                 static_cast<std::uint32_t>(share_start(t + 1) - work));
+    }
+    // One batch per thread, kept between steps (its buffers are reused, not reallocated).
+    thread_local PairBatch batch, grown;
+    batch.reserve(PairBatch::kTarget);
+    if (pack || zero) {
+#pragma omp for schedule(static)
+      for (Idx ii = 0; ii < static_cast<Idx>(N); ++ii) {
+        if (zero) loop.PF[ii] = {};
+        if (pack) {
+          loop.P[ii] = {loop.X[ii], loop.Y[ii], loop.Z[ii], loop.R[ii]};
+          loop.V[ii] = {loop.VX[ii], loop.VY[ii], loop.VZ[ii], loop.WX[ii],
+                        loop.WY[ii], loop.WZ[ii], loop.IM[ii], 0.0};
+        }
+      }
+    }
+    // Colours one after another, with a barrier after each; within a colour, columns never
+    // write to the same particle, so both members of a pair are updated directly.
+    for (std::size_t color = 0; color < NeighborList::kColors; ++color) {
+      std::uint32_t col = 0;
+      while (shares.next(color, t, threads, col)) {
+        switch (mode) {
+          case PruneMode::Use:
+            pair_column<Law, Rolling, PruneMode::Use>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+          case PruneMode::Build:
+            pair_column<Law, Rolling, PruneMode::Build>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+          case PruneMode::Full:
+            pair_column<Law, Rolling, PruneMode::Full>(loop, static_cast<Idx>(col), batch, grown);
+            break;
+        }
+      }
+#pragma omp barrier
+    }
+  }
+}
+
+template void CpuPairLoop::evaluate<HertzLaw, false>(const HertzLaw&, const ContactParams&, double,
+                                                     const ParticleStore&, const NeighborList&,
+                                                     bool, ContactHistory&, ContactLoad*, double);
+template void CpuPairLoop::evaluate<HertzLaw, true>(const HertzLaw&, const ContactParams&, double,
+                                                    const ParticleStore&, const NeighborList&, bool,
+                                                    ContactHistory&, ContactLoad*, double);
+template void CpuPairLoop::evaluate<RoughHertzLaw, false>(const RoughHertzLaw&,
+                                                          const ContactParams&, double,
+                                                          const ParticleStore&, const NeighborList&,
+                                                          bool, ContactHistory&, ContactLoad*,
+                                                          double);
+template void CpuPairLoop::evaluate<RoughHertzLaw, true>(const RoughHertzLaw&, const ContactParams&,
+                                                         double, const ParticleStore&,
+                                                         const NeighborList&, bool, ContactHistory&,
+                                                         ContactLoad*, double);
+
+std::size_t CpuPairLoop::memory_bytes() const {
+  return positions_.capacity() * sizeof(detail::PackedPosition) +
+         velocities_.capacity() * sizeof(detail::PackedVelocity) +
+         sums_.capacity() * sizeof(detail::PackedForce) + pruned_.memory_bytes();
+}
+
+}  // namespace crushdem
