@@ -171,12 +171,15 @@ TEST(Checkpoint, ASavedSimulationWithRollingResistanceContinuesBitForBit) {
   EXPECT_GT(loaded, 10u);
 }
 
-TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
-  const fs::path base = fs::temp_directory_path() / "crushdem_checkpoint_run";
+// A run stopped while it runs (as SIGINT does) and resumed writes the files of an uninterrupted
+// one, byte for byte, on the backend `backend`.
+void expect_stopped_run_resumes_exactly(const std::string& backend) {
+  const fs::path base = fs::temp_directory_path() / ("crushdem_checkpoint_run_" + backend);
   fs::remove_all(base);
   const RunConfig cfg = config(base);
   RunOptions opt;
   opt.progress = false;
+  opt.backend = backend;
   opt.out_dir = (base / "whole").string();
   run_to_directory(cfg, opt);
 
@@ -248,7 +251,18 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
   EXPECT_GT(json_number(timing, "crushing"), 0.0);
   EXPECT_GT(json_number(timing, "ageing_jump"), 0.0);
   EXPECT_NE(timing.find("\"dominant_part\""), std::string::npos);
+  EXPECT_NE(timing.find("\"backend\": \"" + backend + "\""), std::string::npos) << timing;
   fs::remove_all(base);
+}
+
+TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
+  expect_stopped_run_resumes_exactly("cpu");
+}
+
+// The device step (its host emulation here): sample preparation, stages, crushing, ageing and
+// the checkpoint all go through the device copy and its syncs.
+TEST(Checkpoint, AStoppedDeviceRunResumedWritesTheFilesOfAnUninterruptedOne) {
+  expect_stopped_run_resumes_exactly("emulated");
 }
 
 TEST(Checkpoint, PartClockChargesEachSecondToOnePart) {

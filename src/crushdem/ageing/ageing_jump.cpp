@@ -27,7 +27,7 @@ AgeingJump ageing_jump(Simulation& sim, Crusher& crusher, std::size_t n_break, d
   ParticleStore& p = sim.particles();
   std::vector<double>& a = p.field(crusher.crack_field());
   const std::vector<double>& strength = p.field(crusher.strength_field());
-  const Simulation::ContactLoad& load = sim.contact_load();
+  const ContactLoad& load = sim.contact_load();
   const bool loaded = load.sigma.size() == p.size();
   std::vector<double> v(p.size(), 0.0), t_fail(p.size(), std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < p.size(); ++i) {

@@ -6,8 +6,9 @@
 // prints particle_steps_per_s=<N*STEPS/seconds> as the last line. Values come from the command
 // line, else from the environment variables the peer harness sets (CLI11's envname for the
 // options, env_number for the constants), else from its lib.sh defaults.
-// --backend cuda runs the warm-up and the timed steps on the GPU (GpuStepper, builds with
-// -DCRUSHDEM_CUDA=ON only); the clock stops after the device has finished.
+// --backend cuda runs the warm-up and the timed steps on the GPU (DeviceStepper, builds with
+// -DCRUSHDEM_CUDA=ON only; --backend emulated runs its step on the host); the clock stops after
+// the device has finished.
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -19,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/backend/stepper.hpp"
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/state_io.hpp"
@@ -26,10 +28,6 @@
 #include "crushdem/io/output.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/run/runner.hpp"
-
-#ifdef CRUSHDEM_HAVE_CUDA
-#include "crushdem/integrate/gpu_stepper.hpp"
-#endif
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -86,7 +84,7 @@ int bench_main(const BenchArgs& a) {
   if (prune != 0 && prune != 1) {
     throw ConfigError(bad_value("--prune", std::to_string(prune), "0 (walk the full list) or 1"));
   }
-  check_backend(backend);
+  check_backend_name(backend);
   if (steps <= 0)
     throw ConfigError(bad_value("--steps", std::to_string(steps), "a positive count"));
   if (warm < 0) throw ConfigError(bad_value("--warm", std::to_string(warm), "a count >= 0"));
@@ -185,32 +183,17 @@ int bench_main(const BenchArgs& a) {
                 sim.kinetic_energy());
   }
 
-#ifdef CRUSHDEM_HAVE_CUDA
-  std::unique_ptr<GpuStepper> gpu;
-  if (backend == "cuda") {
-    if (!GpuStepper::available()) throw RuntimeFailure("--backend cuda: no CUDA device found");
-    gpu = std::make_unique<GpuStepper>(sim);
-  }
-  auto advance = [&](long n) {
-    if (gpu) {
-      gpu->step(static_cast<std::uint64_t>(n));  // returns when the device has finished
-    } else {
-      sim.step(static_cast<std::uint64_t>(n));
-    }
-  };
-#else
-  auto advance = [&](long n) { sim.step(static_cast<std::uint64_t>(n)); };
-#endif
+  const std::unique_ptr<Stepper> stepper = make_stepper(backend);
+  const auto advance = [&](long n) { stepper->advance(sim, static_cast<std::uint64_t>(n)); };
   advance(warm);
+  stepper->sync(sim);
   sim.compute_forces();
   const std::size_t builds0 = sim.neighbors().builds();
   const std::size_t prunes0 = sim.pruned_neighbors().builds();
   const auto t0 = std::chrono::steady_clock::now();
-  advance(steps);
+  advance(steps);  // returns when the device has finished
   const auto t1 = std::chrono::steady_clock::now();
-#ifdef CRUSHDEM_HAVE_CUDA
-  if (gpu) gpu->download();
-#endif
+  stepper->sync(sim);
   const double secs = std::chrono::duration<double>(t1 - t0).count();
 
   const auto& walls = sim.walls();
@@ -227,8 +210,11 @@ int bench_main(const BenchArgs& a) {
               sim.pruned_neighbors().builds() - prunes0);
   std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,
               sim.kinetic_energy());
-  std::printf("engine_bytes_per_particle=%.0f peak_rss_kib=%ld wall_s=%.4f\n",
-              static_cast<double>(sim.memory_bytes()) / N, peak_rss_kib(), secs);
+  std::printf(
+      "engine_bytes_per_particle=%.0f device_bytes_per_particle=%.0f peak_rss_kib=%ld "
+      "wall_s=%.4f\n",
+      static_cast<double>(sim.memory_bytes()) / N, static_cast<double>(stepper->device_bytes()) / N,
+      peak_rss_kib(), secs);
   if (!state_out.empty()) {
     Packing out;
     const auto& p = sim.particles();

@@ -17,7 +17,7 @@ struct RunArgs {
   bool quiet = false, overwrite = false;
 };
 struct ResumeArgs {
-  std::string dir;
+  std::string dir, backend = "cpu";
   long threads = 0;
   bool quiet = false;
 };
@@ -31,9 +31,6 @@ int run_main(const RunArgs& a);
 int resume_main(const ResumeArgs& a);
 int check_main(const std::string& config);
 int bench_main(const BenchArgs& a);
-
-/// "cpu" or "cuda" (the latter only in a build with CUDA); anything else is a ConfigError.
-void check_backend(const std::string& backend);
 
 /// Sets the OpenMP thread count (0 = leave the default).
 void set_threads(long n);

@@ -3,17 +3,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
-#include <optional>
 
+#include "crushdem/backend/stepper.hpp"
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/run/runner.hpp"
-
-#ifdef CRUSHDEM_HAVE_CUDA
-#include <memory>
-
-#include "crushdem/integrate/gpu_stepper.hpp"
-#endif
 
 namespace crushdem::cli {
 
@@ -35,12 +29,9 @@ void split_branch(const std::string& from, std::string& dir, std::string& stage)
 }
 
 /// Runs (or resumes) with the stop handlers installed; an interrupted run says how to go on.
-int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
-                  bool checkpoints = true) {
+int run_or_resume(const std::function<RunSummary()>& go, const std::string& out) {
   try {
-    // Without checkpoints (the GPU backend) Ctrl-C keeps its usual meaning.
-    std::optional<StopOnSignals> handlers;
-    if (checkpoints) handlers.emplace();
+    const StopOnSignals handlers;
     const RunSummary s = go();
     std::printf(
         "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock (%.0f %% %s); "
@@ -57,43 +48,24 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out,
 }  // namespace
 
 int run_main(const RunArgs& a) {
-  check_backend(a.backend);
+  check_backend_name(a.backend);
   const RunConfig cfg = load_run_config(a.config);  // validated before anything runs
-  const std::string& backend = a.backend;
-  if (backend == "cuda" && (cfg.has_sample || !cfg.stages.empty() || cfg.crushing.enabled)) {
-    throw ConfigError(
-        "--backend cuda: sample preparation, laboratory stages and crushing run on the CPU for "
-        "now (the GPU stepper does not switch wall modes or friction, nor change particles); "
-        "use --backend cpu");
-  }
   set_threads(a.threads);
   RunOptions opt;
   opt.out_dir = a.out;
   opt.progress = !a.quiet;
-  opt.backend = backend;
+  opt.backend = a.backend;
   opt.overwrite = a.overwrite;
   if (!a.from.empty()) split_branch(a.from, opt.branch_dir, opt.branch_stage);
-#ifdef CRUSHDEM_HAVE_CUDA
-  // The GPU stepper takes over after the set-up; the Simulation is refreshed before each output.
-  std::unique_ptr<GpuStepper> gpu;
-  if (backend == "cuda") {
-    if (!GpuStepper::available()) throw RuntimeFailure("--backend cuda: no CUDA device found");
-    opt.advance = [&gpu](Simulation& sim, std::uint64_t n) {
-      if (!gpu) gpu = std::make_unique<GpuStepper>(sim);
-      gpu->step(n);
-    };
-    opt.sync = [&gpu](Simulation&) {
-      if (gpu) gpu->download();
-    };
-  }
-#endif
-  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, a.out, backend == "cpu");
+  return run_or_resume([&]() { return run_to_directory(cfg, opt); }, a.out);
 }
 
 int resume_main(const ResumeArgs& a) {
+  check_backend_name(a.backend);
   set_threads(a.threads);
   RunOptions opt;
   opt.progress = !a.quiet;
+  opt.backend = a.backend;
   return run_or_resume([&]() { return resume_directory(a.dir, opt); }, a.dir);
 }
 

@@ -163,14 +163,14 @@ double Crusher::crack_velocity(const Simulation& sim, std::size_t i) const {
   const ParticleStore& p = sim.particles();
   const double a = p.field(crack_field_)[i];
   if (!cfg_.crack_growth || std::isnan(a) || 2.0 * p.radius[i] < d_c_) return 0.0;
-  const Simulation::ContactLoad& load = sim.contact_load();
+  const ContactLoad& load = sim.contact_load();
   if (load.sigma.size() != p.size() || !(load.sigma[i] > 0.0)) return 0.0;
   return crushdem::crack_velocity(cfg_.v0, load.sigma[i], p.field(strength_field_)[i], cfg_.n);
 }
 
 double Crusher::loaded_share(const Simulation& sim, double ratio) const {
   const ParticleStore& p = sim.particles();
-  const Simulation::ContactLoad& load = sim.contact_load();
+  const ContactLoad& load = sim.contact_load();
   const std::vector<double>& strength = p.field(strength_field_);
   std::size_t crushable = 0, above = 0;
   for (std::size_t i = 0; i < p.size(); ++i) {
@@ -191,7 +191,7 @@ std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
   const PartScope timed(sim.part_clock(), Part::Crushing);
   sim.compute_forces();  // no-op when the forces (and loads) are current
   ParticleStore& p = sim.particles();
-  const Simulation::ContactLoad& load = sim.contact_load();
+  const ContactLoad& load = sim.contact_load();
   const std::vector<double>& s = p.field(strength_field_);
   // Cracks grow by v times the time since the last check (the load of this step). This runs
   // every check (every step by default): one parallel pass, each grain on its own, then the
@@ -200,22 +200,20 @@ std::vector<BreakageEvent> Crusher::apply(Simulation& sim) {
   last_check_time_ = sim.time();
   std::vector<double>& a = p.field(crack_field_);
   const std::size_t N = p.size();
-  std::vector<std::uint8_t> fails(N, 0);  // 1 instant, 2 crack
+  std::vector<GrainFailure> fails(N, GrainFailure::None);
+  const bool crack_growth = cfg_.crack_growth;
 #pragma omp parallel for schedule(static) if (worth_threading(N))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
-    if (2.0 * p.radius[i] < d_c_) continue;
-    if (load.sigma[i] >= s[i]) {
-      fails[i] = 1;
-    } else if (cfg_.crack_growth && !std::isnan(a[i])) {
-      a[i] += crack_velocity(sim, i) * elapsed;
-      if (a[i] >= p.radius[i]) fails[i] = 2;  // a >= 0.5 d
-    }
+    fails[i] = crushing_check(p.radius[i], d_c_, load.sigma[i], s[i], crack_growth, cfg_.v0, cfg_.n,
+                              elapsed, a[i]);
   }
-  // Both causes in one topology phase (the contact load stays valid for every parent).
   std::vector<std::pair<std::size_t, BreakCause>> grains;
   for (std::size_t i = 0; i < N; ++i) {
-    if (fails[i]) grains.emplace_back(i, fails[i] == 1 ? BreakCause::Instant : BreakCause::Crack);
+    if (fails[i] != GrainFailure::None) {
+      grains.emplace_back(
+          i, fails[i] == GrainFailure::Instant ? BreakCause::Instant : BreakCause::Crack);
+    }
   }
   if (grains.empty()) return {};
   return split(sim, std::move(grains));
@@ -241,7 +239,7 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim,
   std::vector<std::size_t> which;
   which.reserve(grains.size());
   for (const auto& g : grains) which.push_back(g.first);
-  const Simulation::ContactLoad& load = sim.contact_load();
+  const ContactLoad& load = sim.contact_load();
   const bool have_load = load.sigma.size() == p.size();
   TopologyChange change;
   std::vector<BreakageEvent> events;

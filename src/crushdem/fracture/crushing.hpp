@@ -100,6 +100,10 @@ class Crusher {
   /// grain that cannot break or without a crack).
   double crack_velocity(const Simulation& sim, std::size_t i) const;
   std::size_t crack_field() const { return crack_field_; }
+  /// The time of the last crushing check (cracks grow by v times the time since); a device
+  /// that runs the checks itself keeps it and gives it back.
+  double last_check_time() const { return last_check_time_; }
+  void set_last_check_time(double t) { last_check_time_ = t; }
   /// Share of the crushable grains (d >= d_c) whose particle stress sigma is at least `ratio`
   /// of their strength at the current contact load: at n = 60 the grains above about 0.72 are
   /// those that can fail by crack growth within a day (docs/model.md 3).

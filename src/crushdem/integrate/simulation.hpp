@@ -133,7 +133,6 @@ class Simulation {
   /// by each force evaluation once track_contact_load(k) is on: the largest F_n / (pi r' delta)
   /// over the grain's contacts (walls included) with r' = k R* (R* = R for a wall), the largest
   /// F_n and the unit normal of that contact, pointing from the grain towards the contact.
-  using ContactLoad = crushdem::ContactLoad;
   void track_contact_load(double r_prime_factor);  // 0 turns tracking off
   double contact_load_factor() const { return load_factor_; }
   const ContactLoad& contact_load() const { return load_; }

@@ -59,8 +59,9 @@ double FixedLengthController::fraction(const Simulation& sim) const {
 
 // --- Driver ------------------------------------------------------------------------------------
 
-Driver::Driver(Simulation& sim, const RunConfig& cfg, const RunOptions& opt)
+Driver::Driver(Simulation& sim, Stepper& stepper, const RunConfig& cfg, const RunOptions& opt)
     : sim_(sim),
+      stepper_(stepper),
       cfg_(cfg),
       opt_(opt),
       dir_(opt.out_dir),
@@ -103,6 +104,8 @@ void Driver::write_collections() const {
 
 void Driver::attach_crusher(Crusher* crusher, bool resumed) {
   crusher_ = crusher;
+  stepper_.attach_crusher(crusher,
+                          [this](const std::vector<BreakageEvent>& events) { log(events); });
   if (!resumed) {
     file("breakage.csv")
         .start({"time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
@@ -125,29 +128,15 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
     const std::uint64_t s0 = sim_.step_count();
     std::uint64_t n = std::min(interval - s0 % interval, to_check);
     if (vtk > 0) n = std::min(n, vtk - s0 % vtk);
-    if (crusher_) {
-      const std::uint64_t k = crusher_->config().interval;
-      n = std::min(n, k - s0 % k);
-    }
-    // Short chunks on the CPU so that a stop request is answered within seconds (the chunking
-    // does not change the result); another backend keeps its long chunks.
-    if (!opt_.advance) n = std::min<std::uint64_t>(n, kMaxChunk);
-    if (opt_.advance) {
-      opt_.advance(sim_, n);
-    } else {
-      sim_.step(n);
-    }
-    if (opt_.sync) opt_.sync(sim_);
-    particle_steps_ += static_cast<double>(n) * static_cast<double>(sim_.particles().size());
+    // Chunks short enough that a stop request is answered within seconds (the chunking does
+    // not change the result); the stepper checks crushing inside them.
+    n = std::min(n, stepper_.max_chunk());
+    const double before = stepper_.particle_steps();
+    stepper_.advance(sim_, n);
+    stepper_.sync(sim_);
+    particle_steps_ += stepper_.particle_steps() - before;
     to_check -= n;
     const std::uint64_t s = sim_.step_count();
-    if (crusher_ && s % crusher_->config().interval == 0) {
-      const std::vector<BreakageEvent> events = crusher_->apply(sim_);
-      log(events);
-      // Outputs and checks at this step read forces: evaluate them for the new grains (what
-      // the next step would do first anyway, with no tangential increment).
-      if (!events.empty()) sim_.compute_forces();
-    }
     if (to_check == 0) {
       finished = c.update(sim_);
       if (!finished) to_check = c.steps_to_check(sim_);

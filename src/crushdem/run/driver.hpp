@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/backend/stepper.hpp"
 #include "crushdem/experiments/protocol.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
@@ -56,7 +57,7 @@ class FixedLengthController final : public Controller {
 
 class Driver {
  public:
-  Driver(Simulation& sim, const RunConfig& cfg, const RunOptions& opt);
+  Driver(Simulation& sim, Stepper& stepper, const RunConfig& cfg, const RunOptions& opt);
 
   /// The CSV file `name` in the output directory (opened when its first row is written).
   CsvWriter& file(const std::string& name);
@@ -67,8 +68,9 @@ class Driver {
   /// vtk/KIND.pvd for each kind of snapshot file, from the snapshots written so far.
   void write_collections() const;
 
-  /// Grains break from now on: the criterion is checked every crushing.interval steps (counted
-  /// from step 0) and every breakage is appended to breakage.csv (started unless resumed).
+  /// Grains break from now on: the stepper checks the criterion every crushing.interval steps
+  /// (counted from step 0) and every breakage is appended to breakage.csv (started unless
+  /// resumed).
   void attach_crusher(Crusher* crusher, bool resumed);
 
   /// Called with the running controller and the steps left to its next check whenever a
@@ -103,11 +105,11 @@ class Driver {
 
  private:
   using clock = std::chrono::steady_clock;
-  static constexpr std::uint64_t kMaxChunk = 2000;
   void progress(const std::string& label, const std::function<double()>& fraction);
   void log(const std::vector<BreakageEvent>& events);
 
   Simulation& sim_;
+  Stepper& stepper_;
   const RunConfig& cfg_;
   const RunOptions& opt_;
   Crusher* crusher_ = nullptr;

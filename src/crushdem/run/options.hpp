@@ -13,12 +13,11 @@ namespace crushdem {
 struct RunOptions {
   std::string out_dir;
   bool progress = true;  // progress lines on stderr
-  /// Advances the simulation by n steps; empty = Simulation::step. Another backend (the GPU
-  /// stepper) plugs in here, and `sync` then brings the Simulation up to date before each output.
-  std::function<void(Simulation&, std::uint64_t)> advance;
-  std::function<void(Simulation&)> sync;
-  std::string backend = "cpu";  // recorded in timing.json
-  bool resume = false;          // continue from out_dir/checkpoint.bin
+  /// What advances the simulation (backend/stepper.hpp): "cpu", "emulated" (the GPU's step run
+  /// on the host) or "cuda"; recorded in timing.json. Sample preparation, every stage,
+  /// crushing, ageing, checkpoints and resuming work on each.
+  std::string backend = "cpu";
+  bool resume = false;  // continue from out_dir/checkpoint.bin
   /// A new run refuses a directory that holds files; with overwrite, a crushdem run directory
   /// (one with config.toml) is emptied first.
   bool overwrite = false;

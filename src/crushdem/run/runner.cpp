@@ -90,6 +90,7 @@ class Run {
       : cfg_(cfg),
         opt_(opt),
         dir_(opt.out_dir),
+        stepper_(make_stepper(opt.backend)),
         lock_(open_directory(opt)),
         config_text_(toml::serialize(to_toml(cfg))),
         branching_(!opt.branch_dir.empty()),
@@ -101,13 +102,9 @@ class Run {
     if (resumed_) read_saved_position();
     make_simulation();
     if (resumed_) restore();
-    // Another backend (the GPU stepper) keeps its state on the device: no checkpoints there.
-    checkpoints_ = !opt_.advance;
-    if (checkpoints_) {
-      driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
-        save_checkpoint(&c, to_check);
-      };
-    }
+    driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
+      save_checkpoint(&c, to_check);
+    };
     prepare();
     start_test();
     if (!cfg_.stages.empty()) {
@@ -178,7 +175,7 @@ class Run {
       }
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
-    driver_ = std::make_unique<Driver>(*sim_, cfg_, opt_);
+    driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
   }
 
   void make_crusher() {
@@ -252,7 +249,6 @@ class Run {
   // if asked to.
   void boundary(std::uint32_t part) {
     pos_.part = part;
-    if (!checkpoints_) return;
     save_checkpoint(nullptr, 0);
     if (part >= kPartFirstStage) {
       create_directory(dir_ / "stages", opt_.out_dir);
@@ -463,6 +459,7 @@ class Run {
   const RunConfig& cfg_;
   const RunOptions& opt_;
   const fs::path dir_;
+  std::unique_ptr<Stepper> stepper_;  // what advances the simulation (opt.backend)
   std::unique_ptr<DirectoryLock> lock_;
   const std::string config_text_;
   const bool branching_, resumed_;
@@ -475,7 +472,6 @@ class Run {
   std::unique_ptr<Driver> driver_;
   std::unique_ptr<Crusher> crusher_;
   std::vector<double> sieves_;
-  bool checkpoints_ = false;
   bool in_test_ = false;  // resumed inside the test (preparation done)
 };
 

@@ -1,0 +1,60 @@
+// The device behind a DeviceStepper: its memory and its launches. Two implementations: the CUDA
+// runtime with the kernels of backend/cuda_device.cu (built with -DCRUSHDEM_CUDA=ON), and the
+// host emulation (backend/device_stepper.cpp), which runs the same per-thread bodies
+// (backend/device_step.hpp) serially in the kernels' order of summation and so gives the
+// device's bits on any machine. This header has no CUDA types.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "crushdem/backend/device_step.hpp"
+#include "crushdem/contact/hertz.hpp"
+#include "crushdem/contact/rough_hertz.hpp"
+
+namespace crushdem::device {
+
+/// The contact laws of a run on the device (a rough law's power tables in device memory).
+struct Laws {
+  bool rough = false;
+  bool rolling = false;
+  HertzLaw hertz;
+  RoughHertzLaw rough_pp, rough_pw;
+};
+
+class Api {
+ public:
+  virtual ~Api() = default;
+  Api() = default;
+  Api(const Api&) = delete;
+  Api& operator=(const Api&) = delete;
+
+  virtual bool emulated() const = 0;
+  virtual void* allocate(std::size_t bytes) = 0;
+  virtual void release(void* p) = 0;
+  virtual void upload(void* device, const void* host, std::size_t bytes) = 0;
+  virtual void download(void* host, const void* device, std::size_t bytes) = 0;
+  /// The laws with their tables where the kernels can read them (device copies on a GPU).
+  virtual Laws place_laws(const Laws& host) = 0;
+  /// Runs up to `steps` whole steps; stops early when a kernel sets Control::halt (the control
+  /// block says how many finished and why it stopped).
+  virtual void run_steps(const View& v, const Laws& laws, int steps) = 0;
+  /// The rest of a step that stopped after its drift for a rebuild: contacts, gather, clock and
+  /// the crushing check.
+  virtual void finish_step(const View& v, const Laws& laws) = 0;
+  /// The view's pointers or parameters changed (a captured graph is stale).
+  virtual void view_changed() {}
+  /// Waits for the device and copies the control block to `host`.
+  virtual void read_control(const View& v, Control& host) = 0;
+};
+
+/// The host emulation.
+std::unique_ptr<Api> make_emulated_api();
+/// The CUDA runtime; RuntimeFailure without a usable device or in a build without CUDA.
+std::unique_ptr<Api> make_cuda_api();
+/// Whether this build has CUDA and a device can be used.
+bool cuda_available();
+/// Whether this build was made with CUDA (-DCRUSHDEM_CUDA=ON).
+bool cuda_built();
+
+}  // namespace crushdem::device

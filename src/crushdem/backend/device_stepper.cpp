@@ -1,0 +1,780 @@
+#include "crushdem/backend/device_stepper.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <utility>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+
+namespace {
+
+using device::Control;
+using device::Index;
+using device::View;
+
+/// Buffers keep spare room so that most rebuilds and splits do not reallocate (a reallocation
+/// changes the view and, on a GPU, the captured graph).
+std::size_t with_room(std::size_t bytes) {
+  return std::max<std::size_t>(bytes + bytes / 4, 256);
+}
+
+// --- the host emulation ------------------------------------------------------------------------
+
+/// The device step's bodies run serially on the host in the kernels' order of summation (the
+/// wall totals by the same fixed tree), so the emulation has the device's bits.
+class EmulatedApi : public device::Api {
+ public:
+  bool emulated() const override { return true; }
+  void* allocate(std::size_t bytes) override {
+    void* p = std::malloc(bytes);
+    if (!p) throw RuntimeFailure("emulated device: out of host memory");
+    return p;
+  }
+  void release(void* p) override { std::free(p); }
+  void upload(void* dev, const void* host, std::size_t bytes) override {
+    if (bytes) std::memcpy(dev, host, bytes);
+  }
+  void download(void* host, const void* dev, std::size_t bytes) override {
+    if (bytes) std::memcpy(host, dev, bytes);
+  }
+  device::Laws place_laws(const device::Laws& host) override { return host; }
+  void run_steps(const View& v, const device::Laws& laws, int steps) override {
+    for (int s = 0; s < steps; ++s) {
+      if (v.ctrl->halt) return;
+      kick_drift(v);
+      if (v.ctrl->halt) return;
+      forces(v, laws);
+    }
+  }
+  void finish_step(const View& v, const device::Laws& laws) override { forces(v, laws); }
+  void read_control(const View& v, Control& host) override { host = *v.ctrl; }
+
+ private:
+  static void kick_drift(const View& v) {
+    double m2 = 0.0;
+    for (Index i = 0; i < v.ctrl->N; ++i) m2 = std::max(m2, device::kick_drift_item(v, i));
+    device::finish_drift(v, m2);
+  }
+
+  template <class Law, bool Rolling>
+  static void pairs(const View& v, const Law& law) {
+    for (Index e = 0; e < v.ctrl->M; ++e) device::pair_item<Law, Rolling>(v, law, e);
+  }
+
+  static void forces(const View& v, const device::Laws& laws) {
+    Control& c = *v.ctrl;
+    if (laws.rough) {
+      laws.rolling ? pairs<RoughHertzLaw, true>(v, laws.rough_pp)
+                   : pairs<RoughHertzLaw, false>(v, laws.rough_pp);
+      for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, laws.rough_pw, e);
+    } else {
+      laws.rolling ? pairs<HertzLaw, true>(v, laws.hertz) : pairs<HertzLaw, false>(v, laws.hertz);
+      for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, laws.hertz, e);
+    }
+    std::vector<device::WallSum> part(device::kWallThreads);
+    for (int k = 0; k < kNumWalls; ++k) {
+      for (int t = 0; t < device::kWallThreads; ++t) {
+        part[static_cast<std::size_t>(t)] = device::wall_partial(v, k, t);
+      }
+      for (int s = device::kWallThreads / 2; s > 0; s >>= 1) {
+        for (int t = 0; t < s; ++t) {
+          device::add_sum(part[static_cast<std::size_t>(t)], part[static_cast<std::size_t>(t + s)]);
+        }
+      }
+      device::wall_store_and_servo(v, k, part[0]);
+    }
+    for (Index j = 0; j < c.N; ++j) device::gather_item(v, j);
+    device::advance_clock(v);
+    if (v.fail && device::crushing_step(v)) {
+      for (Index i = 0; i < c.N; ++i) {
+        if (device::crushing_item(v, i)) ++c.failures;
+      }
+      if (c.failures > 0) c.halt = device::kFailure;
+    }
+  }
+};
+
+// --- the mirror: what the device holds, as one list ---------------------------------------------
+
+enum class Count { Grains, Entries, WallEntries };
+
+/// One array the device holds: where its host copy is, its size, the view pointer it sets, and
+/// the bytes last transferred (the shadow), which tell whether host code changed it since.
+struct Field {
+  using HostArray = std::function<std::pair<void*, std::size_t>(Simulation&)>;
+  using Bind = std::function<void(View&, void*)>;
+  Field(const char* name_, Count count_, bool both_ways_, std::size_t elem_, HostArray host_,
+        Bind bind_)
+      : name(name_),
+        count(count_),
+        both_ways(both_ways_),
+        elem(elem_),
+        host(std::move(host_)),
+        bind(std::move(bind_)) {}
+  const char* name;
+  Count count;
+  bool both_ways;  // downloaded by sync() (false: the device only reads it)
+  std::size_t elem;
+  // The host array's data and its element count (checked against the device's count).
+  HostArray host;
+  Bind bind;
+  void* buf = nullptr;
+  std::size_t cap = 0;
+  std::vector<unsigned char> shadow;
+};
+
+template <class T>
+std::function<void(View&, void*)> binder(T* View::*member) {
+  return [member](View& v, void* p) { v.*member = static_cast<T*>(p); };
+}
+template <class T>
+std::function<void(View&, void*)> binder(const T* View::*member) {
+  return [member](View& v, void* p) { v.*member = static_cast<const T*>(p); };
+}
+
+}  // namespace
+
+std::unique_ptr<device::Api> device::make_emulated_api() {
+  return std::make_unique<EmulatedApi>();
+}
+
+#ifndef CRUSHDEM_HAVE_CUDA
+std::unique_ptr<device::Api> device::make_cuda_api() {
+  throw RuntimeFailure(
+      "--backend cuda: this crushdem was built without CUDA (configure with -DCRUSHDEM_CUDA=ON)");
+}
+bool device::cuda_available() {
+  return false;
+}
+bool device::cuda_built() {
+  return false;
+}
+#endif
+
+struct DeviceStepper::Impl {
+  std::unique_ptr<device::Api> api;
+  std::vector<Field> fields;
+  // Derived per-entry arrays (from the list, radii and masses) and device-only scratch.
+  struct Scratch {
+    void* p = nullptr;
+    std::size_t cap = 0;
+  };
+  Scratch off, roff, rev, RS, SRS, ME, woff, rf[9], esig[5], wsig[2], fail, ctrl_buf;
+  device::Laws laws;
+  View view{};
+  Control ctrl{};  // the host's copy of the control block
+  bool have_device = false;
+  bool host_current = true;  // nothing stepped since the last upload or download
+  std::uint64_t layout = ~std::uint64_t{0};
+  bool rolling = false, load = false, crushing = false;
+  Crusher* crusher = nullptr;
+  BreakageSink sink;
+  std::size_t N = 0, M = 0, Mw = 0;
+  std::uint64_t full_uploads = 0, field_uploads = 0;
+  double particle_steps = 0.0;
+  static constexpr int kBatch = 100;  // steps per launch (one CUDA graph)
+
+  explicit Impl(std::unique_ptr<device::Api> a) : api(std::move(a)) {}
+
+  ~Impl() {
+    for (Field& f : fields) release(f.buf);
+    for (Scratch* s : scratch()) release(s->p);
+  }
+
+  std::vector<Scratch*> scratch() {
+    std::vector<Scratch*> all = {&off, &roff, &rev, &RS, &SRS, &ME, &woff, &fail, &ctrl_buf};
+    for (auto& s : rf) all.push_back(&s);
+    for (auto& s : esig) all.push_back(&s);
+    for (auto& s : wsig) all.push_back(&s);
+    return all;
+  }
+
+  void release(void*& p) {
+    if (p) api->release(p);
+    p = nullptr;
+  }
+
+  /// Room for `bytes` in (p, cap); true when it moved.
+  bool reserve(void*& p, std::size_t& cap, std::size_t bytes) {
+    if (p && bytes <= cap) return false;
+    release(p);
+    cap = with_room(bytes);
+    p = api->allocate(cap);
+    return true;
+  }
+
+  std::size_t count(const Field& f) const {
+    switch (f.count) {
+      case Count::Grains: return N;
+      case Count::Entries: return M;
+      case Count::WallEntries: return Mw;
+    }
+    return 0;
+  }
+
+  // --- the list of fields ----------------------------------------------------------------------
+
+  /// The fields of this run (rolling history, contact load and crushing fields only when on).
+  void make_fields() {
+    for (Field& f : fields) release(f.buf);
+    fields.clear();
+    using V = View;
+    const auto grain = [this](const char* name, bool both, std::vector<double>& (*get)(Simulation&),
+                              auto member) {
+      fields.emplace_back(
+          name, Count::Grains, both, sizeof(double),
+          [get](Simulation& s) {
+            std::vector<double>& v = get(s);
+            return std::pair<void*, std::size_t>(v.data(), v.size());
+          },
+          binder(member));
+    };
+    // clang-format off
+    // Per grain, both ways: motion, forces and torques, the undamped resultant.
+    grain("x", true, [](Simulation& s) -> std::vector<double>& { return s.particles().x; }, &V::x);
+    grain("y", true, [](Simulation& s) -> std::vector<double>& { return s.particles().y; }, &V::y);
+    grain("z", true, [](Simulation& s) -> std::vector<double>& { return s.particles().z; }, &V::z);
+    grain("vx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vx; }, &V::vx);
+    grain("vy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vy; }, &V::vy);
+    grain("vz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vz; }, &V::vz);
+    grain("wx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wx; }, &V::wx);
+    grain("wy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wy; }, &V::wy);
+    grain("wz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wz; }, &V::wz);
+    grain("fx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fx; }, &V::fx);
+    grain("fy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fy; }, &V::fy);
+    grain("fz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fz; }, &V::fz);
+    grain("tx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().tx; }, &V::tx);
+    grain("ty", true, [](Simulation& s) -> std::vector<double>& { return s.particles().ty; }, &V::ty);
+    grain("tz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().tz; }, &V::tz);
+    grain("fux", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(0); }, &V::fux);
+    grain("fuy", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(1); }, &V::fuy);
+    grain("fuz", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(2); }, &V::fuz);
+    // Per grain, read only: sizes and inertia, and the positions at the last list build.
+    grain("radius", false, [](Simulation& s) -> std::vector<double>& { return s.particles().radius; }, &V::radius);
+    grain("mass", false, [](Simulation& s) -> std::vector<double>& { return s.particles().mass; }, &V::mass);
+    grain("inv_mass", false, [](Simulation& s) -> std::vector<double>& { return s.particles().inv_mass; }, &V::inv_mass);
+    grain("inv_inertia", false, [](Simulation& s) -> std::vector<double>& { return s.particles().inv_inertia; }, &V::inv_inertia);
+    // clang-format on
+    const auto reference = [this](const char* name, int axis, const double* View::*member) {
+      fields.emplace_back(
+          name, Count::Grains, false, sizeof(double),
+          [axis](Simulation& s) {
+            const NeighborList& nl = s.neighbors();
+            const std::vector<double>& r =
+                axis == 0 ? nl.x_ref() : (axis == 1 ? nl.y_ref() : nl.z_ref());
+            // Read only: uploaded, never downloaded.
+            return std::pair<void*, std::size_t>(const_cast<double*>(r.data()), r.size());
+          },
+          binder(member));
+    };
+    reference("x0", 0, &V::x0);
+    reference("y0", 1, &V::y0);
+    reference("z0", 2, &V::z0);
+    // The list (read only) and the per-entry history (both ways).
+    // A field whose host array is the vector get(s) returns.
+    const auto entries = [this](const char* name, Count c, bool both, auto get, auto member) {
+      using T =
+          typename std::remove_reference_t<decltype(get(std::declval<Simulation&>()))>::value_type;
+      fields.emplace_back(
+          name, c, both, sizeof(T),
+          [get](Simulation& s) {
+            auto& v = get(s);
+            return std::pair<void*, std::size_t>(
+                const_cast<void*>(static_cast<const void*>(v.data())), v.size());
+          },
+          binder(member));
+    };
+    entries(
+        "owner", Count::Entries, false, [](Simulation & s) -> auto& { return s.neighbors().owner; },
+        &V::owner);
+    entries(
+        "nb", Count::Entries, false,
+        [](Simulation & s) -> auto& { return s.neighbors().neighbors; }, &V::nb);
+    entries(
+        "ftx", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_x; },
+        &V::ftx);
+    entries(
+        "fty", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_y; },
+        &V::fty);
+    entries(
+        "ftz", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_z; },
+        &V::ftz);
+    entries(
+        "touch", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().touching; },
+        &V::touch);
+    if (rolling) {
+      entries(
+          "mrx", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_x; },
+          &V::mrx);
+      entries(
+          "mry", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_y; },
+          &V::mry);
+      entries(
+          "mrz", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_z; },
+          &V::mrz);
+    }
+    // Wall entries: which grain and wall (read only), history and results (both ways).
+    entries(
+        "wp", Count::WallEntries, false,
+        [](Simulation & s) -> auto& { return s.wall_contacts().particle; }, &V::wp);
+    entries(
+        "ww", Count::WallEntries, false,
+        [](Simulation & s) -> auto& { return s.wall_contacts().wall; }, &V::ww);
+    using WC = WallContacts;
+    const std::pair<const char*, std::pair<std::vector<double> WC::*, double * View::*>> wall[] = {
+        {"wftx", {&WC::ft_x, &V::wftx}}, {"wfty", {&WC::ft_y, &V::wfty}},
+        {"wftz", {&WC::ft_z, &V::wftz}}, {"wfx", {&WC::fx, &V::wfx}},
+        {"wfy", {&WC::fy, &V::wfy}},     {"wfz", {&WC::fz, &V::wfz}},
+        {"wtx", {&WC::tx, &V::wtx}},     {"wty", {&WC::ty, &V::wty}},
+        {"wtz", {&WC::tz, &V::wtz}},     {"wFn", {&WC::F_n, &V::wFn}},
+        {"wkn", {&WC::k_n, &V::wkn}},    {"wdelta", {&WC::delta, &V::wdelta}}};
+    for (const auto& [name, m] : wall) {
+      const auto host_member = m.first;
+      entries(
+          name, Count::WallEntries,
+          true, [host_member](Simulation & s) -> auto& { return s.wall_contacts().*host_member; },
+          m.second);
+    }
+    if (load) {  // the contact load per grain (both ways: the host's forces fill it too)
+      using CL = ContactLoad;
+      const std::pair<const char*, std::pair<std::vector<double> CL::*, double * View::*>> rows[] =
+          {{"LS", {&CL::sigma, &V::LS}},
+           {"LF", {&CL::F_n_max, &V::LF}},
+           {"LNX", {&CL::nx, &V::LNX}},
+           {"LNY", {&CL::ny, &V::LNY}},
+           {"LNZ", {&CL::nz, &V::LNZ}}};
+      for (const auto& [name, m] : rows) {
+        const auto host_member = m.first;
+        entries(
+            name, Count::Grains,
+            true, [host_member](Simulation & s) -> auto& { return s.contact_load().*host_member; },
+            m.second);
+      }
+    }
+    if (crushing) {  // strengths (read only) and crack lengths (both ways)
+      const std::size_t strength = crusher->strength_field(), crack = crusher->crack_field();
+      entries(
+          "sigma_lim", Count::Grains,
+          false, [strength](Simulation & s) -> auto& { return s.particles().field(strength); },
+          &V::sigma_lim);
+      entries(
+          "crack_a", Count::Grains,
+          true, [crack](Simulation & s) -> auto& { return s.particles().field(crack); },
+          &V::crack_a);
+    }
+  }
+
+  // --- transfers -------------------------------------------------------------------------------
+
+  /// Whether the run's fields or the layout changed since the last full upload.
+  bool layout_changed(const Simulation& sim) const {
+    return !have_device || sim.layout_version() != layout ||
+           rolling != (sim.contact_params().mu_r > 0.0) ||
+           load != (sim.contact_load_factor() > 0.0) ||
+           crushing != (crusher != nullptr && sim.contact_load_factor() > 0.0);
+  }
+
+  /// The host array of f, checked to hold the device's count.
+  void* host_data(Field& f, Simulation& sim) const {
+    const auto [data, n] = f.host(sim);
+    if (n != count(f)) {
+      throw RuntimeFailure(std::string("device transfer: the host's '") + f.name + "' holds " +
+                           std::to_string(n) + " values, the device " + std::to_string(count(f)));
+    }
+    return data;
+  }
+
+  void upload_field(Field& f, Simulation& sim) {
+    const std::size_t bytes = count(f) * f.elem;
+    reserve(f.buf, f.cap, bytes);
+    const void* src = host_data(f, sim);
+    api->upload(f.buf, src, bytes);
+    f.shadow.assign(static_cast<const unsigned char*>(src),
+                    static_cast<const unsigned char*>(src) + bytes);
+  }
+
+  void full_upload(Simulation& sim) {
+    const bool r = sim.contact_params().mu_r > 0.0, l = sim.contact_load_factor() > 0.0;
+    const bool c = crusher != nullptr && l;
+    if (fields.empty() || r != rolling || l != load || c != crushing) {
+      rolling = r;
+      load = l;
+      crushing = c;
+      make_fields();
+    }
+    if (!have_device) {
+      const ContactParams& cp = sim.contact_params();
+      device::Laws host;
+      host.rough = sim.config().contact.law == NormalLaw::Rough;
+      host.hertz = HertzLaw{cp.E_star};
+      host.rough_pp = RoughHertzLaw{cp.E_star, cp.rough_pp};
+      host.rough_pw = RoughHertzLaw{cp.E_star, cp.rough_pw};
+      laws = api->place_laws(host);
+    }
+    laws.rolling = rolling;
+    const ParticleStore& p = sim.particles();
+    const NeighborList& nl = sim.neighbors();
+    const WallContacts& wc = sim.wall_contacts();
+    N = p.size();
+    M = nl.neighbors.size();
+    Mw = wc.size();
+    if (sim.history().ft_x.size() != M || wc.offsets.size() != N + 1) {
+      throw RuntimeFailure("device upload: contact history and neighbour list disagree");
+    }
+    for (Field& f : fields) upload_field(f, sim);
+    // Derived: the list's CSR with N + 1 offsets, its reverse (the entries where grain j is the
+    // partner, in increasing order), and per-entry R*, sqrt(R*) and m* (the CPU loop computes
+    // the same expressions in its lanes).
+    std::vector<Index> offsets = nl.offsets;
+    offsets.resize(N + 1, static_cast<Index>(M));
+    std::vector<Index> r_off(N + 1, 0), r_ent(M);
+    for (std::size_t e = 0; e < M; ++e) ++r_off[nl.neighbors[e] + 1];
+    for (std::size_t j = 0; j < N; ++j) r_off[j + 1] += r_off[j];
+    {
+      std::vector<Index> fill(r_off.begin(), r_off.end() - 1);
+      for (std::size_t e = 0; e < M; ++e) r_ent[fill[nl.neighbors[e]]++] = static_cast<Index>(e);
+    }
+    std::vector<double> rs(M), srs(M), me(M);
+    for (std::size_t e = 0; e < M; ++e) {
+      const std::size_t i = nl.owner[e], j = nl.neighbors[e];
+      rs[e] = pair_R_star(p.radius[i], p.radius[j]);
+      srs[e] = std::sqrt(rs[e]);
+      me[e] = pair_m_eff(p.inv_mass[i], p.inv_mass[j]);
+    }
+    put(off, offsets);
+    put(roff, r_off);
+    put(rev, r_ent);
+    put(RS, rs);
+    put(SRS, srs);
+    put(ME, me);
+    put(woff, wc.offsets);
+    for (auto& s : rf) reserve(s.p, s.cap, M * sizeof(double));
+    if (load) {
+      for (auto& s : esig) reserve(s.p, s.cap, M * sizeof(double));
+      for (auto& s : wsig) reserve(s.p, s.cap, Mw * sizeof(double));
+    }
+    if (crushing) reserve(fail.p, fail.cap, N);
+    reserve(ctrl_buf.p, ctrl_buf.cap, sizeof(Control));
+    layout = sim.layout_version();
+    have_device = true;
+    ++full_uploads;
+  }
+
+  template <class T>
+  void put(Scratch& s, const std::vector<T>& v) {
+    reserve(s.p, s.cap, v.size() * sizeof(T));
+    api->upload(s.p, v.data(), v.size() * sizeof(T));
+  }
+
+  /// Uploads the fields host code changed since they were last transferred.
+  void upload_changes(Simulation& sim) {
+    for (Field& f : fields) {
+      const std::size_t bytes = count(f) * f.elem;
+      const void* src = host_data(f, sim);
+      if (f.shadow.size() == bytes &&
+          (bytes == 0 || std::memcmp(src, f.shadow.data(), bytes) == 0)) {
+        continue;
+      }
+      upload_field(f, sim);
+      ++field_uploads;
+    }
+  }
+
+  /// Downloads every field the device writes into the host copy.
+  void download_all(Simulation& sim) {
+    for (Field& f : fields) {
+      if (!f.both_ways) continue;
+      const std::size_t bytes = count(f) * f.elem;
+      void* dst = host_data(f, sim);
+      api->download(dst, f.buf, bytes);
+      f.shadow.assign(static_cast<unsigned char*>(dst), static_cast<unsigned char*>(dst) + bytes);
+    }
+  }
+
+  /// Downloads the named fields only (the positions the time step needs).
+  void download_fields(Simulation& sim, std::initializer_list<const char*> names) {
+    for (Field& f : fields) {
+      for (const char* name : names) {
+        if (std::strcmp(f.name, name) != 0) continue;
+        const std::size_t bytes = count(f) * f.elem;
+        void* dst = host_data(f, sim);
+        api->download(dst, f.buf, bytes);
+        f.shadow.assign(static_cast<unsigned char*>(dst), static_cast<unsigned char*>(dst) + bytes);
+      }
+    }
+  }
+
+  // --- the view and the control block ----------------------------------------------------------
+
+  /// The view of the current buffers and the host's parameters (zeroed first, so that two views
+  /// compare by their bytes).
+  View make_view(const Simulation& sim) {
+    View u;
+    std::memset(static_cast<void*>(&u), 0, sizeof u);
+    for (Field& f : fields) f.bind(u, f.buf);
+    u.off = static_cast<const Index*>(off.p);
+    u.roff = static_cast<const Index*>(roff.p);
+    u.rev = static_cast<const Index*>(rev.p);
+    u.RS = static_cast<const double*>(RS.p);
+    u.SRS = static_cast<const double*>(SRS.p);
+    u.ME = static_cast<const double*>(ME.p);
+    u.woff = static_cast<const Index*>(woff.p);
+    double** rec[9] = {&u.rfx, &u.rfy, &u.rfz, &u.rix, &u.riy, &u.riz, &u.rjx, &u.rjy, &u.rjz};
+    for (int k = 0; k < 9; ++k) *rec[k] = static_cast<double*>(rf[k].p);
+    if (load) {
+      double** e[5] = {&u.esig, &u.eFn, &u.enx, &u.eny, &u.enz};
+      for (int k = 0; k < 5; ++k) *e[k] = static_cast<double*>(esig[k].p);
+      u.wsig = static_cast<double*>(wsig[0].p);
+      u.wFel = static_cast<double*>(wsig[1].p);
+      u.load_factor = sim.contact_load_factor();
+      u.inv_pi_k = 1.0 / (kPi * sim.contact_load_factor());
+    }
+    if (crushing) {
+      u.fail = static_cast<std::uint8_t*>(fail.p);
+      const CrushingConfig& c = crusher->config();
+      u.d_c = crusher->d_c();
+      u.v0 = c.v0;
+      u.n_charles = c.n;
+      u.crack_growth = c.crack_growth;
+      u.crush_interval = c.interval;
+    }
+    u.ctrl = static_cast<Control*>(ctrl_buf.p);
+    std::size_t room[3] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}};
+    for (const Field& f : fields) {
+      std::size_t& r = room[static_cast<int>(f.count)];
+      r = std::min(r, f.cap / f.elem);
+    }
+    u.grain_capacity = static_cast<unsigned>(room[0]);
+    u.entry_capacity = static_cast<unsigned>(room[1]);
+    u.wall_entry_capacity = static_cast<unsigned>(room[2]);
+    u.alpha = sim.config().damping.local_alpha;
+    u.skin = sim.skin();
+    for (int k = 0; k < kNumWalls; ++k) {
+      const WallConfig& w = sim.walls().config(k);
+      device::WallCfgDev& d = u.wcfg[k];
+      d.mode = w.mode == WallMode::Fixed ? 0 : (w.mode == WallMode::Velocity ? 1 : 2);
+      d.velocity = w.velocity;
+      d.target_stress = w.target_stress;
+      d.servo_alpha = w.servo_alpha;
+      d.max_speed = w.max_speed;
+    }
+    std::memcpy(static_cast<void*>(&u.cp), &sim.contact_params(), sizeof u.cp);
+    return u;
+  }
+
+  /// The control block as the host's state sets it.
+  Control host_control(const Simulation& sim) const {
+    Control c;
+    std::memset(static_cast<void*>(&c), 0, sizeof c);
+    c.N = static_cast<unsigned>(N);
+    c.M = static_cast<unsigned>(M);
+    c.Mw = static_cast<unsigned>(Mw);
+    c.time = sim.time();
+    c.steps = sim.step_count();
+    c.h = sim.current_dt();
+    c.hh = 0.5 * c.h;
+    c.last_check_time = crusher ? crusher->last_check_time() : 0.0;
+    for (int k = 0; k < kNumWalls; ++k) {
+      const WallState& s = sim.walls().state(k);
+      c.walls[k] = {s.position, s.velocity, s.normal_force, s.force.x,
+                    s.force.y,  s.force.z,  s.stiffness,    s.displacement_since_build};
+    }
+    return c;
+  }
+
+  void write_control(const Control& c) {
+    api->upload(ctrl_buf.p, &c, sizeof c);
+    ctrl = c;
+  }
+
+  /// Puts the device's clock, walls and crushing time into the host copy.
+  void control_to_host(Simulation& sim) {
+    for (int k = 0; k < kNumWalls; ++k) {
+      const device::WallDev& d = ctrl.walls[k];
+      WallState& s = sim.walls().state(k);
+      s.position = d.position;
+      s.velocity = d.velocity;
+      s.normal_force = d.normal_force;
+      s.force = {d.fx, d.fy, d.fz};
+      s.stiffness = d.stiffness;
+      s.displacement_since_build = d.displacement;
+    }
+    sim.set_clock(ctrl.time, ctrl.steps, sim.time_step());
+    if (crusher) crusher->set_last_check_time(ctrl.last_check_time);
+  }
+
+  // --- stepping --------------------------------------------------------------------------------
+
+  /// The host copy's changes on the device, and a view and control block that match it.
+  void prepare(Simulation& sim) {
+    if (!host_current) sync(sim);  // the device is newer: the host must see it first
+    if (!sim.forces_current()) sim.compute_forces();  // first forces, or after a change
+    sim.dt();  // the automatic step, chosen now if due (as the CPU step does first)
+    if (layout_changed(sim)) {
+      full_upload(sim);
+    } else {
+      upload_changes(sim);
+    }
+    const View u = make_view(sim);
+    if (std::memcmp(static_cast<const void*>(&u), static_cast<const void*>(&view), sizeof u) != 0) {
+      view = u;
+      api->view_changed();
+    }
+    write_control(host_control(sim));
+  }
+
+  /// Steps until the automatic time step is chosen again (the batch ends there).
+  std::uint64_t steps_to_dt(const Simulation& sim) const {
+    const TimeStep& ts = sim.time_step();
+    if (ts.fixed()) return ~std::uint64_t{0};
+    const std::uint64_t since = ctrl.steps - ts.computed_at();
+    const std::uint64_t every = sim.config().timestep.update_interval;
+    return since >= every ? 0 : every - since;
+  }
+
+  void advance(Simulation& sim, std::uint64_t n) {
+    if (n == 0) return;
+    prepare(sim);
+    std::uint64_t left = n;
+    while (left > 0) {
+      if (steps_to_dt(sim) == 0) choose_time_step(sim);
+      const auto batch = static_cast<int>(
+          std::min<std::uint64_t>({left, static_cast<std::uint64_t>(kBatch), steps_to_dt(sim)}));
+      host_current = false;
+      api->run_steps(view, laws, batch);
+      api->read_control(view, ctrl);
+      left -= ctrl.steps_done;
+      particle_steps += static_cast<double>(ctrl.steps_done) * static_cast<double>(N);
+      if (ctrl.halt == device::kRebuild) {
+        finish_with_rebuild(sim);
+        --left;
+      } else if (ctrl.halt == device::kRunning && ctrl.steps_done != static_cast<unsigned>(batch)) {
+        throw RuntimeFailure("device: " + std::to_string(ctrl.steps_done) + " of " +
+                             std::to_string(batch) + " steps completed");
+      }
+      if (ctrl.halt == device::kFailure) {
+        split_failed(sim);
+      } else {
+        restart_counters();
+      }
+    }
+  }
+
+  /// The device's counters restart for the next batch (its clock and walls go on).
+  void restart_counters() {
+    Control c = ctrl;
+    c.halt = device::kRunning;
+    c.steps_done = 0;
+    c.failures = 0;
+    write_control(c);
+  }
+
+  /// The step the device stopped after its drift: the list rebuilt on the host (history carried
+  /// by ids) and uploaded, then the step finished on the device.
+  void finish_with_rebuild(Simulation& sim) {
+    sync_all(sim);
+    sim.rebuild_neighbors();
+    full_upload(sim);
+    const View u = make_view(sim);
+    if (std::memcmp(static_cast<const void*>(&u), static_cast<const void*>(&view), sizeof u) != 0) {
+      view = u;
+      api->view_changed();
+    }
+    write_control(host_control(sim));
+    host_current = false;
+    api->finish_step(view, laws);
+    api->read_control(view, ctrl);
+    if (ctrl.steps_done != 1) throw RuntimeFailure("device: the rebuilt step did not finish");
+    particle_steps += static_cast<double>(N);
+  }
+
+  /// The automatic time step, chosen on the host from the device's positions, as the CPU step
+  /// chooses it.
+  void choose_time_step(Simulation& sim) {
+    download_fields(sim, {"x", "y", "z"});
+    control_to_host(sim);
+    sim.dt();
+    Control c = ctrl;
+    c.h = sim.current_dt();
+    c.hh = 0.5 * c.h;
+    write_control(c);
+  }
+
+  /// The grains the device's crushing check found failing, split on the host in one topology
+  /// phase (as Crusher::apply does on the CPU), then the forces of the new state.
+  void split_failed(Simulation& sim) {
+    sync_all(sim);
+    std::vector<std::uint8_t> flags(N);
+    api->download(flags.data(), fail.p, N);
+    std::vector<std::pair<std::size_t, BreakCause>> grains;
+    for (std::size_t i = 0; i < N; ++i) {
+      if (flags[i] == static_cast<std::uint8_t>(GrainFailure::None)) continue;
+      grains.emplace_back(i, flags[i] == static_cast<std::uint8_t>(GrainFailure::Instant)
+                                 ? BreakCause::Instant
+                                 : BreakCause::Crack);
+    }
+    const std::vector<BreakageEvent> events = [&] {
+      const PartScope timed(sim.part_clock(), Part::Crushing);
+      return crusher->split(sim, std::move(grains));
+    }();
+    if (sink && !events.empty()) sink(events);
+    sim.compute_forces();
+    prepare(sim);
+  }
+
+  void sync_all(Simulation& sim) {
+    download_all(sim);
+    control_to_host(sim);
+    host_current = true;
+  }
+
+  void sync(Simulation& sim) {
+    if (host_current || !have_device) return;
+    sync_all(sim);
+  }
+};
+
+DeviceStepper::DeviceStepper(std::unique_ptr<device::Api> api)
+    : impl_(std::make_unique<Impl>(std::move(api))) {}
+
+DeviceStepper::~DeviceStepper() = default;
+
+std::string DeviceStepper::name() const {
+  return impl_->api->emulated() ? "emulated" : "cuda";
+}
+
+void DeviceStepper::attach_crusher(Crusher* crusher, BreakageSink sink) {
+  Stepper::attach_crusher(crusher, sink);
+  impl_->crusher = crusher;
+  impl_->sink = std::move(sink);
+}
+
+void DeviceStepper::advance(Simulation& sim, std::uint64_t n) {
+  impl_->advance(sim, n);
+  particle_steps_ = impl_->particle_steps;
+}
+
+void DeviceStepper::sync(Simulation& sim) {
+  impl_->sync(sim);
+}
+
+std::size_t DeviceStepper::device_bytes() const {
+  std::size_t b = 0;
+  for (const Field& f : impl_->fields) b += f.cap;
+  for (Impl::Scratch* s : impl_->scratch()) b += s->cap;
+  return b;
+}
+
+std::uint64_t DeviceStepper::full_uploads() const {
+  return impl_->full_uploads;
+}
+
+std::uint64_t DeviceStepper::field_uploads() const {
+  return impl_->field_uploads;
+}
+
+}  // namespace crushdem
