@@ -7,7 +7,10 @@ Each function writes a run directory (``timeseries.csv``, ``summary.json``, ``co
 sample is prepared first in the same run. ``material``, ``contact``, ``damping``, ``timestep``,
 ``neighbor`` and ``output`` are the sections of docs/configuration.md; ``stage`` keyword
 arguments (``tolerance``, ``unbalanced``, ``max_strain_rate``, ``check_interval``,
-``max_steps``) are passed to every stage. SI units throughout.
+``max_steps``) are passed to every stage. SI units throughout. ``backend`` chooses what
+advances the run: ``"cpu"`` (default), ``"cuda"`` (a GPU, in a build with CUDA) or
+``"emulated"`` (the GPU's step run on the host: its results without a GPU); every laboratory
+function, sample preparation and resuming take it.
 """
 
 from __future__ import annotations
@@ -63,7 +66,7 @@ class Result:
 
 
 def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: str = ".",
-        progress: bool = False, overwrite: bool = False,
+        progress: bool = False, overwrite: bool = False, backend: str = "cpu",
         branch_from: Union[str, os.PathLike, None] = None,
         branch_stage: Union[int, str, None] = None) -> Result:
     """Runs a whole configuration dict (the sections of a run file; ``stage`` a list of dicts).
@@ -74,15 +77,17 @@ def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: st
     and the grains must be the original's)."""
     _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite,
               os.fspath(branch_from) if branch_from is not None else "",
-              "" if branch_stage is None else str(branch_stage))
+              "" if branch_stage is None else str(branch_stage), backend)
     return Result(os.fspath(out))
 
 
-def resume(out: Union[str, os.PathLike], *, progress: bool = False) -> Result:
+def resume(out: Union[str, os.PathLike], *, progress: bool = False,
+           backend: str = "cpu") -> Result:
     """Continues an interrupted run from ``out/checkpoint.bin`` (written at every ageing event,
     between stages and every ``output.checkpoint_seconds``); the files come out as those of an
-    uninterrupted run. Raises ValueError if ``out`` has no checkpoint (e.g. it has finished)."""
-    _core.resume(os.fspath(out), progress)
+    uninterrupted run on the same backend. Raises ValueError if ``out`` has no checkpoint (e.g.
+    it has finished)."""
+    _core.resume(os.fspath(out), progress, backend)
     return Result(os.fspath(out))
 
 
@@ -106,6 +111,7 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
                    count: Optional[int] = None, void_ratio: float = 0.65,
                    grading: Optional[Mapping[str, Any]] = None, seed: int = 1,
                    stress: float = 100e3, progress: bool = False, overwrite: bool = False,
+                   backend: str = "cpu",
                    material: Optional[Mapping[str, Any]] = None,
                    contact: Optional[Mapping[str, Any]] = None,
                    output: Optional[Mapping[str, Any]] = None, **sample_keys: Any) -> Result:
@@ -121,23 +127,23 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
         s["grading"] = dict(grading)
     s.update(sample_keys)
     cfg = _base(s, {"material": material, "contact": contact, "output": output})
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
 def isotropic_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-                   progress: bool = False, overwrite: bool = False,
+                   progress: bool = False, overwrite: bool = False, backend: str = "cpu",
                    stage: Optional[Mapping[str, Any]] = None,
                    **sections: Any) -> Result:
     """All six walls servo-controlled to ``stress`` until equilibrium."""
     cfg = _base(sample, sections)
     cfg["stage"] = [_stage("isotropic", "isotropic", stage or {}, stress=stress)]
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
 def oedometric_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                     strain_rate: float = 10.0, hold_steps: int = 0,
                     unload_to: Optional[float] = None, progress: bool = False,
-                    overwrite: bool = False,
+                    overwrite: bool = False, backend: str = "cpu",
                     stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Lateral walls fixed; the top loads at ``strain_rate`` to the vertical ``stress``, holds
     for ``hold_steps`` (walls fixed) and unloads to ``unload_to`` when given."""
@@ -150,13 +156,14 @@ def oedometric_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress:
         stages.append(_stage("oedometric", "unloading", common, stress=unload_to,
                              strain_rate=-abs(strain_rate)))
     cfg["stage"] = stages
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
 def triaxial_test(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
                   strain_rate: float = 50.0, axial_strain: float = 0.30,
                   stop_q: Optional[float] = None, hold_steps: int = 0,
                   consolidate: bool = True, progress: bool = False, overwrite: bool = False,
+                  backend: str = "cpu",
                   stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Drained triaxial shear: isotropic compression to ``sigma_3`` (unless ``consolidate`` is
     False), then axial compression at ``strain_rate`` with the lateral walls servo-controlled at
@@ -173,7 +180,7 @@ def triaxial_test(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: 
         stages.append(_stage("hold", "hold", common, steps=hold_steps, axial="fixed",
                              lateral="servo", lateral_stress=sigma_3))
     cfg["stage"] = stages
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
 def _crushing_with_cracks(sections: Dict[str, Any]) -> None:
@@ -185,7 +192,7 @@ def _crushing_with_cracks(sections: Dict[str, Any]) -> None:
 def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                           duration: float = 86400.0, strain_rate: float = 10.0,
                           min_cycles: int = 150000, n_break: int = 30,
-                          progress: bool = False, overwrite: bool = False,
+                          progress: bool = False, overwrite: bool = False, backend: str = "cpu",
                           stage: Optional[Mapping[str, Any]] = None,
                           age_stage: Optional[Mapping[str, Any]] = None,
                           branch_from: Union[str, os.PathLike, None] = None,
@@ -205,13 +212,15 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
         _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
                min_cycles=min_cycles, n_break=n_break),
     ]
-    return run(cfg, out, progress=progress, overwrite=overwrite, branch_from=branch_from,
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend,
+               branch_from=branch_from,
                branch_stage=None if branch_from is None else "relaxation")
 
 
 def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
                duration: float = 86400.0, strain_rate: float = 10.0, min_cycles: int = 150000,
                n_break: int = 30, progress: bool = False, overwrite: bool = False,
+               backend: str = "cpu",
                stage: Optional[Mapping[str, Any]] = None,
                age_stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
     """Oedometric creep: load to the vertical ``stress``, then hold it by servo control of the
@@ -225,13 +234,14 @@ def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: floa
         _stage("age", "creep", {**common, **(age_stage or {})}, duration=duration,
                min_cycles=min_cycles, n_break=n_break, axial="servo", axial_stress=stress),
     ]
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
 def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
                         stop_q: float, duration: float = 86400.0, strain_rate: float = 50.0,
                         axial_strain: float = 0.30, min_cycles: int = 150000,
                         n_break: int = 30, progress: bool = False, overwrite: bool = False,
+                        backend: str = "cpu",
                         stage: Optional[Mapping[str, Any]] = None,
                         age_stage: Optional[Mapping[str, Any]] = None,
                         **sections: Any) -> Result:
@@ -251,4 +261,4 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
                min_cycles=min_cycles, n_break=n_break, axial="fixed", lateral="servo",
                lateral_stress=sigma_3),
     ]
-    return run(cfg, out, progress=progress, overwrite=overwrite)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)

@@ -78,9 +78,11 @@ TESTS = ("oedometric", "triaxial")  # --only: the runs of each besides the sampl
 TEST_RUNS = {"oedometric": ("oedometric_relaxation",),
              "triaxial": ("triaxial_shear", "triaxial_relaxation")}
 
-def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
+def settings(quick: bool, parameters: str = "crushdem", backend: str = "cpu") -> Dict[str, Any]:
     """The parameters of every run, study scale or ``--quick``, with the named parameter set
-    ``parameters`` (PARAMETER_SETS), as one JSON-able dict."""
+    ``parameters`` (PARAMETER_SETS), as one JSON-able dict; ``backend`` (what advances the runs:
+    "cpu", "cuda" or "emulated") is recorded when it is not the CPU, since the backends agree
+    only statistically."""
     if parameters not in PARAMETER_SETS:
         raise ValueError(f"--parameters {parameters!r}: expected one of "
                          f"{', '.join(PARAMETER_SETS)}")
@@ -103,6 +105,8 @@ def settings(quick: bool, parameters: str = "crushdem") -> Dict[str, Any]:
     }
     if parameters != "crushdem":
         s["parameters"] = parameters
+    if backend != "cpu":
+        s["backend"] = backend
     if quick:
         s["sample"] = {"count": 500, "void_ratio": 0.75, "seed": 3, "stress": 100e3,
                        "grading": NE34}
@@ -423,14 +427,27 @@ def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
                record: Dict[str, Any]) -> str:
     """The sample of the settings ``cfg`` prepared into ``run_dir`` as a ``run_step``; returns
     its particle file."""
-    from . import _core, lab
+    from . import lab
 
+    backend = backend_of(cfg)
     run_step("sample", run_dir,
               lambda: lab.prepare_sample(run_dir, material=cfg["material"],
                                          contact=cfg["contact"], output=cfg["output"],
-                                         **cfg["sample"]),
-              log, record, _core.resume)
+                                         backend=backend, **cfg["sample"]),
+              log, record, resumer(backend))
     return os.path.join(run_dir, "sample.txt")
+
+
+def backend_of(cfg: Mapping[str, Any]) -> str:
+    """The backend of the settings ``cfg`` ("cpu" unless recorded)."""
+    return str(cfg.get("backend", "cpu"))
+
+
+def resumer(backend: str) -> Callable[[str, bool], Any]:
+    """``run_step``'s resume on ``backend``."""
+    from . import _core
+
+    return lambda run_dir, progress: _core.resume(run_dir, progress, backend)
 
 
 def age_stage_keys(cfg: Mapping[str, Any]) -> Dict[str, Any]:
@@ -446,15 +463,17 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
                               name: str = "oedometric_relaxation") -> None:
     """The study's oedometric relaxation with the settings ``cfg`` (see ``settings``) into
     ``run_dir``, as a ``run_step`` (skipped when finished, resumed when interrupted)."""
-    from . import _core, lab
+    from . import lab
 
     oe = cfg["oedometric"]
+    backend = backend_of(cfg)
     run_step(name, run_dir,
               lambda: lab.oedometric_relaxation(
                   run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
                   crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
-                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"]),
-              log, record, _core.resume)
+                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
+                  backend=backend),
+              log, record, resumer(backend))
 
 
 def triaxial_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
@@ -522,17 +541,18 @@ def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, 
 def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
               sample: Optional[str] = None, log: Callable[[str], None] = print,
               overrides: Sequence[str] = (), parameters: str = "crushdem",
-              tests: Sequence[str] = TESTS) -> Dict[str, Any]:
+              tests: Sequence[str] = TESTS, backend: str = "cpu") -> Dict[str, Any]:
     """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json.
     parameters: a named parameter set (PARAMETER_SETS); overrides: "SECTION.KEY=VALUE" changes
-    of the settings on top of it (apply_overrides); tests: which of TESTS to run ("oedometric":
+    of the settings on top of it (apply_overrides); backend: what advances every run ("cpu",
+    "cuda" or "emulated"); tests: which of TESTS to run ("oedometric":
     the oedometric relaxation; "triaxial": the shear and the triaxial relaxation), so that two
     processes can run them side by side into one ``out`` (the sample first, by either); the
     figures and reproduce.json then cover the tests whose runs have finished."""
     unknown = [t for t in tests if t not in TESTS]
     if unknown or not tests:
         raise ValueError(f"--only {','.join(tests)}: expected one or more of {', '.join(TESTS)}")
-    cfg = apply_overrides(settings(quick, parameters), overrides)
+    cfg = apply_overrides(settings(quick, parameters, backend), overrides)
     if sample is not None:
         if not os.path.isfile(sample):
             raise ValueError(f"--sample {sample}: no such file")
@@ -617,10 +637,12 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
                   log: Callable[[str], None], runs: Dict[str, Any]) -> float:
     """The triaxial shear (to find q_max), then the triaxial relaxation at q_fraction q_max,
     each a ``run_step``; returns q_max."""
-    from . import _core, lab
+    from . import lab
 
-    resume = _core.resume
-    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"]}
+    backend = backend_of(cfg)
+    resume = resumer(backend)
+    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"],
+              "backend": backend}
     crushing = dict(cfg["crushing"])
     age = dict(cfg["age"])
     age_stage = age_stage_keys(cfg)
@@ -782,6 +804,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="run only these tests (" + ", ".join(TESTS) + "; default: both), "
                              "e.g. two processes side by side, one per test, into one DIR once "
                              "the sample is prepared; the figures cover what has finished")
+    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
+                        help="what advances the runs: cpu (default), cuda (a GPU, in a build with "
+                             "CUDA) or emulated (the GPU's step on the host); recorded in "
+                             "DIR/settings.json, as the backends agree only statistically")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.threads is not None and args.threads < 1:
         parser.error("--threads must be >= 1")
@@ -794,7 +820,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
                            log=log, overrides=args.set, parameters=args.parameters,
-                           tests=[t.strip() for t in args.only.split(",") if t.strip()])
+                           tests=[t.strip() for t in args.only.split(",") if t.strip()],
+                           backend=args.backend)
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/backend/stepper.hpp"
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
@@ -569,7 +570,9 @@ NB_MODULE(_core, m) {
   m.def(
       "run",
       [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress,
-         bool overwrite, const std::string& branch_dir, const std::string& branch_stage) {
+         bool overwrite, const std::string& branch_dir, const std::string& branch_stage,
+         const std::string& backend) {
+        check_backend_name(backend, "backend");
         const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
         RunOptions opt;
         opt.out_dir = out;
@@ -577,27 +580,33 @@ NB_MODULE(_core, m) {
         opt.overwrite = overwrite;
         opt.branch_dir = branch_dir;
         opt.branch_stage = branch_stage;
+        opt.backend = backend;
         return run_interruptible([&] { return run_to_directory(cfg, opt); });
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true, "overwrite"_a = false,
-      "branch_dir"_a = "", "branch_stage"_a = "",
+      "branch_dir"_a = "", "branch_stage"_a = "", "backend"_a = "cpu",
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
       "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)). A directory "
       "that holds files is refused unless overwrite (then a crushdem run directory is emptied). "
       "branch_dir (and branch_stage, index or name): start from that run's state at the start of "
-      "the stage, as `crushdem run --from DIR:STAGE`.");
+      "the stage, as `crushdem run --from DIR:STAGE`. backend: \"cpu\", \"cuda\" (a GPU, in a "
+      "build with CUDA) or \"emulated\" (the GPU's step run on the host), as `--backend`.");
   m.def(
       "resume",
-      [](const std::string& out, bool progress) {
+      [](const std::string& out, bool progress, const std::string& backend) {
+        check_backend_name(backend, "backend");
         RunOptions opt;
         opt.progress = progress;
+        opt.backend = backend;
         return run_interruptible([&] { return resume_directory(out, opt); });
       },
-      "out"_a, "progress"_a = true,
+      "out"_a, "progress"_a = true, "backend"_a = "cpu",
       "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
-      "the files come out as those of an uninterrupted run. Stops on SIGINT / SIGTERM as run() "
-      "does.");
+      "the files come out as those of an uninterrupted run on the same backend. Stops on SIGINT / "
+      "SIGTERM as run() does.");
+  m.def("backends", &stepper_names,
+        "The backends this build can run: \"cpu or emulated\", or \"cpu, emulated or cuda\".");
   m.def(
       "resolved_run_config",
       [](nb::dict config, const std::string& base_dir) {

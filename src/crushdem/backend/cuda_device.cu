@@ -188,7 +188,7 @@ class CudaApi : public Api {
       k_contacts<HertzLaw, false><<<gc, kContactBlock, 0, stream_>>>(v, laws.hertz, laws.hertz);
     }
     k_gather<<<gp + kNumWalls, kBlock, 0, stream_>>>(v, static_cast<unsigned>(gp));
-    k_crushing<<<gp, kBlock, 0, stream_>>>(v);
+    if (v.fail) k_crushing<<<gp, kBlock, 0, stream_>>>(v);  // no launch without crushing
   }
 
   void launch_step(const View& v, const Laws& laws) {
