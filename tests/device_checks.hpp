@@ -24,6 +24,7 @@
 #include "crushdem/backend/device_stepper.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
+#include "crushdem/experiments/measurements.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/particles/generate.hpp"
@@ -404,6 +405,33 @@ inline std::vector<Check> nan_rule(const Simulation& sample, const ApiFactory& a
            "NaN rule: a non-finite position is reported by grain", message}};
 }
 
+/// h) The inspection: the scalars a controller's check reads, reduced on the device, equal the
+/// host's computation on the same state to rounding, and a light sync (Sync::Clock) leaves the
+/// run as a full one would.
+inline std::vector<Check> inspection(const Simulation& sample, const ApiFactory& api) {
+  Simulation light = sample, full = sample;
+  DeviceStepper dl(api()), df(api());
+  double from_device = 0.0;
+  for (int c = 0; c < 5; ++c) {
+    dl.advance(light, 300);
+    dl.sync(light, Sync::Clock);
+    from_device = unbalanced_force_ratio(light);  // the device's inspection
+    df.advance(full, 300);
+    df.sync(full, Sync::All);
+  }
+  dl.sync(light, Sync::All);
+  Simulation host = full;
+  host.set_inspection({});  // none: computed from the host's arrays
+  const double on_host = unbalanced_force_ratio(host);
+  const double rel = std::fabs(from_device / on_host - 1.0);
+  return {
+      {light.current_inspection() != nullptr && rel < 1e-9,
+       "inspection: the device's unbalanced-force ratio equals the host's",
+       fmt("device %.12g, host %.12g (relative %.3g; tolerance 1e-9)", from_device, on_host, rel)},
+      {identical(light, full), "inspection: light syncs leave the run as full ones do",
+       "1,500 steps, synced every 300 by Sync::Clock or Sync::All"}};
+}
+
 /// Every check on the device `api` makes.
 inline std::vector<Check> all(const ApiFactory& api) {
   std::vector<Check> out;
@@ -424,6 +452,7 @@ inline std::vector<Check> all(const ApiFactory& api) {
   add(host_changes(fixed, api));
   add(crushing(fixed, api));
   add(nan_rule(fixed, api));
+  add(inspection(fixed, api));
   return out;
 }
 

@@ -61,6 +61,10 @@ TEST(DeviceStep, CrushingOnTheDeviceBreaksTheGrainsTheCpuBreaks) {
   expect_all(device_checks::crushing(fixed_step_sample(), kEmulated));
 }
 
+TEST(DeviceStep, ControllersScalarsAreReducedOnTheDevice) {
+  expect_all(device_checks::inspection(fixed_step_sample(), kEmulated));
+}
+
 TEST(DeviceStep, NonFinitePositionIsReportedByGrain) {
   expect_all(device_checks::nan_rule(fixed_step_sample(), kEmulated));
 }

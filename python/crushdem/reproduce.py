@@ -61,7 +61,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .analysis import (DAY_S, HOUR_S, N_BREAK_TOLERANCE,  # noqa: F401  (re-exported)
+from .analysis import (BACKEND_TOLERANCE, DAY_S, HOUR_S, N_BREAK_TOLERANCE,  # noqa: F401
                        PLAUSIBLE_OEDOMETRIC_1DAY, T_REF_S, age_rows, column, compare_relaxation,
                        fit_log_t, has_values, lateral_stress, value_at, vertical_stress)
 from .figures import MPA, mark_times, use_file_backend_without_display
@@ -668,7 +668,8 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
 
 
 def _shear_q_max(shear_dir: str, runs: Dict[str, Any]) -> float:
-    """q_max of the finished triaxial shear in ``shear_dir``, recorded in runs["triaxial_shear"]."""
+    """q_max of the finished triaxial shear in ``shear_dir`` (recorded in
+    runs["triaxial_shear"])."""
     summary = read_summary(shear_dir)
     shear = triaxial_stage(summary)
     q_max = float(shear.get("q_max_Pa", math.nan))

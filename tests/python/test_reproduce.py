@@ -276,24 +276,33 @@ def _finite(x):
     return isinstance(x, (int, float)) and math.isfinite(x)
 
 
-def test_reproduce_quick_end_to_end(tmp_path):
-    """The whole pipeline on the quick settings (about two minutes on one core), one test per
-    call (--only), as two processes side by side would run it."""
+@pytest.fixture(scope="module")
+def quick_cpu(tmp_path_factory):
+    """``crushdem reproduce --quick`` on the CPU, one test per call (--only), as two processes
+    side by side would run it: the directory and the two calls' outputs."""
     pytest.importorskip("crushdem._core")
-    out = tmp_path / "rq"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
-                          str(out), "--threads", "1", "--only", "oedometric"],
-                         capture_output=True, text=True, timeout=900)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
-    assert not os.path.exists(out / "triaxial_shear")
-    assert os.path.isfile(out / "fig1_oedometric_relaxation.png")
-    assert not os.path.exists(out / "fig3_triaxial_relaxation.png")
-    with open(out / "reproduce.json") as f:
-        assert "triaxial_relaxation" not in json.load(f)
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
-                          str(out), "--threads", "1", "--only", "triaxial"],
-                         capture_output=True, text=True, timeout=900)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    out = tmp_path_factory.mktemp("reproduce") / "rq"
+    calls = []
+    for only in ("oedometric", "triaxial"):
+        calls.append(subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick",
+                                     "--out", str(out), "--threads", "1", "--only", only],
+                                    capture_output=True, text=True, timeout=900))
+        if only == "oedometric" and calls[0].returncode == 0:
+            # The first call ran the oedometric test alone.
+            assert not os.path.exists(out / "triaxial_shear")
+            assert os.path.isfile(out / "fig1_oedometric_relaxation.png")
+            assert not os.path.exists(out / "fig3_triaxial_relaxation.png")
+            with open(out / "reproduce.json") as f:
+                assert "triaxial_relaxation" not in json.load(f)
+    return out, calls
+
+
+def test_reproduce_quick_end_to_end(quick_cpu):
+    """The whole pipeline on the quick settings (about two minutes on one core)."""
+    out, calls = quick_cpu
+    for res in calls:
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    res = calls[1]
     assert "oedometric_relaxation: running" not in res.stdout
     assert "q_max" in res.stdout
     for run in rp.RUNS:
@@ -334,6 +343,46 @@ def test_reproduce_quick_end_to_end(tmp_path):
     assert again["triaxial_relaxation"]["q_max_Pa"] == rj["triaxial_relaxation"]["q_max_Pa"]
     # Other settings into the same directory: refused.
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", str(out)],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "other settings" in res.stderr
+
+
+def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
+    """The whole pipeline on the device step (its host emulation: the GPU's bits without a
+    GPU), from the CPU run's sample: every run finishes on that backend and lands within the
+    stated statistical tolerances of the CPU's (analysis.BACKEND_TOLERANCE)."""
+    cpu_out, calls = quick_cpu
+    assert all(c.returncode == 0 for c in calls)
+    out = tmp_path / "rq_emulated"
+    sample = cpu_out / "sample" / "sample.txt"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+                          str(out), "--threads", "1", "--backend", "emulated", "--sample",
+                          str(sample)], capture_output=True, text=True, timeout=1500)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    with open(cpu_out / "reproduce.json") as f:
+        cpu = json.load(f)
+    with open(out / "reproduce.json") as f:
+        emu = json.load(f)
+    for run in rp.RUNS[1:]:
+        with open(out / run / "timing.json") as f:
+            assert json.load(f)["backend"] == "emulated", run
+        assert emu["runs"][run]["grains_end"] > 0
+    with open(out / "settings.json") as f:
+        assert json.load(f)["backend"] == "emulated"
+    tol = rp.BACKEND_TOLERANCE
+    oc, oe = cpu["oedometric_relaxation"], emu["oedometric_relaxation"]
+    assert oe["sigma_v_4s_Pa"] == pytest.approx(oc["sigma_v_4s_Pa"],
+                                                rel=tol["sigma_v_4s_relative"])
+    assert abs(oe["sigma_v_ratio_1day"] - oc["sigma_v_ratio_1day"]) <= tol["sigma_v_ratio_1day"]
+    tc, te = cpu["triaxial_relaxation"], emu["triaxial_relaxation"]
+    assert te["q_max_Pa"] == pytest.approx(tc["q_max_Pa"], rel=tol["q_max_relative"])
+    # The ageing broke grains by crack growth on the device too.
+    for name in ("oedometric_relaxation", "triaxial_relaxation"):
+        assert emu["runs"][name]["breakages_crack"] > 0
+        assert emu["runs"][name]["dynamic_phases"] >= 2
+    # The same directory on another backend: refused (the backends agree only statistically).
+    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+                          str(out), "--sample", str(sample)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
 

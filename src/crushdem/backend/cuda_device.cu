@@ -109,6 +109,37 @@ __global__ void k_crushing(View v) {
   }
 }
 
+template <class Law>
+__global__ void k_inspect_blocks(View v, Law law, unsigned grains) {
+  __shared__ InspectSum sm[kInspectBlock];
+  const unsigned i = blockIdx.x * kInspectBlock + threadIdx.x;
+  sm[threadIdx.x] = i < grains ? inspect_item(v, law, i) : InspectSum{0.0, 0.0, 0.0};
+  __syncthreads();
+  for (int s = kInspectBlock / 2; s > 0; s >>= 1) {
+    if (static_cast<int>(threadIdx.x) < s) add_inspect(sm[threadIdx.x], sm[threadIdx.x + s]);
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) v.inspect_partial[blockIdx.x] = sm[0];
+}
+
+__global__ void k_inspect_total(View v, unsigned blocks) {
+  __shared__ InspectSum sm[kInspectBlock];
+  InspectSum acc{0.0, 0.0, 0.0};
+  for (unsigned k = threadIdx.x; k < blocks; k += kInspectBlock)
+    add_inspect(acc, v.inspect_partial[k]);
+  sm[threadIdx.x] = acc;
+  __syncthreads();
+  for (int s = kInspectBlock / 2; s > 0; s >>= 1) {
+    if (static_cast<int>(threadIdx.x) < s) add_inspect(sm[threadIdx.x], sm[threadIdx.x + s]);
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) {
+    v.ctrl->inspect_resultant = sm[0].resultant;
+    v.ctrl->inspect_F_n = sm[0].F_n;
+    v.ctrl->inspect_pairs = sm[0].pairs;
+  }
+}
+
 class CudaApi : public Api {
  public:
   CudaApi() {
@@ -164,6 +195,18 @@ class CudaApi : public Api {
   }
   void finish_step(const View& v, const Laws& laws) override {
     launch_forces(v, laws);
+    CD_CUDA(cudaGetLastError());
+  }
+  void inspect(const View& v, const Laws& laws, unsigned grains) override {
+    const unsigned blocks = (grains + kInspectBlock - 1) / kInspectBlock;
+    if (blocks > 0) {
+      if (laws.rough) {
+        k_inspect_blocks<<<blocks, kInspectBlock, 0, stream_>>>(v, laws.rough_pp, grains);
+      } else {
+        k_inspect_blocks<<<blocks, kInspectBlock, 0, stream_>>>(v, laws.hertz, grains);
+      }
+    }
+    k_inspect_total<<<1, kInspectBlock, 0, stream_>>>(v, blocks);
     CD_CUDA(cudaGetLastError());
   }
   void read_control(const View& v, Control& host) override {

@@ -42,6 +42,10 @@ class Api {
   /// The rest of a step that stopped after its drift for a rebuild: contacts, gather, clock and
   /// the crushing check.
   virtual void finish_step(const View& v, const Laws& laws) = 0;
+  /// The inspection of the current state into the control block (Control::inspect_*): a first
+  /// pass of blocks of kInspectBlock grains, each summed by a fixed tree, then one block summing
+  /// the blocks' results by a fixed tree (the same bits on the device and the emulation).
+  virtual void inspect(const View& v, const Laws& laws, unsigned grains) = 0;
   /// The view's pointers or parameters changed (a captured graph is stale).
   virtual void view_changed() {}
   /// Waits for the device and copies the control block to `host`.

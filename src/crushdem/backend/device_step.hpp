@@ -44,6 +44,7 @@ using Index = std::uint32_t;
 constexpr int kBlock = 256;           // threads per block of the per-grain kernels
 constexpr int kContactBlock = 128;    // threads per block of the contact kernel
 constexpr int kWallThreads = kBlock;  // threads per wall for the wall totals (a power of two)
+constexpr int kInspectBlock = 256;    // grains per block of the inspection's first pass
 
 /// Why the device stopped before the end of a batch.
 enum Halt : int { kRunning = 0, kRebuild = 1, kFailure = 2 };
@@ -55,6 +56,11 @@ struct WallDev {
 struct WallCfgDev {
   int mode;  // 0 fixed, 1 velocity, 2 servo
   double velocity, target_stress, servo_alpha, max_speed;
+};
+
+/// A share of the inspection's sums (plain: it lives in shared memory).
+struct InspectSum {
+  double resultant, F_n, pairs;
 };
 
 /// The device-resident control block: the clock, the step, the walls and the counters every
@@ -71,6 +77,9 @@ struct Control {
   double h, hh;                // the step and its half
   double last_check_time;      // time of the last crushing check [s]
   double check_elapsed;        // time since the check before, for crack growth [s]
+  // The inspection (the controllers' scalars, reduced on demand): sum over grains of
+  // |resultant force|, sum of the elastic F_n of the touching grain pairs, and their count.
+  double inspect_resultant, inspect_F_n, inspect_pairs;
   WallDev walls[kNumWalls];
 };
 
@@ -108,6 +117,7 @@ struct View {
   double d_c, v0, n_charles;
   bool crack_growth;
   std::uint64_t crush_interval;  // 0: no crushing check
+  InspectSum* inspect_partial;   // one per block of the inspection's first pass
   Control* ctrl;
   // Room in the buffers (grains, pair entries, wall entries): the kernels' grids cover these,
   // so the counts in the control block may change within them.
@@ -367,6 +377,29 @@ CD_HD inline void advance_clock(const View& v) {
     c.check_elapsed = c.time - c.last_check_time;
     c.last_check_time = c.time;
   }
+}
+
+/// Grain i's share of the inspection: its resultant force's magnitude, and the elastic F_n of
+/// its own touching pairs (as Simulation::contacts() computes them) with their count.
+template <class Law>
+CD_HD inline InspectSum inspect_item(const View& v, const Law& law, Index i) {
+  InspectSum s{std::sqrt(v.fux[i] * v.fux[i] + v.fuy[i] * v.fuy[i] + v.fuz[i] * v.fuz[i]), 0.0,
+               0.0};
+  for (Index e = v.off[i]; e < v.off[i + 1]; ++e) {
+    if (!v.touch[e]) continue;
+    const Index j = v.nb[e];
+    const double dx = v.x[j] - v.x[i], dy = v.y[j] - v.y[i], dz = v.z[j] - v.z[i];
+    const double delta = v.radius[i] + v.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
+    s.F_n += law(delta, v.RS[e], v.SRS[e]).F_n;
+    s.pairs += 1.0;
+  }
+  return s;
+}
+
+CD_HD inline void add_inspect(InspectSum& a, const InspectSum& b) {
+  a.resultant += b.resultant;
+  a.F_n += b.F_n;
+  a.pairs += b.pairs;
 }
 
 /// Whether the step just finished is a crushing step.

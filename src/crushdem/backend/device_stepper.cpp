@@ -51,6 +51,13 @@ class EmulatedApi : public device::Api {
     }
   }
   void finish_step(const View& v, const device::Laws& laws) override { forces(v, laws); }
+  void inspect(const View& v, const device::Laws& laws, unsigned grains) override {
+    if (laws.rough) {
+      inspect_with(v, laws.rough_pp, grains);
+    } else {
+      inspect_with(v, laws.hertz, grains);
+    }
+  }
   void read_control(const View& v, Control& host) override { host = *v.ctrl; }
 
  private:
@@ -58,6 +65,43 @@ class EmulatedApi : public device::Api {
     double m2 = 0.0;
     for (Index i = 0; i < v.ctrl->N; ++i) m2 = std::max(m2, device::kick_drift_item(v, i));
     device::finish_drift(v, m2);
+  }
+
+  // The kernels' two passes and trees, in their order.
+  template <class Law>
+  static void inspect_with(const View& v, const Law& law, unsigned grains) {
+    constexpr int B = device::kInspectBlock;
+    const unsigned blocks = (grains + B - 1) / B;
+    std::vector<device::InspectSum> part(B);
+    for (unsigned b = 0; b < blocks; ++b) {
+      for (int t = 0; t < B; ++t) {
+        const unsigned i = b * B + static_cast<unsigned>(t);
+        part[static_cast<std::size_t>(t)] =
+            i < grains ? device::inspect_item(v, law, i) : device::InspectSum{0.0, 0.0, 0.0};
+      }
+      tree(part);
+      v.inspect_partial[b] = part[0];
+    }
+    for (int t = 0; t < B; ++t) {
+      device::InspectSum acc{0.0, 0.0, 0.0};
+      for (unsigned k = static_cast<unsigned>(t); k < blocks; k += B) {
+        device::add_inspect(acc, v.inspect_partial[k]);
+      }
+      part[static_cast<std::size_t>(t)] = acc;
+    }
+    tree(part);
+    v.ctrl->inspect_resultant = part[0].resultant;
+    v.ctrl->inspect_F_n = part[0].F_n;
+    v.ctrl->inspect_pairs = part[0].pairs;
+  }
+
+  static void tree(std::vector<device::InspectSum>& part) {
+    for (int s = device::kInspectBlock / 2; s > 0; s >>= 1) {
+      for (int t = 0; t < s; ++t) {
+        device::add_inspect(part[static_cast<std::size_t>(t)],
+                            part[static_cast<std::size_t>(t + s)]);
+      }
+    }
   }
 
   template <class Law, bool Rolling>
@@ -163,12 +207,15 @@ struct DeviceStepper::Impl {
     void* p = nullptr;
     std::size_t cap = 0;
   };
-  Scratch off, roff, rev, RS, SRS, ME, woff, rf[9], esig[5], wsig[2], fail, ctrl_buf;
+  Scratch off, roff, rev, RS, SRS, ME, woff, rf[9], esig[5], wsig[2], fail, ctrl_buf, partial;
   device::Laws laws;
   View view{};
   Control ctrl{};  // the host's copy of the control block
   bool have_device = false;
-  bool host_current = true;  // nothing stepped since the last upload or download
+  // What the host copy holds of the device's state: the fields (grain and contact arrays), and
+  // the clock, walls and inspection. Both true until the device steps.
+  bool fields_current = true;
+  bool clock_current = true;
   std::uint64_t layout = ~std::uint64_t{0};
   bool rolling = false, load = false, crushing = false;
   Crusher* crusher = nullptr;
@@ -186,7 +233,8 @@ struct DeviceStepper::Impl {
   }
 
   std::vector<Scratch*> scratch() {
-    std::vector<Scratch*> all = {&off, &roff, &rev, &RS, &SRS, &ME, &woff, &fail, &ctrl_buf};
+    std::vector<Scratch*> all = {&off, &roff, &rev,  &RS,       &SRS,
+                                 &ME,  &woff, &fail, &ctrl_buf, &partial};
     for (auto& s : rf) all.push_back(&s);
     for (auto& s : esig) all.push_back(&s);
     for (auto& s : wsig) all.push_back(&s);
@@ -459,6 +507,7 @@ struct DeviceStepper::Impl {
     }
     if (crushing) reserve(fail.p, fail.cap, N);
     reserve(ctrl_buf.p, ctrl_buf.cap, sizeof(Control));
+    reserve(partial.p, partial.cap, (N / device::kInspectBlock + 1) * sizeof(device::InspectSum));
     layout = sim.layout_version();
     have_device = true;
     ++full_uploads;
@@ -543,6 +592,7 @@ struct DeviceStepper::Impl {
       u.crush_interval = c.interval;
     }
     u.ctrl = static_cast<Control*>(ctrl_buf.p);
+    u.inspect_partial = static_cast<device::InspectSum*>(partial.p);
     std::size_t room[3] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}};
     for (const Field& f : fields) {
       std::size_t& r = room[static_cast<int>(f.count)];
@@ -609,15 +659,23 @@ struct DeviceStepper::Impl {
 
   // --- stepping --------------------------------------------------------------------------------
 
-  /// The host copy's changes on the device, and a view and control block that match it.
+  /// The host copy's changes on the device, and a view and control block that match it. With
+  /// the fields not brought to the host since the device stepped, the host's arrays are older
+  /// than the device's and are left alone (a controller that changes grains asks for
+  /// Sync::All first); the walls, friction and clock go over either way.
   void prepare(Simulation& sim) {
-    if (!host_current) sync(sim);  // the device is newer: the host must see it first
-    if (!sim.forces_current()) sim.compute_forces();  // first forces, or after a change
-    sim.dt();  // the automatic step, chosen now if due (as the CPU step does first)
-    if (layout_changed(sim)) {
-      full_upload(sim);
-    } else {
-      upload_changes(sim);
+    if (!clock_current) sync(sim, Sync::Clock);
+    if (fields_current) {
+      if (!sim.forces_current()) sim.compute_forces();  // first forces, or after a change
+      sim.dt();  // the automatic step, chosen now if due (as the CPU step does first)
+      if (layout_changed(sim)) {
+        full_upload(sim);
+      } else {
+        upload_changes(sim);
+      }
+    } else if (layout_changed(sim)) {
+      throw RuntimeFailure(
+          "device: the grains changed on the host without a sync of the device's copy first");
     }
     const View u = make_view(sim);
     if (std::memcmp(static_cast<const void*>(&u), static_cast<const void*>(&view), sizeof u) != 0) {
@@ -644,7 +702,7 @@ struct DeviceStepper::Impl {
       if (steps_to_dt(sim) == 0) choose_time_step(sim);
       const auto batch = static_cast<int>(
           std::min<std::uint64_t>({left, static_cast<std::uint64_t>(kBatch), steps_to_dt(sim)}));
-      host_current = false;
+      fields_current = clock_current = false;
       api->run_steps(view, laws, batch);
       api->read_control(view, ctrl);
       left -= ctrl.steps_done;
@@ -685,7 +743,7 @@ struct DeviceStepper::Impl {
       api->view_changed();
     }
     write_control(host_control(sim));
-    host_current = false;
+    fields_current = clock_current = false;
     api->finish_step(view, laws);
     api->read_control(view, ctrl);
     if (ctrl.steps_done != 1) throw RuntimeFailure("device: the rebuilt step did not finish");
@@ -726,15 +784,27 @@ struct DeviceStepper::Impl {
     prepare(sim);
   }
 
-  void sync_all(Simulation& sim) {
-    download_all(sim);
-    control_to_host(sim);
-    host_current = true;
-  }
+  void sync_all(Simulation& sim) { sync(sim, Sync::All); }
 
-  void sync(Simulation& sim) {
-    if (host_current || !have_device) return;
-    sync_all(sim);
+  void sync(Simulation& sim, Sync what) {
+    if (!have_device) return;
+    if (!clock_current) {
+      control_to_host(sim);
+      // The controllers' scalars of this state, reduced on the device (deterministic trees).
+      api->inspect(view, laws, static_cast<unsigned>(N));
+      api->read_control(view, ctrl);
+      Simulation::Inspection i;
+      i.step = ctrl.steps;
+      i.resultant_sum = ctrl.inspect_resultant;
+      i.pair_F_n_sum = ctrl.inspect_F_n;
+      i.pairs = ctrl.inspect_pairs;
+      sim.set_inspection(i);
+      clock_current = true;
+    }
+    if (what == Sync::All && !fields_current) {
+      download_all(sim);
+      fields_current = true;
+    }
   }
 };
 
@@ -758,8 +828,8 @@ void DeviceStepper::advance(Simulation& sim, std::uint64_t n) {
   particle_steps_ = impl_->particle_steps;
 }
 
-void DeviceStepper::sync(Simulation& sim) {
-  impl_->sync(sim);
+void DeviceStepper::sync(Simulation& sim, Sync what) {
+  impl_->sync(sim, what);
 }
 
 std::size_t DeviceStepper::device_bytes() const {

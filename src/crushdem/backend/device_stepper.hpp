@@ -2,7 +2,9 @@
 // emulation of the device step.
 //
 // Ownership (the explicit mirrors of Cabana, HOOMD's access modes): after advance() the device
-// copy is the newer one; sync() downloads it into the host Simulation. Before the next advance()
+// copy is the newer one; sync() downloads it into the host Simulation: Sync::Clock the control
+// block (clock, walls) and the inspection the device reduces for the controllers' checks
+// (Simulation::Inspection), Sync::All every field too. Before the next advance()
 // the stepper compares the host copy with what it last uploaded or downloaded, field by field
 // (the transfer lists below are the one list of what the device holds), and uploads only what
 // host code changed in between: a controller's wall modes and targets, the friction, the time
@@ -36,7 +38,7 @@ class DeviceStepper : public Stepper {
   std::string name() const override;
   void attach_crusher(Crusher* crusher, BreakageSink sink) override;
   void advance(Simulation& sim, std::uint64_t n) override;
-  void sync(Simulation& sim) override;
+  void sync(Simulation& sim, Sync what = Sync::All) override;
   std::size_t device_bytes() const override;
   /// Uploads in full made so far (the first, layout changes), and smaller uploads of changed
   /// fields (for tests and reports).

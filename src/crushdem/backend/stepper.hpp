@@ -6,9 +6,12 @@
 //   advance(sim, n)   n steps. Crushing, when attached, is checked every crushing.interval steps
 //                     (counted from step 0) inside, and the grains that fail are split on the
 //                     host (Crusher::split) and reported, as the CPU engine does between steps;
-//   sync(sim)         the host Simulation made current (after advance(), before anything
-//                     reads it); whatever host code changes afterwards (walls, friction, grains,
-//                     crack lengths, the time step) reaches the device at the next advance().
+//   sync(sim, what)   the host Simulation made current (after advance(), before anything
+//                     reads it): Sync::Clock brings the clock, the walls and the scalars a
+//                     controller's check reads (Simulation::Inspection, reduced on the device);
+//                     Sync::All every grain and contact array too. Whatever host code changes
+//                     afterwards (walls, friction, grains, crack lengths, the time step)
+//                     reaches the device at the next advance(); grains only after Sync::All.
 //
 // Backends: "cpu" (the engine, bit for bit what Simulation::step gives), "emulated" (the
 // device step run by the host, serially, in the device's order of summation: the GPU's results
@@ -29,6 +32,12 @@ namespace crushdem {
 /// Receives the grains a crushing check broke (after the split, before anything else runs).
 using BreakageSink = std::function<void(const std::vector<BreakageEvent>&)>;
 
+/// What a sync brings to the host.
+enum class Sync {
+  Clock,  // the clock, the walls, the crushing time and the inspection
+  All,    // everything
+};
+
 class Stepper {
  public:
   virtual ~Stepper() = default;
@@ -42,8 +51,11 @@ class Stepper {
   }
   /// Advances n steps.
   virtual void advance(Simulation& sim, std::uint64_t n) = 0;
-  /// Makes the host Simulation current.
-  virtual void sync(Simulation& sim) { (void)sim; }
+  /// Makes the host Simulation current (`what` of it).
+  virtual void sync(Simulation& sim, Sync what = Sync::All) {
+    (void)sim;
+    (void)what;
+  }
   /// The longest call of advance() a driver should make before it looks for a stop request.
   virtual std::uint64_t max_chunk() const { return 2000; }
   /// Device memory in use [bytes] (0 for the CPU engine).

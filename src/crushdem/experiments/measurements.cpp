@@ -33,6 +33,13 @@ double mean_resultant_force(const Simulation& sim) {
 }
 
 double unbalanced_force_ratio(const Simulation& sim) {
+  if (const Simulation::Inspection* i = sim.current_inspection()) {  // reduced on a device
+    if (sim.particles().size() == 0 || !(i->pairs > 0.0) || !(i->pair_F_n_sum > 0.0)) {
+      return std::numeric_limits<double>::quiet_NaN();
+    }
+    return (i->resultant_sum / static_cast<double>(sim.particles().size())) /
+           (i->pair_F_n_sum / i->pairs);
+  }
   double sum_fn = 0.0;
   std::size_t n = 0;
   for (const ContactRecord& c : sim.contacts()) {

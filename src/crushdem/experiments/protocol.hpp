@@ -63,6 +63,14 @@ class Controller {
   virtual void begin(Simulation& sim) = 0;
   virtual bool update(Simulation& sim) = 0;
   virtual std::uint64_t steps_to_check(Simulation& sim) = 0;
+  /// Whether the next update() reads or changes the grains (positions, velocities, forces,
+  /// crack lengths) rather than only the walls, the clock, the grain count and sizes, the
+  /// friction and the scalars of unbalanced_force_ratio(): with a device backend, the driver
+  /// then brings the whole state to the host first (backend/stepper.hpp). When unsure, true.
+  virtual bool reads_grains(const Simulation& sim) const {
+    (void)sim;
+    return true;
+  }
   /// Extra columns for the time series (stage-specific), in a fixed order.
   virtual Measurement columns(const Simulation& sim) const = 0;
   /// What begin() and update() have set up and counted so far (checkpoints); load_state()
@@ -86,6 +94,8 @@ class PreparationController final : public Controller {
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
+  /// Reads the walls, the grains' sizes and the unbalanced-force ratio only.
+  bool reads_grains(const Simulation&) const override { return false; }
   Measurement columns(const Simulation& sim) const override;
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;

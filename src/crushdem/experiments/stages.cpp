@@ -577,6 +577,10 @@ const char* AgeStage::end_reason(Simulation& sim) {
   return nullptr;
 }
 
+bool AgeStage::reads_grains(const Simulation& sim) const {
+  return sim.step_count() - phase_start_ >= cfg_.min_cycles;
+}
+
 std::uint64_t AgeStage::limit_steps(Simulation& sim, std::uint64_t n) const {
   const std::uint64_t in_phase = sim.step_count() - phase_start_;
   if (in_phase < cfg_.min_cycles) n = std::min(n, cfg_.min_cycles - in_phase);

@@ -98,6 +98,8 @@ class Stage : public Controller {
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
+  /// A stage's check reads the walls, the clock and the unbalanced-force ratio.
+  bool reads_grains(const Simulation&) const override { return false; }
   Measurement columns(const Simulation& sim) const override;
   void save_state(StateWriter& out) const override;
   void load_state(StateReader& in) override;
@@ -200,6 +202,8 @@ class AgeStage final : public Stage {
  protected:
   void set_walls(Walls& w) override;
   const char* end_reason(Simulation& sim) override;
+  /// The end of a dynamic phase reads and changes the grains (events row, ageing jump).
+  bool reads_grains(const Simulation& sim) const override;
   std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override;
   void save_phase(StateWriter& out) const override;
   void load_phase(StateReader& in) override;

@@ -170,6 +170,22 @@ class Simulation {
   /// that the forces (and list) are those of the current state.
   void set_clock(double time, std::uint64_t steps, const TimeStep& time_step);
 
+  /// Scalars a device reduced over its copy of the state at step `step` (Chrono DEM-Engine's
+  /// inspectors): read by the controllers' checks instead of the host arrays, which a device
+  /// run brings up to date only when something needs them (backend/stepper.hpp). Not state.
+  struct Inspection {
+    std::uint64_t step = ~std::uint64_t{0};  // none yet
+    double resultant_sum = 0.0;              // sum over grains of |resultant force| [N]
+    double pair_F_n_sum = 0.0;               // sum of the elastic F_n of touching grain pairs [N]
+    double pairs = 0.0;                      // touching grain pairs
+  };
+  const Inspection& inspection() const { return inspection_; }
+  void set_inspection(const Inspection& i) { inspection_ = i; }
+  /// The inspection when it is of the current step, else null.
+  const Inspection* current_inspection() const {
+    return inspection_.step == steps_ ? &inspection_ : nullptr;
+  }
+
   /// Wall-clock time by part of the step (integration, neighbour search, contact forces here;
   /// the crusher and the run driver charge theirs to the same clock). Not part of the state.
   PartClock& part_clock() { return part_clock_; }
@@ -212,6 +228,7 @@ class Simulation {
   std::uint64_t layout_version_ = 0;
   double load_factor_ = 0.0;
   ContactLoad load_;
+  Inspection inspection_;
   PartClock part_clock_;
 };
 

@@ -133,26 +133,33 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
     n = std::min(n, stepper_.max_chunk());
     const double before = stepper_.particle_steps();
     stepper_.advance(sim_, n);
-    stepper_.sync(sim_);
     particle_steps_ += stepper_.particle_steps() - before;
     to_check -= n;
+    // A device backend brings to the host what comes next reads: the clock, walls and the
+    // controllers' scalars always; every grain for a check that reads grains, a row, a snapshot.
+    stepper_.sync(sim_, Sync::Clock);
+    if (to_check == 0 && c.reads_grains(sim_)) stepper_.sync(sim_, Sync::All);
     const std::uint64_t s = sim_.step_count();
     if (to_check == 0) {
       finished = c.update(sim_);
       if (!finished) to_check = c.steps_to_check(sim_);
     }
-    if (s % interval == 0 || finished) {
+    const bool row_due = s % interval == 0 || finished;
+    const bool snapshot_due = vtk > 0 && s % vtk == 0 && !finished;  // the final one follows
+    if (row_due || snapshot_due) stepper_.sync(sim_, Sync::All);
+    if (row_due) {
       const Measurement m = row();
       const PartScope timed(sim_.part_clock(), Part::Output);
       csv.write(m);
     }
-    if (vtk > 0 && s % vtk == 0 && !finished) snapshot();  // the final one follows the run
+    if (snapshot_due) snapshot();
     progress(label, fraction);
     if (!finished && checkpoint) {
       const int stop = stop_signal();
       const double since = std::chrono::duration<double>(clock::now() - last_checkpoint_).count();
       const double every = cfg_.output.checkpoint_seconds;
       if (checkpoint_requested_ || stop != 0 || (every > 0.0 && since >= every)) {
+        stepper_.sync(sim_, Sync::All);
         checkpoint(c, to_check);
         checkpoint_requested_ = false;
       }
