@@ -703,8 +703,12 @@ struct DeviceStepper::Impl {
       const auto batch = static_cast<int>(
           std::min<std::uint64_t>({left, static_cast<std::uint64_t>(kBatch), steps_to_dt(sim)}));
       fields_current = clock_current = false;
-      api->run_steps(view, laws, batch);
-      api->read_control(view, ctrl);
+      {
+        // The device's whole step (its transfers stay "other").
+        const PartScope timed(sim.part_clock(), Part::ContactForces);
+        api->run_steps(view, laws, batch);
+        api->read_control(view, ctrl);
+      }
       left -= ctrl.steps_done;
       particle_steps += static_cast<double>(ctrl.steps_done) * static_cast<double>(N);
       if (ctrl.halt == device::kRebuild) {
