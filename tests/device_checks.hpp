@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "box_config.hpp"
 #include "crushdem/backend/device_stepper.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
@@ -43,16 +44,7 @@ inline std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, 
   return buf;
 }
 
-/// A cubic box [lo, hi]^3 of fixed walls, no damping.
-inline SimulationConfig box(double lo, double hi, NormalLaw law) {
-  SimulationConfig c;
-  c.contact.law = law;
-  c.damping.local_alpha = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) {
-    c.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? lo : hi;
-  }
-  return c;
-}
+using testing::box_config;
 
 /// Particle indices sorted by id (two runs may order particles differently).
 inline std::vector<std::size_t> by_id(const Simulation& s) {
@@ -125,7 +117,7 @@ inline void run_device(Simulation& s, std::uint64_t steps, const ApiFactory& api
 /// a) Head-on impact of two equal spheres (as tests/test_impact.cpp): the device follows the
 /// CPU trajectory and conserves kinetic energy across the collision.
 inline std::vector<Check> impact(const ApiFactory& api) {
-  SimulationConfig cfg = box(-1e-3, 1e-3, NormalLaw::Hertz);
+  SimulationConfig cfg = box_config(-1e-3, 1e-3, NormalLaw::Hertz);
   cfg.timestep.dt = 5e-10;
   Simulation cpu(cfg);
   const double R = 1e-4, v = 0.1;
@@ -160,7 +152,7 @@ inline std::vector<Check> impact(const ApiFactory& api) {
 /// and one wall contact, so the sums have the CPU's order and the runs agree to rounding.
 inline std::vector<Check> rebuild_history(const ApiFactory& api, double rolling_friction) {
   const std::string name = rolling_friction > 0.0 ? "rebuilds with rolling" : "rebuilds";
-  SimulationConfig cfg = box(-1e-3, 1e-3, NormalLaw::Rough);
+  SimulationConfig cfg = box_config(-1e-3, 1e-3, NormalLaw::Rough);
   cfg.contact.wall_friction = 0.3;
   cfg.contact.rolling_friction = rolling_friction;
   if (rolling_friction > 0.0) cfg.contact.rotation = Rotation::Rolling;
@@ -206,7 +198,7 @@ inline std::vector<Check> rebuild_history(const ApiFactory& api, double rolling_
 /// A loose sample of 300 rough grains compressed by six servo walls on the CPU.
 inline Simulation compressed_sample() {
   const double L = 1.25e-3;
-  SimulationConfig cfg = box(0.0, L, NormalLaw::Rough);
+  SimulationConfig cfg = box_config(0.0, L, NormalLaw::Rough);
   cfg.damping.local_alpha = 0.7;
   cfg.neighbor.skin = 5e-6;  // a tenth of the smallest radius: frequent rebuilds
   for (auto& w : cfg.walls) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <random>
 
+#include "box_config.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/integrate/simulation.hpp"
 
@@ -30,17 +31,6 @@ steps = 20
 [output]
 interval = 10
 )";
-
-/// A configuration with a cubic box [lo, hi]^3 of fixed walls and no damping.
-inline SimulationConfig box_config(double lo, double hi, NormalLaw law = NormalLaw::Hertz) {
-  SimulationConfig c;
-  c.contact.law = law;
-  c.damping.local_alpha = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) {
-    c.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? lo : hi;
-  }
-  return c;
-}
 
 /// Adds an n x n x n cubic lattice of spacing a from the origin: each coordinate jittered by
 /// up to jitter a, radius r0 (radius_mean + radius_spread u), velocity components up to speed

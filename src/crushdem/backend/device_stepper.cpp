@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <tuple>
+#include <type_traits>
 #include <utility>
 
 #include "crushdem/core/error.hpp"
@@ -266,151 +268,119 @@ struct DeviceStepper::Impl {
 
   // --- the list of fields ----------------------------------------------------------------------
 
-  /// The fields of this run (rolling history, contact load and crushing fields only when on).
+  /// A field whose host array is `get(sim)`: a std::vector<T> of the Simulation.
+  template <class Get, class Member>
+  void add(const char* name, Count count, bool both_ways, Get get, Member View::*member) {
+    using Vector = std::remove_reference_t<decltype(get(std::declval<Simulation&>()))>;
+    fields.emplace_back(
+        name, count, both_ways, sizeof(typename Vector::value_type),
+        [get](Simulation& s) {
+          auto& v = get(s);
+          return std::pair<void*, std::size_t>(
+              const_cast<void*>(static_cast<const void*>(v.data())), v.size());
+        },
+        binder(member));
+  }
+
+  /// The member `m` of the part `part(sim)` of the Simulation, as a field.
+  template <class Part, class T, class Member>
+  void add_member(const char* name, Count count, bool both_ways, Part& (*part)(Simulation&),
+                  std::vector<T> Part::*m, Member View::*member) {
+    add(
+        name, count, both_ways, [ part, m ](Simulation & s) -> auto& { return part(s).*m; },
+        member);
+  }
+
+  /// The fields of this run, the one list of what the device holds (rolling history, contact
+  /// load and crushing fields only when on).
   void make_fields() {
     for (Field& f : fields) release(f.buf);
     fields.clear();
     using V = View;
-    const auto grain = [this](const char* name, bool both, std::vector<double>& (*get)(Simulation&),
-                              auto member) {
-      fields.emplace_back(
-          name, Count::Grains, both, sizeof(double),
-          [get](Simulation& s) {
-            std::vector<double>& v = get(s);
-            return std::pair<void*, std::size_t>(v.data(), v.size());
-          },
-          binder(member));
-    };
-    // clang-format off
-    // Per grain, both ways: motion, forces and torques, the undamped resultant.
-    grain("x", true, [](Simulation& s) -> std::vector<double>& { return s.particles().x; }, &V::x);
-    grain("y", true, [](Simulation& s) -> std::vector<double>& { return s.particles().y; }, &V::y);
-    grain("z", true, [](Simulation& s) -> std::vector<double>& { return s.particles().z; }, &V::z);
-    grain("vx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vx; }, &V::vx);
-    grain("vy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vy; }, &V::vy);
-    grain("vz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().vz; }, &V::vz);
-    grain("wx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wx; }, &V::wx);
-    grain("wy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wy; }, &V::wy);
-    grain("wz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().wz; }, &V::wz);
-    grain("fx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fx; }, &V::fx);
-    grain("fy", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fy; }, &V::fy);
-    grain("fz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().fz; }, &V::fz);
-    grain("tx", true, [](Simulation& s) -> std::vector<double>& { return s.particles().tx; }, &V::tx);
-    grain("ty", true, [](Simulation& s) -> std::vector<double>& { return s.particles().ty; }, &V::ty);
-    grain("tz", true, [](Simulation& s) -> std::vector<double>& { return s.particles().tz; }, &V::tz);
-    grain("fux", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(0); }, &V::fux);
-    grain("fuy", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(1); }, &V::fuy);
-    grain("fuz", true, [](Simulation& s) -> std::vector<double>& { return s.resultant_force(2); }, &V::fuz);
-    // Per grain, read only: sizes and inertia, and the positions at the last list build.
-    grain("radius", false, [](Simulation& s) -> std::vector<double>& { return s.particles().radius; }, &V::radius);
-    grain("mass", false, [](Simulation& s) -> std::vector<double>& { return s.particles().mass; }, &V::mass);
-    grain("inv_mass", false, [](Simulation& s) -> std::vector<double>& { return s.particles().inv_mass; }, &V::inv_mass);
-    grain("inv_inertia", false, [](Simulation& s) -> std::vector<double>& { return s.particles().inv_inertia; }, &V::inv_inertia);
-    // clang-format on
-    const auto reference = [this](const char* name, int axis, const double* View::*member) {
-      fields.emplace_back(
-          name, Count::Grains, false, sizeof(double),
-          [axis](Simulation& s) {
-            const NeighborList& nl = s.neighbors();
-            const std::vector<double>& r =
-                axis == 0 ? nl.x_ref() : (axis == 1 ? nl.y_ref() : nl.z_ref());
-            // Read only: uploaded, never downloaded.
-            return std::pair<void*, std::size_t>(const_cast<double*>(r.data()), r.size());
-          },
-          binder(member));
-    };
-    reference("x0", 0, &V::x0);
-    reference("y0", 1, &V::y0);
-    reference("z0", 2, &V::z0);
-    // The list (read only) and the per-entry history (both ways).
-    // A field whose host array is the vector get(s) returns.
-    const auto entries = [this](const char* name, Count c, bool both, auto get, auto member) {
-      using T =
-          typename std::remove_reference_t<decltype(get(std::declval<Simulation&>()))>::value_type;
-      fields.emplace_back(
-          name, c, both, sizeof(T),
-          [get](Simulation& s) {
-            auto& v = get(s);
-            return std::pair<void*, std::size_t>(
-                const_cast<void*>(static_cast<const void*>(v.data())), v.size());
-          },
-          binder(member));
-    };
-    entries(
-        "owner", Count::Entries, false, [](Simulation & s) -> auto& { return s.neighbors().owner; },
-        &V::owner);
-    entries(
-        "nb", Count::Entries, false,
-        [](Simulation & s) -> auto& { return s.neighbors().neighbors; }, &V::nb);
-    entries(
-        "ftx", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_x; },
-        &V::ftx);
-    entries(
-        "fty", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_y; },
-        &V::fty);
-    entries(
-        "ftz", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().ft_z; },
-        &V::ftz);
-    entries(
-        "touch", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().touching; },
-        &V::touch);
-    if (rolling) {
-      entries(
-          "mrx", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_x; },
-          &V::mrx);
-      entries(
-          "mry", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_y; },
-          &V::mry);
-      entries(
-          "mrz", Count::Entries, true, [](Simulation & s) -> auto& { return s.history().mr_z; },
-          &V::mrz);
-    }
-    // Wall entries: which grain and wall (read only), history and results (both ways).
-    entries(
-        "wp", Count::WallEntries, false,
-        [](Simulation & s) -> auto& { return s.wall_contacts().particle; }, &V::wp);
-    entries(
-        "ww", Count::WallEntries, false,
-        [](Simulation & s) -> auto& { return s.wall_contacts().wall; }, &V::ww);
+    using PS = ParticleStore;
     using WC = WallContacts;
-    const std::pair<const char*, std::pair<std::vector<double> WC::*, double * View::*>> wall[] = {
-        {"wftx", {&WC::ft_x, &V::wftx}}, {"wfty", {&WC::ft_y, &V::wfty}},
-        {"wftz", {&WC::ft_z, &V::wftz}}, {"wfx", {&WC::fx, &V::wfx}},
-        {"wfy", {&WC::fy, &V::wfy}},     {"wfz", {&WC::fz, &V::wfz}},
-        {"wtx", {&WC::tx, &V::wtx}},     {"wty", {&WC::ty, &V::wty}},
-        {"wtz", {&WC::tz, &V::wtz}},     {"wFn", {&WC::F_n, &V::wFn}},
-        {"wkn", {&WC::k_n, &V::wkn}},    {"wdelta", {&WC::delta, &V::wdelta}}};
-    for (const auto& [name, m] : wall) {
-      const auto host_member = m.first;
-      entries(
-          name, Count::WallEntries,
-          true, [host_member](Simulation & s) -> auto& { return s.wall_contacts().*host_member; },
-          m.second);
+    using CH = ContactHistory;
+    constexpr Count G = Count::Grains, E = Count::Entries, W = Count::WallEntries;
+    const auto grains = +[](Simulation& s) -> PS& { return s.particles(); };
+    const auto history = +[](Simulation& s) -> CH& { return s.history(); };
+    const auto walls = +[](Simulation& s) -> WC& { return s.wall_contacts(); };
+    const auto load_of = +[](Simulation& s) -> ContactLoad& { return s.contact_load(); };
+    const auto list = +[](Simulation& s) -> NeighborList& {
+      return const_cast<NeighborList&>(s.neighbors());  // read only: never downloaded
+    };
+    // Per grain, both ways: motion, forces and torques.
+    const std::tuple<const char*, std::vector<double> PS::*, double * V::*> motion[] = {
+        {"x", &PS::x, &V::x},    {"y", &PS::y, &V::y},    {"z", &PS::z, &V::z},
+        {"vx", &PS::vx, &V::vx}, {"vy", &PS::vy, &V::vy}, {"vz", &PS::vz, &V::vz},
+        {"wx", &PS::wx, &V::wx}, {"wy", &PS::wy, &V::wy}, {"wz", &PS::wz, &V::wz},
+        {"fx", &PS::fx, &V::fx}, {"fy", &PS::fy, &V::fy}, {"fz", &PS::fz, &V::fz},
+        {"tx", &PS::tx, &V::tx}, {"ty", &PS::ty, &V::ty}, {"tz", &PS::tz, &V::tz}};
+    for (const auto& [name, m, v] : motion) add_member(name, G, true, grains, m, v);
+    // The undamped resultant, both ways.
+    double* V::*resultant[3] = {&V::fux, &V::fuy, &V::fuz};
+    const char* resultant_names[3] = {"fux", "fuy", "fuz"};
+    for (int k = 0; k < 3; ++k) {
+      add(
+          resultant_names[k], G,
+          true, [k](Simulation & s) -> auto& { return s.resultant_force(k); }, resultant[k]);
     }
+    // Per grain, read only: sizes and inertia, and the positions at the last list build.
+    const std::tuple<const char*, std::vector<double> PS::*, const double * V::*> sizes[] = {
+        {"radius", &PS::radius, &V::radius},
+        {"mass", &PS::mass, &V::mass},
+        {"inv_mass", &PS::inv_mass, &V::inv_mass},
+        {"inv_inertia", &PS::inv_inertia, &V::inv_inertia}};
+    for (const auto& [name, m, v] : sizes) add_member(name, G, false, grains, m, v);
+    const double* V::*reference[3] = {&V::x0, &V::y0, &V::z0};
+    const char* reference_names[3] = {"x0", "y0", "z0"};
+    for (int k = 0; k < 3; ++k) {
+      add(
+          reference_names[k], G, false,
+          [k](Simulation & s) -> auto& {
+            const NeighborList& nl = s.neighbors();
+            return k == 0 ? nl.x_ref() : (k == 1 ? nl.y_ref() : nl.z_ref());
+          },
+          reference[k]);
+    }
+    // The list (read only) and the per-entry history (both ways).
+    add_member("owner", E, false, list, &NeighborList::owner, &V::owner);
+    add_member("nb", E, false, list, &NeighborList::neighbors, &V::nb);
+    const std::tuple<const char*, std::vector<double> CH::*, double * V::*> pair_history[] = {
+        {"ftx", &CH::ft_x, &V::ftx}, {"fty", &CH::ft_y, &V::fty}, {"ftz", &CH::ft_z, &V::ftz},
+        {"mrx", &CH::mr_x, &V::mrx}, {"mry", &CH::mr_y, &V::mry}, {"mrz", &CH::mr_z, &V::mrz}};
+    for (const auto& [name, m, v] : pair_history) {
+      if (rolling || name[0] == 'f') add_member(name, E, true, history, m, v);
+    }
+    add_member("touch", E, true, history, &CH::touching, &V::touch);
+    // Wall entries: which grain and wall (read only), history and results (both ways).
+    add_member("wp", W, false, walls, &WC::particle, &V::wp);
+    add_member("ww", W, false, walls, &WC::wall, &V::ww);
+    const std::tuple<const char*, std::vector<double> WC::*, double * V::*> wall[] = {
+        {"wftx", &WC::ft_x, &V::wftx}, {"wfty", &WC::ft_y, &V::wfty},
+        {"wftz", &WC::ft_z, &V::wftz}, {"wfx", &WC::fx, &V::wfx},
+        {"wfy", &WC::fy, &V::wfy},     {"wfz", &WC::fz, &V::wfz},
+        {"wtx", &WC::tx, &V::wtx},     {"wty", &WC::ty, &V::wty},
+        {"wtz", &WC::tz, &V::wtz},     {"wFn", &WC::F_n, &V::wFn},
+        {"wkn", &WC::k_n, &V::wkn},    {"wdelta", &WC::delta, &V::wdelta}};
+    for (const auto& [name, m, v] : wall) add_member(name, W, true, walls, m, v);
     if (load) {  // the contact load per grain (both ways: the host's forces fill it too)
       using CL = ContactLoad;
-      const std::pair<const char*, std::pair<std::vector<double> CL::*, double * View::*>> rows[] =
-          {{"LS", {&CL::sigma, &V::LS}},
-           {"LF", {&CL::F_n_max, &V::LF}},
-           {"LNX", {&CL::nx, &V::LNX}},
-           {"LNY", {&CL::ny, &V::LNY}},
-           {"LNZ", {&CL::nz, &V::LNZ}}};
-      for (const auto& [name, m] : rows) {
-        const auto host_member = m.first;
-        entries(
-            name, Count::Grains,
-            true, [host_member](Simulation & s) -> auto& { return s.contact_load().*host_member; },
-            m.second);
-      }
+      const std::tuple<const char*, std::vector<double> CL::*, double * V::*> rows[] = {
+          {"LS", &CL::sigma, &V::LS},
+          {"LF", &CL::F_n_max, &V::LF},
+          {"LNX", &CL::nx, &V::LNX},
+          {"LNY", &CL::ny, &V::LNY},
+          {"LNZ", &CL::nz, &V::LNZ}};
+      for (const auto& [name, m, v] : rows) add_member(name, G, true, load_of, m, v);
     }
     if (crushing) {  // strengths (read only) and crack lengths (both ways)
       const std::size_t strength = crusher->strength_field(), crack = crusher->crack_field();
-      entries(
-          "sigma_lim", Count::Grains,
+      add(
+          "sigma_lim", G,
           false, [strength](Simulation & s) -> auto& { return s.particles().field(strength); },
           &V::sigma_lim);
-      entries(
-          "crack_a", Count::Grains,
+      add(
+          "crack_a", G,
           true, [crack](Simulation & s) -> auto& { return s.particles().field(crack); },
           &V::crack_a);
     }
