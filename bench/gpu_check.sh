@@ -22,8 +22,12 @@ cd "$(dirname "$0")/.."
 OUT=${OUT:-gpu_check_out}
 DEPS=${DEPS:-build/gpu-deps}
 PARTS=${PARTS:-build tests bench scaling oedometric triaxial}
+# BACKEND=emulated BUILD=build/cuda PARTS="bench oedometric" tries the script's steps on a
+# machine without a GPU (with short runs it stops early, which the table says).
+BACKEND=${BACKEND:-cuda}
+BUILD=${BUILD:-build-gpu}
 J=$(nproc)
-B=build-gpu/crushdem
+B=$BUILD/crushdem
 mkdir -p "$OUT"
 SUMMARY="$OUT/summary.txt"
 : > "$SUMMARY"
@@ -42,9 +46,9 @@ if want build; then
   [ -d "$DEPS/include/CLI" ] && extra+=("-DCRUSHDEM_CLI11_INCLUDE=$PWD/$DEPS/include")
   generator=()
   command -v ninja > /dev/null && generator=(-G Ninja)
-  if timeout 400 cmake -S . -B build-gpu "${generator[@]}" -DCRUSHDEM_CUDA=ON \
+  if timeout 400 cmake -S . -B "$BUILD" "${generator[@]}" -DCRUSHDEM_CUDA=ON \
        -DCMAKE_CUDA_ARCHITECTURES=90 -DCRUSHDEM_TESTS=OFF "${extra[@]}" > "$OUT/build.log" 2>&1 &&
-     timeout 400 cmake --build build-gpu -j"$J" --target crushdem_exe crushdem_device_test \
+     timeout 400 cmake --build "$BUILD" -j"$J" --target crushdem_exe crushdem_device_test \
        crushdem_cuda_kernel_test >> "$OUT/build.log" 2>&1; then
     row "build [s]" "$(seconds_since "$t0")"
   else
@@ -55,9 +59,11 @@ if want build; then
 fi
 
 if want tests; then
-  timeout 60 build-gpu/crushdem_cuda_kernel_test > "$OUT/kernel_test.log" 2>&1
+  timeout 60 "$BUILD"/crushdem_cuda_kernel_test > "$OUT/kernel_test.log" 2>&1
   row "contact kernels on the device" "$(tail -1 "$OUT/kernel_test.log")"
-  timeout 240 build-gpu/crushdem_device_test > "$OUT/device_test.log" 2>&1
+  emulate=()
+  [ "$BACKEND" = emulated ] && emulate=(--emulate)
+  timeout 240 "$BUILD"/crushdem_device_test "${emulate[@]}" > "$OUT/device_test.log" 2>&1
   grep FAIL "$OUT/device_test.log" | head -5
   row "device step against the CPU and the emulation" "$(tail -1 "$OUT/device_test.log")"
 fi
@@ -70,16 +76,17 @@ if want bench; then
   # exports them.
   export RHO=2500 G_SHEAR=2.6e9 NU=0.3 MU=0.5 REST=0.5 DT=5e-8 SKIN=3.75e-5
   for law in hertz rough; do
-    timeout 120 "$B" bench --packing "$PACKING" --backend cuda --law $law --steps 20000 \
+    timeout 120 "$B" bench --packing "$PACKING" --backend "$BACKEND" --law $law --steps "${BENCH_STEPS:-20000}" \
       > "$OUT/bench_cuda_$law.log" 2>&1
-    row "cuda $law, 11,500 grains [particle-steps/s]" \
+    row "$BACKEND $law, 11,500 grains [particle-steps/s]" \
       "$(tail -1 "$OUT/bench_cuda_$law.log" | sed 's/.*=//')"
   done
   row "device bytes per grain (11,500, hertz)" \
     "$(grep -o 'device_bytes_per_particle=[0-9]*' "$OUT/bench_cuda_hertz.log" | sed 's/.*=//')"
-  timeout 180 "$B" bench --packing "$OUT/packing_5.txt" --backend cuda --steps 2000 \
+  timeout 180 "$B" bench --packing "$OUT/packing_5.txt" --backend "$BACKEND" \
+    --steps "${TILED_STEPS:-2000}" \
     > "$OUT/bench_cuda_tiled5.log" 2>&1
-  row "cuda hertz, 1.44 million grains [particle-steps/s]" \
+  row "$BACKEND hertz, 1.44 million grains [particle-steps/s]" \
     "$(tail -1 "$OUT/bench_cuda_tiled5.log" | sed 's/.*=//')"
   row "device bytes per grain (1.44 million)" \
     "$(grep -o 'device_bytes_per_particle=[0-9]*' "$OUT/bench_cuda_tiled5.log" | sed 's/.*=//')"
@@ -101,13 +108,13 @@ gpu_run() {
   rm -rf "$OUT/$name"
   local t0
   t0=$(date +%s)
-  timeout "$limit" "$B" run "$config" --out "$OUT/$name" --backend cuda > "$OUT/$name.log" 2>&1
+  timeout "$limit" "$B" run "$config" --out "$OUT/$name" --backend "$BACKEND" > "$OUT/$name.log" 2>&1
   local rc=$?
   echo "$rc $(seconds_since "$t0")"
 }
 
 if want oedometric; then
-  read -r rc secs <<< "$(gpu_run oedometric_rev "$DEPS/oedometric_relaxation_rev.toml" 300)"
+  read -r rc secs <<< "$(gpu_run oedometric_rev "$DEPS/oedometric_relaxation_rev.toml" "${OEDOMETRIC_LIMIT:-300}")"
   if [ "$rc" = 0 ]; then
     row "REV oedometric relaxation on the GPU [s]" "$secs"
     python3 - "$OUT/oedometric_rev" << 'EOF' | tee -a "$SUMMARY"
@@ -124,7 +131,7 @@ EOF
 fi
 
 if want triaxial; then
-  read -r rc secs <<< "$(gpu_run triaxial_rev "$DEPS/triaxial_relaxation_rev.toml" 240)"
+  read -r rc secs <<< "$(gpu_run triaxial_rev "$DEPS/triaxial_relaxation_rev.toml" "${TRIAXIAL_LIMIT:-240}")"
   row "REV triaxial relaxation on the GPU: ran [s]" "$secs (rc $rc)"
   # Stopped by the time limit (SIGTERM: a checkpoint, then timing.json): its rate gives the
   # seconds of a 150,000-cycle dynamic phase at its grain count.
