@@ -24,7 +24,7 @@
 namespace crushdem::device {
 namespace {
 
-constexpr int kGraphSteps = 100;  // steps per CUDA graph launch
+constexpr int kGraphSteps = kBatchSteps;  // steps per CUDA graph launch
 
 void check_cuda(cudaError_t e, const char* what, int line) {
   if (e != cudaSuccess) {
@@ -100,13 +100,17 @@ __global__ void k_gather(View v, unsigned particle_blocks) {
   if (j == 0) advance_clock(v);
 }
 
+// Every grain is checked (crack growth applied, its flag written) even when another fails:
+// the kernel counts failures and leaves `halt` to k_crushing_halt, so no thread of it can see a
+// halt set by another.
 __global__ void k_crushing(View v) {
   if (v.ctrl->halt || !v.fail || !crushing_step(v)) return;
   const Index i = blockIdx.x * blockDim.x + threadIdx.x;
-  if (i < v.ctrl->N && crushing_item(v, i)) {
-    atomicAdd(&v.ctrl->failures, 1u);
-    atomicExch(&v.ctrl->halt, static_cast<int>(kFailure));
-  }
+  if (i < v.ctrl->N && crushing_item(v, i)) atomicAdd(&v.ctrl->failures, 1u);
+}
+
+__global__ void k_crushing_halt(View v) {
+  if (!v.ctrl->halt && v.ctrl->failures > 0) v.ctrl->halt = kFailure;
 }
 
 template <class Law>
@@ -231,7 +235,10 @@ class CudaApi : public Api {
       k_contacts<HertzLaw, false><<<gc, kContactBlock, 0, stream_>>>(v, laws.hertz, laws.hertz);
     }
     k_gather<<<gp + kNumWalls, kBlock, 0, stream_>>>(v, static_cast<unsigned>(gp));
-    if (v.fail) k_crushing<<<gp, kBlock, 0, stream_>>>(v);  // no launch without crushing
+    if (v.fail) {  // no launch without crushing
+      k_crushing<<<gp, kBlock, 0, stream_>>>(v);
+      k_crushing_halt<<<1, 1, 0, stream_>>>(v);
+    }
   }
 
   void launch_step(const View& v, const Laws& laws) {

@@ -25,7 +25,9 @@
 //                 and crack growth; a failure sets `halt` so that the host splits the grain.
 //
 // No floating-point atomics: every sum has an order fixed by the lists, so runs repeat bit for
-// bit. They are not bit-identical to the CPU engine, whose sums run in column order.
+// bit. They are not bit-identical to the CPU engine, whose sums run in column order. The GPU and
+// the host emulation give the same bits except in crack growth, whose pow() CUDA rounds
+// differently from the host's C library (within 2 ulp).
 #pragma once
 
 #include <cstdint>
@@ -45,6 +47,7 @@ constexpr int kBlock = 256;           // threads per block of the per-grain kern
 constexpr int kContactBlock = 128;    // threads per block of the contact kernel
 constexpr int kWallThreads = kBlock;  // threads per wall for the wall totals (a power of two)
 constexpr int kInspectBlock = 256;    // grains per block of the inspection's first pass
+constexpr int kBatchSteps = 100;      // steps per batch (one CUDA graph launch)
 
 /// Why the device stopped before the end of a batch.
 enum Halt : int { kRunning = 0, kRebuild = 1, kFailure = 2 };
@@ -71,7 +74,7 @@ struct Control {
   unsigned long long m2_bits;  // bits of the largest squared displacement of this step
   unsigned N, M, Mw;           // grains, neighbour entries, wall entries
   unsigned blocks_done;        // kick_drift blocks finished in this step (last-block ticket)
-  unsigned failures;           // grains that failed at the last crushing check
+  unsigned failures;           // grains that failed at the last crushing check (then halt)
   double time;                 // simulated time [s], advanced by h per step as the host does
   unsigned long long steps;    // step count
   double h, hh;                // the step and its half

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <string_view>
 #include <tuple>
 #include <type_traits>
 #include <utility>
@@ -219,13 +220,14 @@ struct DeviceStepper::Impl {
   bool fields_current = true;
   bool clock_current = true;
   std::uint64_t layout = ~std::uint64_t{0};
+  const Simulation* owner = nullptr;  // the Simulation the device copy is of
   bool rolling = false, load = false, crushing = false;
   Crusher* crusher = nullptr;
   BreakageSink sink;
   std::size_t N = 0, M = 0, Mw = 0;
   std::uint64_t full_uploads = 0, field_uploads = 0;
   double particle_steps = 0.0;
-  static constexpr int kBatch = 100;  // steps per launch (one CUDA graph)
+  static constexpr int kBatch = device::kBatchSteps;
 
   explicit Impl(std::unique_ptr<device::Api> a) : api(std::move(a)) {}
 
@@ -390,7 +392,7 @@ struct DeviceStepper::Impl {
 
   /// Whether the run's fields or the layout changed since the last full upload.
   bool layout_changed(const Simulation& sim) const {
-    return !have_device || sim.layout_version() != layout ||
+    return !have_device || &sim != owner || sim.layout_version() != layout ||
            rolling != (sim.contact_params().mu_r > 0.0) ||
            load != (sim.contact_load_factor() > 0.0) ||
            crushing != (crusher != nullptr && sim.contact_load_factor() > 0.0);
@@ -475,10 +477,14 @@ struct DeviceStepper::Impl {
       for (auto& s : esig) reserve(s.p, s.cap, M * sizeof(double));
       for (auto& s : wsig) reserve(s.p, s.cap, Mw * sizeof(double));
     }
-    if (crushing) reserve(fail.p, fail.cap, N);
+    if (crushing && reserve(fail.p, fail.cap, N)) {
+      const std::vector<std::uint8_t> none(fail.cap, 0);
+      api->upload(fail.p, none.data(), fail.cap);
+    }
     reserve(ctrl_buf.p, ctrl_buf.cap, sizeof(Control));
     reserve(partial.p, partial.cap, (N / device::kInspectBlock + 1) * sizeof(device::InspectSum));
     layout = sim.layout_version();
+    owner = &sim;
     have_device = true;
     ++full_uploads;
   }
@@ -491,6 +497,18 @@ struct DeviceStepper::Impl {
 
   /// Uploads the fields host code changed since they were last transferred.
   void upload_changes(Simulation& sim) {
+    // Per-entry R*, sqrt(R*) and m* derive from these: a change of one needs a full upload.
+    for (Field& f : fields) {
+      if (f.name != std::string_view("radius") && f.name != std::string_view("mass") &&
+          f.name != std::string_view("inv_mass")) {
+        continue;
+      }
+      const std::size_t bytes = count(f) * f.elem;
+      if (std::memcmp(host_data(f, sim), f.shadow.data(), bytes) != 0) {
+        full_upload(sim);
+        return;
+      }
+    }
     for (Field& f : fields) {
       const std::size_t bytes = count(f) * f.elem;
       const void* src = host_data(f, sim);
@@ -708,7 +726,9 @@ struct DeviceStepper::Impl {
   /// The step the device stopped after its drift: the list rebuilt on the host (history carried
   /// by ids) and uploaded, then the step finished on the device.
   void finish_with_rebuild(Simulation& sim) {
-    sync_all(sim);
+    download_all(sim);  // mid-step: no inspection of it
+    control_to_host(sim);
+    fields_current = true;
     sim.rebuild_neighbors();
     full_upload(sim);
     const View u = make_view(sim);
@@ -756,6 +776,7 @@ struct DeviceStepper::Impl {
     if (sink && !events.empty()) sink(events);
     sim.compute_forces();
     prepare(sim);
+    clock_current = false;  // the next sync inspects the state after the split
   }
 
   void sync_all(Simulation& sim) { sync(sim, Sync::All); }
@@ -764,6 +785,10 @@ struct DeviceStepper::Impl {
     if (!have_device) return;
     if (!clock_current) {
       control_to_host(sim);
+      // Host code after a sync may ask for the time step (a duration's steps to its check): at
+      // a step where the automatic step is due, choose it now from the device's positions, as
+      // the next batch would.
+      if (steps_to_dt(sim) == 0) choose_time_step(sim);
       // The controllers' scalars of this state, reduced on the device (deterministic trees).
       api->inspect(view, laws, static_cast<unsigned>(N));
       api->read_control(view, ctrl);

@@ -141,6 +141,7 @@ void Simulation::invalidate() {
   nl_valid_ = false;
   forces_valid_ = false;
   time_step_.invalidate();
+  inspection_ = {};
   ++layout_version_;
 }
 
@@ -222,6 +223,7 @@ void Simulation::evaluate_forces(double increment_dt, bool kick, bool drift_next
                       cfg_.damping.local_alpha, kick, drift_next, fu_x_, fu_y_, fu_z_);
   if (drift_next) next_drift_ = next;
   forces_valid_ = true;
+  inspection_ = {};  // a device's reduction is of the state before
 }
 
 void Simulation::wall_contact_load() {
@@ -331,6 +333,7 @@ void Simulation::load_state(StateReader& in) {
   pair_loop_.pruned().invalidate();
   pair_loop_.mark_stale();
   next_drift_.reset();
+  inspection_ = {};
   ++layout_version_;
 }
 
