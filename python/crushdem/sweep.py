@@ -251,10 +251,10 @@ def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
 
 
 def run_variant(config_path: str, run_dir: str, threads: int,
-                branch: Optional[str] = None) -> Dict[str, Any]:
-    """Runs (or resumes) one variant with the crushdem command, branching from ``branch``
-    (DIR[:STAGE]) when given; returns {"resumed", "wall_s"}. Raises RuntimeError with the end of
-    the run's error output when it fails."""
+                branch: Optional[str] = None, backend: str = "cpu") -> Dict[str, Any]:
+    """Runs (or resumes) one variant with the crushdem command on ``backend``, branching from
+    ``branch`` (DIR[:STAGE]) when given; returns {"resumed", "wall_s"}. Raises RuntimeError with
+    the end of the run's error output when it fails."""
     if os.path.isfile(os.path.join(run_dir, "summary.json")):
         return {"resumed": False, "skipped": True}
     crushdem = [sys.executable, "-m", "crushdem"]
@@ -264,6 +264,7 @@ def run_variant(config_path: str, run_dir: str, threads: int,
     else:
         cmd = crushdem + ["run", config_path, "--out", run_dir, "--threads", str(threads),
                           "--quiet"] + (["--from", branch] if branch else [])
+    cmd += ["--backend", backend]
     t0 = time.perf_counter()
     deadline = t0 + LOCK_WAIT_S
     while True:
@@ -401,8 +402,9 @@ def _raise_stop(signum, _frame):
 
 def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: int = 1,
           scheduler: Optional[str] = None, progress: Optional[bool] = None,
-          log: Callable[[str], None] = print):
-    """Runs (or completes) the sweep of ``path`` into ``out``; returns the results DataFrame."""
+          log: Callable[[str], None] = print, backend: str = "cpu"):
+    """Runs (or completes) the sweep of ``path`` into ``out``, every run on ``backend``
+    ("cpu", "cuda" or "emulated"); returns the results DataFrame."""
     from . import _core
 
     if threads_per_run < 1:
@@ -442,14 +444,15 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
     log(f"{len(listed)} variants: {len(listed) - len(todo) - len(errors)} finished before, "
         f"{len(todo)} to run, {len(errors)} refused")
     if todo:
-        _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"])
+        _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"],
+                   backend)
     df = results_table(out, listed, sw["keys"], errors)
     figure(df, sw["keys"], os.path.join(out, "results.png"))
     return df
 
 
 def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
-               branch=None) -> None:
+               branch=None, backend="cpu") -> None:
     from distributed import Client, LocalCluster
 
     previous = signal.signal(signal.SIGTERM, _raise_stop)
@@ -464,7 +467,8 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
             client = Client(cluster)
         try:
             futures = {client.submit(run_variant, cfg, run_dir, threads_per_run, branch,
-                                     key=name, pure=False): name for name, cfg, run_dir in todo}
+                                     backend, key=name, pure=False): name
+                       for name, cfg, run_dir in todo}
             _follow(client, futures, errors, progress, log)
         finally:
             client.close()
@@ -527,6 +531,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://host:port) instead of a local "
                              "cluster")
+    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
+                        help="what advances every run: cpu (default), cuda (a GPU, in a build "
+                             "with CUDA; one worker per GPU) or emulated")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
@@ -534,7 +541,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         df = sweep(args.sweep, args.out, args.workers, args.threads_per_run, args.scheduler,
-                   log=log)
+                   log=log, backend=args.backend)
     except _Stop as e:
         return 128 + int(e.args[0])
     except KeyboardInterrupt:

@@ -101,6 +101,18 @@ def test_a_sweep_gives_the_table_of_the_runs_made_one_by_one(tmp_path):
     assert _figures(again) == _figures(df)
 
 
+def test_a_sweep_runs_on_another_backend(tmp_path):
+    """Every variant on the emulated device (the GPU's step on the host): done, and the runs say
+    which backend advanced them."""
+    df = sweep.sweep(_write_sweep(tmp_path, {"material.friction": [0.2, 0.4]}),
+                     str(tmp_path / "out"), workers=2, progress=False, log=lambda m: None,
+                     backend="emulated")
+    assert list(df["status"]) == ["done"] * 2
+    for run_dir in df["run_dir"]:
+        with open(os.path.join(run_dir, "timing.json")) as f:
+            assert json.load(f)["backend"] == "emulated"
+
+
 def test_a_bad_value_fails_alone_with_its_error(tmp_path):
     df = sweep.sweep(_write_sweep(tmp_path, {"material.friction": [0.3, -1.0]}),
                      str(tmp_path / "out"), workers=2, progress=False, log=lambda m: None)
