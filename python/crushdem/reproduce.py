@@ -304,6 +304,9 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
     t, q = ev["ageing_time_s"][idx], ev["deviator_stress_Pa"][idx]
     fit = fit_log_t(t, q)
     q0 = float(q[0]) if q.size else math.nan
+    ratio = q / q0 if math.isfinite(q0) and q0 != 0 else np.full(q.size, math.nan)
+    r_1h, how_1h = value_at(t, ratio, HOUR_S)
+    r_1d, how_1d = value_at(t, ratio, DAY_S)
     q_fit = np.where(t > 0, fit["intercept"] + fit["slope"] * np.log10(np.where(t > 0, t, 1.0)),
                      math.nan)
     lateral = lateral_stress(ev)
@@ -315,6 +318,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
         f"{fit['slope']!r} log10(t / 1 s) [Pa]; slope per log10 cycle = {fit['slope']!r} Pa; "
         f"R^2 = {fit['r2']!r}",
         f"q at the first phase (t = 0) = {q0!r} Pa; q_max of the shear = {q_max!r} Pa",
+        f"q / q(t = 0) at 1 h = {r_1h!r} ({how_1h}); at 1 day = {r_1d!r} ({how_1d}).",
         f"source: {os.path.join(run_dir, 'events.csv')}",
     ], {
         "dynamic_phase": column(ev, "dynamic_phase", idx).astype(np.int64)
@@ -322,6 +326,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
         "ageing_time_s": t,
         "deviator_stress_Pa": q,
         "q_fit_Pa": q_fit,
+        "q_over_q_start": ratio,
         "q_over_q_max": q / q_max if math.isfinite(q_max) and q_max else np.full(q.size,
                                                                                  math.nan),
         "lateral_stress_Pa": lateral[idx] if lateral is not None else np.full(q.size, math.nan),
@@ -355,7 +360,10 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
     return {"q_start_Pa": q0, "q_end_Pa": float(q[-1]) if q.size else math.nan,
             "slope_Pa_per_log10_t": fit["slope"], "intercept_Pa": fit["intercept"],
             "r2": fit["r2"], "fit_points": fit["points"],
-            "slope_per_log10_t_over_q_start": fit["slope"] / q0 if q0 else math.nan}
+            "slope_per_log10_t_over_q_start": fit["slope"] / q0 if q0 else math.nan,
+            "q_ratio_1h": r_1h, "q_ratio_1h_method": how_1h,
+            "q_ratio_1day": r_1d, "q_ratio_1day_method": how_1d,
+            "q_min_Pa": float(np.min(q)) if q.size else math.nan}
 
 
 def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
@@ -729,6 +737,8 @@ def format_table(result: Mapping[str, Any]) -> str:
              f"  {'0.7 q_max [MPa]':<40}{num(tri.get('stop_q_Pa'), MPA)}",
              f"  {'q at t = 0 / at the end [MPa]':<40}{num(tri.get('q_start_Pa'), MPA)}"
              f" / {num(tri.get('q_end_Pa'), MPA)}",
+             f"  {'q(1 h) / q(0)':<40}{num(tri.get('q_ratio_1h'))}",
+             f"  {'q(1 day) / q(0)':<40}{num(tri.get('q_ratio_1day'))}",
              f"  {'q slope [MPa per log10 cycle]':<40}{num(tri.get('slope_Pa_per_log10_t'), MPA)}",
              f"  {'q fit R^2':<40}{num(tri.get('r2'), fmt='.3f')}"]
     if "skipped" in dyn:
@@ -748,8 +758,8 @@ def format_table(result: Mapping[str, Any]) -> str:
                      f"{num(r.get('breakages_instant'), fmt='.0f'):>9}"
                      f"{num(r.get('breakages_crack'), fmt='.0f'):>7}"
                      f"{num(grains, fmt='.0f'):>8}  {r.get('dominant_part') or '-'}")
-    lines.append(f"  total {num(result.get('wall_s_total'), fmt='.1f')} s"
-                 "   (* finished by an earlier call: wall-clock from its timing.json)")
+    lines.append(f"  total {num(result.get('wall_s_total'), fmt='.1f')} s in this call"
+                 "   (* finished by an earlier call; a run's wall-clock sums all its calls)")
     return "\n".join(lines)
 
 

@@ -33,7 +33,8 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
              record: Dict[str, Any],
              resume: Optional[Callable[[str, bool], Any]] = None) -> None:
     """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing in
-    ``record[name]``.
+    ``record[name]``: wall_s is the run's own wall-clock over every call that advanced it
+    (timing.json), wall_s_this_call this call's.
 
     An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
     instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
@@ -63,5 +64,9 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
         log(f"{name}: running into {run_dir}")
         start()
     wall = time.perf_counter() - t0
-    record[name] = {**timing_record(run_dir), "skipped": False, "resumed": resumed, "wall_s": wall}
-    log(f"{name}: done in {wall:.1f} s")
+    record[name] = {**timing_record(run_dir), "skipped": False, "resumed": resumed,
+                    "wall_s_this_call": wall}
+    if not (resumed and record[name]["wall_s"] > 0):  # a resumed run's timing.json sums its calls
+        record[name]["wall_s"] = wall
+    log(f"{name}: done in {wall:.1f} s" +
+        (f" (this call; {record[name]['wall_s']:.1f} s over all its calls)" if resumed else ""))

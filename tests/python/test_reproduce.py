@@ -178,7 +178,15 @@ def test_figure_triaxial_fit(tmp_path):
     assert res["r2"] == pytest.approx(1.0)
     assert res["fit_points"] == len(T_AGE) - 1
     assert res["q_start_Pa"] == pytest.approx(5.2e6)
+    # q / q(t = 0) at 1 h (between the phases at 1000 s and 5000 s, linear in log t: exact
+    # here) and at 1 day (a phase)
+    assert res["q_ratio_1h"] == pytest.approx(_q(3600.0) / 5.2e6)
+    assert "linear in log t" in res["q_ratio_1h_method"]
+    assert res["q_ratio_1day"] == pytest.approx(_q(86400.0) / 5.2e6)
+    assert res["q_ratio_1day_method"] == "exact"
+    assert res["q_min_Pa"] == pytest.approx(_q(86400.0))
     comments, rows = _read_csv(str(tmp_path / "fig3_triaxial_relaxation.csv"))
+    assert float(rows[-1]["q_over_q_start"]) == pytest.approx(_q(86400.0) / 5.2e6)
     assert any("R^2" in c for c in comments)
     assert rows[0]["q_fit_Pa"] == ""  # no fit value at t = 0
     assert float(rows[3]["q_fit_Pa"]) == pytest.approx(_q(T_AGE[3]))
@@ -252,8 +260,11 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     runs.run_step("r", str(run), start, log.append, record, resume)  # nothing there: runs
     assert calls == ["start"] and record["r"]["skipped"] is False
     (run / "checkpoint.bin").write_bytes(b"x")
+    (run / "timing.json").write_text('{"wall_seconds": 300.0}')  # summed over the run's calls
     runs.run_step("r", str(run), start, log.append, record, resume)
     assert calls[-1] == ("resume", str(run), False) and record["r"]["resumed"] is True
+    assert record["r"]["wall_s"] == 300.0 and record["r"]["wall_s_this_call"] < 300.0
+    (run / "timing.json").unlink()
     runs.run_step("r", str(run), start, log.append, record, failing_resume)
     assert calls[-1] == "start" and record["r"]["resumed"] is False
     assert any("starting over" in m for m in log)
