@@ -518,7 +518,8 @@ def _age_counts(run_dir: str) -> Dict[str, Any]:
 # Sections of settings() that --set may change, and whether it may add keys to them (the
 # configuration sections are checked by the engine's reader, which names a bad key).
 SETTABLE = {"material": True, "contact": True, "crushing": True, "age_stage": True,
-            "oedometric": False, "triaxial": False, "relaxation": False, "age": False}
+            "sample": False, "oedometric": False, "triaxial": False, "relaxation": False,
+            "age": False}
 
 
 def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, Any]:
@@ -564,6 +565,10 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     if sample is not None:
         if not os.path.isfile(sample):
             raise ValueError(f"--sample {sample}: no such file")
+        prepared = [o for o in overrides if o.strip().startswith("sample.")]
+        if prepared:
+            raise ValueError(f"--set {prepared[0]}: the sample is read from --sample {sample}, "
+                             "so its preparation settings do not apply; give one or the other")
         cfg["sample"] = {"file": os.path.abspath(sample)}
     os.makedirs(out, exist_ok=True)
     settings_path = os.path.join(out, "settings.json")
@@ -808,8 +813,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                             f"{k}: {v[2]}" for k, v in PARAMETER_SETS.items()) +
                         " (default: crushdem)")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help="change one setting, e.g. --set contact.rotation=free or --set "
-                             "crushing.r_prime=2R_star (repeatable; sections: "
+                        help="change one setting, e.g. --set contact.rotation=free, --set "
+                             "crushing.r_prime=2R_star or --set sample.seed=2 (another sample "
+                             "of the same recipe) (repeatable; sections: "
                              f"{', '.join(SETTABLE)}); recorded in DIR/settings.json")
     parser.add_argument("--only", default=",".join(TESTS), metavar="TEST[,TEST]",
                         help="run only these tests (" + ", ".join(TESTS) + "; default: both), "

@@ -412,6 +412,19 @@ def test_set_overrides_change_settings_and_name_what_is_wrong():
         rp.apply_overrides(rp.settings(quick=True), ["walls.x=1"])
     with pytest.raises(ValueError, match="unknown key 'cycles' in 'age'"):
         rp.apply_overrides(rp.settings(quick=True), ["age.cycles=1"])
+    # another sample of the same recipe: its seed, and nothing the recipe lacks
+    assert rp.apply_overrides(rp.settings(quick=False), ["sample.seed=2"])["sample"]["seed"] == 2
+    with pytest.raises(ValueError, match="unknown key 'seeds' in 'sample'"):
+        rp.apply_overrides(rp.settings(quick=False), ["sample.seeds=2"])
+
+
+def test_sample_settings_and_a_sample_file_exclude_each_other(tmp_path):
+    sample = tmp_path / "sample.txt"
+    sample.write_text("")
+    with pytest.raises(ValueError, match="--set sample.seed=2: the sample is read from --sample"):
+        rp.reproduce(str(tmp_path / "out"), quick=True, sample=str(sample),
+                     overrides=["sample.seed=2"], log=lambda m: None)
+    assert not (tmp_path / "out").exists()
 
 
 def test_parameter_sets_are_table1_plus_the_decision_study_choice():
