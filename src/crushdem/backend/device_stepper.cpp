@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <string_view>
 #include <tuple>
 #include <type_traits>
 #include <utility>
@@ -165,6 +164,8 @@ struct Field {
   const char* name;
   Count count;
   bool both_ways;  // downloaded by sync() (false: the device only reads it)
+  // Per-entry data (R*, sqrt(R*), m*) derives from it: a host change needs a full upload.
+  bool feeds_entries = false;
   std::size_t elem;
   // The host array's data and its element count (checked against the device's count).
   HostArray host;
@@ -327,12 +328,16 @@ struct DeviceStepper::Impl {
           true, [k](Simulation & s) -> auto& { return s.resultant_force(k); }, resultant[k]);
     }
     // Per grain, read only: sizes and inertia, and the positions at the last list build.
-    const std::tuple<const char*, std::vector<double> PS::*, const double * V::*> sizes[] = {
-        {"radius", &PS::radius, &V::radius},
-        {"mass", &PS::mass, &V::mass},
-        {"inv_mass", &PS::inv_mass, &V::inv_mass},
-        {"inv_inertia", &PS::inv_inertia, &V::inv_inertia}};
-    for (const auto& [name, m, v] : sizes) add_member(name, G, false, grains, m, v);
+    // The last element: whether the per-entry R* and m* derive from it.
+    const std::tuple<const char*, std::vector<double> PS::*, const double * V::*, bool> sizes[] = {
+        {"radius", &PS::radius, &V::radius, true},
+        {"mass", &PS::mass, &V::mass, true},
+        {"inv_mass", &PS::inv_mass, &V::inv_mass, true},
+        {"inv_inertia", &PS::inv_inertia, &V::inv_inertia, false}};
+    for (const auto& [name, m, v, feeds_entries] : sizes) {
+      add_member(name, G, false, grains, m, v);
+      fields.back().feeds_entries = feeds_entries;
+    }
     const double* V::*reference[3] = {&V::x0, &V::y0, &V::z0};
     const char* reference_names[3] = {"x0", "y0", "z0"};
     for (int k = 0; k < 3; ++k) {
@@ -497,12 +502,8 @@ struct DeviceStepper::Impl {
 
   /// Uploads the fields host code changed since they were last transferred.
   void upload_changes(Simulation& sim) {
-    // Per-entry R*, sqrt(R*) and m* derive from these: a change of one needs a full upload.
     for (Field& f : fields) {
-      if (f.name != std::string_view("radius") && f.name != std::string_view("mass") &&
-          f.name != std::string_view("inv_mass")) {
-        continue;
-      }
+      if (!f.feeds_entries) continue;
       const std::size_t bytes = count(f) * f.elem;
       if (std::memcmp(host_data(f, sim), f.shadow.data(), bytes) != 0) {
         full_upload(sim);
