@@ -69,9 +69,10 @@ from .rundir import read_events, read_phases, read_summary, read_timeseries  # n
 from .rundir import is_finished
 from .runs import run_step, set_threads, timing_record
 from .study import (CONTACT, CRUSHING, MATERIAL, NE34,  # noqa: F401  (re-exported)
-                    OEDOMETRIC_STRESS_PA, PARAMETER_SETS, SIGMA_3_PA, TABLE1_CONTACT,
-                    TABLE1_CRUSHING)
+                    OEDOMETRIC_STRESS_PA, PARAMETER_SETS, SIGMA_3_PA, STUDY_Q_MAX_PA,
+                    TABLE1_CONTACT, TABLE1_CRUSHING)
 
+PLATEAU_FROM = 1.0 / 3.0  # the shear's plateau: from a third of its final axial strain
 FIG2_PHASE = 3         # the study's Figure 2: the 4th dynamic phase (0-based in phases.csv)
 RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
 TESTS = ("oedometric", "triaxial")  # --only: the runs of each besides the sample
@@ -628,8 +629,11 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         if "skipped" in result["dynamic_phase"]:
             log(f"Figure 2 left out: {result['dynamic_phase']['skipped']}")
         tri = figure_triaxial(dirs["triaxial_relaxation"], out, written, q_max)
+        shear = runs["triaxial_shear"]
         tri.update(q_max_Pa=q_max, stop_q_Pa=cfg["relaxation"]["q_fraction"] * q_max,
-                   q_fraction=cfg["relaxation"]["q_fraction"])
+                   q_fraction=cfg["relaxation"]["q_fraction"],
+                   **{k: shear[k] for k in ("q_plateau_Pa", "q_plateau_std_Pa",
+                                            "plateau_axial_strain")})
         result["triaxial_relaxation"] = tri
         relaxations.append(("triaxial relaxation", dirs["triaxial_relaxation"]))
     else:
@@ -692,8 +696,42 @@ def _shear_q_max(shear_dir: str, runs: Dict[str, Any]) -> float:
     runs["triaxial_shear"].update(q_max_Pa=q_max,
                                   axial_strain_at_q_max=shear.get("axial_strain_at_q_max"),
                                   max_inertial_number=shear.get("max_inertial_number"),
-                                  grains_end=summary.get("particles"))
+                                  grains_end=summary.get("particles"),
+                                  **shear_plateau(shear_dir))
     return q_max
+
+
+def shear_plateau(shear_dir: str, start_fraction: float = PLATEAU_FROM) -> Dict[str, Any]:
+    """Mean and standard deviation of q over the shear's rows from ``start_fraction`` of its
+    final axial strain to the end (10-30 % at study scale), from ``shear_dir``'s timeseries.csv.
+
+    A sample sheared to critical state holds a plateau there, and q_max is its highest
+    fluctuation; the mean says where the curve lies. Rows are evenly spaced in time and the
+    strain rate is constant, so the mean over rows is the mean over strain. NaN entries when
+    the run has no rows of its triaxial stage."""
+    none = {"q_plateau_Pa": math.nan, "q_plateau_std_Pa": math.nan,
+            "plateau_axial_strain": [math.nan, math.nan], "plateau_rows": 0}
+    summary = read_summary(shear_dir)
+    stages = summary.get("stages") or []
+    index = next((k for k, st in enumerate(stages)
+                  if isinstance(st, dict) and st.get("type") == "triaxial"), None)
+    path = os.path.join(shear_dir, "timeseries.csv")
+    if index is None or not os.path.isfile(path):
+        return none
+    ts = read_timeseries(path)
+    if not has_values(ts, "stage", "stage_axial_strain", "deviator_stress_Pa"):
+        return none
+    in_stage = ts["stage"] == index
+    strain = ts["stage_axial_strain"][in_stage]
+    if strain.size == 0 or not np.isfinite(strain).any():
+        return none
+    end = float(np.nanmax(strain))
+    q = ts["deviator_stress_Pa"][in_stage][strain >= start_fraction * end]
+    q = q[np.isfinite(q)]
+    if q.size == 0:
+        return none
+    return {"q_plateau_Pa": float(np.mean(q)), "q_plateau_std_Pa": float(np.std(q)),
+            "plateau_axial_strain": [start_fraction * end, end], "plateau_rows": int(q.size)}
 
 
 def _read_triaxial(dirs: Mapping[str, str], runs: Dict[str, Any]) -> float:
@@ -703,6 +741,109 @@ def _read_triaxial(dirs: Mapping[str, str], runs: Dict[str, Any]) -> float:
                     {"skipped": True, **timing_record(dirs["triaxial_relaxation"])})
     runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
     return q_max
+
+
+SAMPLE_FIGURES = ("q_max_Pa", "axial_strain_at_q_max", "friction_angle_peak_deg",
+                  "q_plateau_Pa", "q_ratio_1h", "q_ratio_1day", "r2")
+
+
+def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
+    """The triaxial figures of several ``crushdem reproduce`` directories (samples of one
+    recipe, e.g. ``--set sample.seed=K``) side by side, with their mean, standard deviation
+    (n - 1) and standard error, and the mean q_max against the study's.
+
+    Each directory needs a finished triaxial shear; the relaxation figures (q(1 h)/q(0),
+    q(1 day)/q(0), R^2) come from its reproduce.json when the triaxial relaxation has finished
+    there, and are left empty otherwise. Raises ValueError naming a directory without a
+    finished shear, or directories made with different settings apart from the sample seed."""
+    if not out_dirs:
+        raise ValueError("--summarize: expected one or more reproduce directories")
+    rows: List[Dict[str, Any]] = []
+    recipe = None
+    for d in out_dirs:
+        shear_dir = os.path.join(d, "triaxial_shear")
+        if not is_finished(shear_dir):
+            raise ValueError(f"{d}: no finished triaxial shear ({shear_dir}/summary.json)")
+        settings_path = os.path.join(d, "settings.json")
+        cfg: Dict[str, Any] = {}
+        if os.path.isfile(settings_path):
+            with open(settings_path) as f:
+                cfg = json.load(f)
+        same = {k: v for k, v in cfg.items() if k != "sample"}
+        sample = dict(cfg.get("sample") or {})
+        sample.pop("seed", None)
+        same["sample"] = sample
+        if recipe is None:
+            recipe = (d, same)
+        elif same != recipe[1]:
+            raise ValueError(f"{d}: made with other settings than {recipe[0]} (settings.json "
+                             "differs in more than the sample seed); compare samples of one "
+                             "recipe")
+        summary = read_summary(shear_dir)
+        shear = triaxial_stage(summary)
+        info = read_summary(os.path.join(d, "sample")).get("sample") or {}
+        row: Dict[str, Any] = {
+            "dir": d, "seed": (cfg.get("sample") or {}).get("seed"),
+            "grains": info.get("grains"), "void_ratio": info.get("void_ratio"),
+            "q_max_Pa": shear.get("q_max_Pa", math.nan),
+            "axial_strain_at_q_max": shear.get("axial_strain_at_q_max", math.nan),
+            "friction_angle_peak_deg": shear.get("friction_angle_peak_deg", math.nan),
+            **shear_plateau(shear_dir)}
+        tri: Dict[str, Any] = {}
+        if is_finished(os.path.join(d, "triaxial_relaxation")):
+            try:
+                with open(os.path.join(d, "reproduce.json")) as f:
+                    tri = json.load(f).get("triaxial_relaxation") or {}
+            except (OSError, ValueError):
+                tri = {}
+        for k in ("q_ratio_1h", "q_ratio_1day", "r2"):
+            v = tri.get(k)
+            row[k] = float(v) if isinstance(v, (int, float)) else math.nan
+        rows.append(row)
+    stats: Dict[str, Dict[str, Any]] = {}
+    for k in SAMPLE_FIGURES:
+        v = np.array([float(r[k]) if r[k] is not None else math.nan for r in rows])
+        v = v[np.isfinite(v)]
+        std = float(np.std(v, ddof=1)) if v.size > 1 else math.nan
+        stats[k] = {"n": int(v.size), "mean": float(np.mean(v)) if v.size else math.nan,
+                    "std": std, "sem": std / math.sqrt(v.size) if v.size > 1 else math.nan}
+    q = stats["q_max_Pa"]
+    return {"samples": rows, "stats": stats, "study_q_max_Pa": STUDY_Q_MAX_PA,
+            "q_max_mean_vs_study": q["mean"] / STUDY_Q_MAX_PA - 1.0,
+            "q_max_sem_vs_study": q["sem"] / STUDY_Q_MAX_PA}
+
+
+def format_samples(result: Mapping[str, Any]) -> str:
+    """summarize_samples' result as a Markdown table (MPa, %)."""
+
+    def cell(v: Any, scale: float = 1.0, fmt: str = ".4g") -> str:
+        try:
+            f = float(v) * scale
+        except (TypeError, ValueError):
+            return ""
+        return format(f, fmt) if math.isfinite(f) else ""
+
+    scales = {"q_max_Pa": (MPA, ".4g"), "axial_strain_at_q_max": (100.0, ".3g"),
+              "friction_angle_peak_deg": (1.0, ".3g"), "q_plateau_Pa": (MPA, ".4g"),
+              "q_ratio_1h": (1.0, ".3f"), "q_ratio_1day": (1.0, ".3f"), "r2": (1.0, ".3f")}
+    head = ("| sample | seed | grains | e | q_max [MPa] | eps_a at q_max [%] | phi' [deg] "
+            "| q plateau [MPa] | q(1 h)/q(0) | q(1 day)/q(0) | R^2 |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in result["samples"]:
+        lines.append("| " + " | ".join(
+            [r["dir"], str(r["seed"] if r["seed"] is not None else ""),
+             cell(r["grains"], fmt=".0f"), cell(r["void_ratio"], fmt=".3f")] +
+            [cell(r[k], *scales[k]) for k in SAMPLE_FIGURES]) + " |")
+    for name, key in (("mean", "mean"), ("std", "std"), ("standard error", "sem")):
+        lines.append("| " + " | ".join(
+            [name, "", "", ""] +
+            [cell(result["stats"][k][key], *scales[k]) for k in SAMPLE_FIGURES]) + " |")
+    lines.append("")
+    lines.append(f"mean q_max against the study's {result['study_q_max_Pa'] * MPA:g} MPa: "
+                 f"{cell(result['q_max_mean_vs_study'], 100.0, '+.1f')} % "
+                 f"(standard error {cell(result['q_max_sem_vs_study'], 100.0, '.1f')} %, "
+                 f"{result['stats']['q_max_Pa']['n']} samples)")
+    return "\n".join(lines)
 
 
 def _json_safe(x: Any) -> Any:
@@ -717,6 +858,15 @@ def _json_safe(x: Any) -> Any:
     if isinstance(x, np.integer):
         return int(x)
     return x
+
+
+def _strain_range(r: Any) -> str:
+    """"10-30 %" for [0.1, 0.3]; "-" when it is not two finite numbers."""
+    try:
+        lo, hi = (float(v) * 100.0 for v in r)
+    except (TypeError, ValueError):
+        return "-"
+    return f"{lo:.3g}-{hi:.3g} %" if math.isfinite(lo) and math.isfinite(hi) else "-"
 
 
 def format_table(result: Mapping[str, Any]) -> str:
@@ -739,6 +889,9 @@ def format_table(result: Mapping[str, Any]) -> str:
              f"  {'sigma_v(1 day) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1day'))}"
              "   (plausible: 0.70-0.97)",
              f"  {'q_max [MPa]':<40}{num(tri.get('q_max_Pa'), MPA)}   (study: 22.6)",
+             f"  {'q plateau, mean +- std [MPa]':<40}{num(tri.get('q_plateau_Pa'), MPA)}"
+             f" +- {num(tri.get('q_plateau_std_Pa'), MPA, '.2g')}"
+             f"   (axial strain {_strain_range(tri.get('plateau_axial_strain'))})",
              f"  {'0.7 q_max [MPa]':<40}{num(tri.get('stop_q_Pa'), MPA)}",
              f"  {'q at t = 0 / at the end [MPa]':<40}{num(tri.get('q_start_Pa'), MPA)}"
              f" / {num(tri.get('q_end_Pa'), MPA)}",
@@ -799,7 +952,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="crushdem reproduce", description=_DESCRIPTION,
                                      epilog=_EPILOG,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", required=True, metavar="DIR", help="directory for everything")
+    parser.add_argument("--out", metavar="DIR", help="directory for everything (required "
+                        "unless --summarize; with it, where samples.json and samples.md go)")
     parser.add_argument("--quick", action="store_true",
                         help="small sample and short phases (minutes), to check the pipeline")
     parser.add_argument("--threads", type=int, default=None, metavar="N",
@@ -825,9 +979,20 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="what advances the runs: cpu (default), cuda (a GPU, in a build with "
                              "CUDA) or emulated (the GPU's step on the host); recorded in "
                              "DIR/settings.json, as the backends agree only statistically")
+    parser.add_argument("--summarize", nargs="+", default=None, metavar="DIR",
+                        help="run nothing: put the triaxial figures (q_max, its strain and "
+                             "phi', the plateau, q(1 h)/q(0), q(1 day)/q(0), R^2) of these "
+                             "finished reproduce directories (samples of one recipe, e.g. "
+                             "--set sample.seed=K) side by side with their mean, standard "
+                             "deviation and standard error, and the mean q_max against the "
+                             "study's")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.threads is not None and args.threads < 1:
         parser.error("--threads must be >= 1")
+    if args.summarize is not None:
+        return _summarize_main(args.summarize, args.out)
+    if args.out is None:
+        parser.error("the following arguments are required: --out")
 
     def log(msg: str) -> None:
         print(f"crushdem reproduce: {msg}", flush=True)
@@ -846,6 +1011,27 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(os.path.join(args.out, name))
     print(os.path.join(args.out, "reproduce.json"))
     print(format_table(result))
+    return 0
+
+
+def _summarize_main(dirs: Sequence[str], out: Optional[str]) -> int:
+    """``crushdem reproduce --summarize DIR... [--out DIR]``."""
+    try:
+        result = summarize_samples(dirs)
+    except (OSError, ValueError) as e:
+        print(f"crushdem reproduce: error: {e}", file=sys.stderr)
+        return 2
+    table = format_samples(result)
+    if out is not None:
+        os.makedirs(out, exist_ok=True)
+        with open(os.path.join(out, "samples.json"), "w") as f:
+            json.dump(_json_safe(result), f, indent=2)
+            f.write("\n")
+        with open(os.path.join(out, "samples.md"), "w") as f:
+            f.write(table + "\n")
+        print(os.path.join(out, "samples.json"))
+        print(os.path.join(out, "samples.md"))
+    print(table)
     return 0
 
 

@@ -278,6 +278,85 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     assert len(calls) == n and record["r"]["skipped"] and record["r"]["wall_s"] == 12.5
 
 
+def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="blocked"):
+    """A reproduce directory with a finished triaxial shear: isotropic rows (stage 0, large
+    strains that must not count), then the shear (stage 1) at q_peak up to 10 % axial strain
+    and q_plateau +- 0.5 MPa, alternating, from 10 % to 30 % (200 rows). With q_ratio_1day, a
+    finished triaxial relaxation whose reproduce.json gives it."""
+    os.makedirs(out)
+    with open(out / "settings.json", "w") as f:
+        json.dump({"mode": "study", "contact": {"rotation": rotation},
+                   "sample": {"seed": seed, "void_ratio": 0.65}}, f)
+    os.makedirs(out / "sample")
+    with open(out / "sample" / "summary.json", "w") as f:
+        json.dump({"sample": {"grains": 11000 + seed, "void_ratio": 0.652}}, f)
+    shear = out / "triaxial_shear"
+    rows = [{"stage": 0, "stage_axial_strain": 0.25, "deviator_stress_Pa": 0.0}] * 10
+    for k in range(300):
+        strain = (k + 0.5) * 1e-3
+        q = q_peak if strain < 0.1 else q_plateau + (0.5e6 if k % 2 else -0.5e6)
+        rows.append({"stage": 1, "stage_axial_strain": strain, "deviator_stress_Pa": q})
+    _write(str(shear / "timeseries.csv"), rows)
+    with open(shear / "summary.json", "w") as f:
+        json.dump({"particles": 30000, "stages": [
+            {"type": "isotropic", "q_max_Pa": 1e5},
+            {"type": "triaxial", "q_max_Pa": q_peak, "axial_strain_at_q_max": 0.05,
+             "friction_angle_peak_deg": 31.0}]}, f)
+    if q_ratio_1day is not None:
+        os.makedirs(out / "triaxial_relaxation")
+        with open(out / "triaxial_relaxation" / "summary.json", "w") as f:
+            json.dump({}, f)
+        with open(out / "reproduce.json", "w") as f:
+            json.dump({"triaxial_relaxation": {"q_ratio_1h": 0.6, "q_ratio_1day": q_ratio_1day,
+                                               "r2": 0.99}}, f)
+    return str(out)
+
+
+def test_shear_plateau_averages_the_shear_from_a_third_of_its_strain(tmp_path):
+    d = _reproduce_dir(tmp_path / "a", 1, q_plateau=19e6, q_peak=21e6)
+    p = rp.shear_plateau(os.path.join(d, "triaxial_shear"))
+    assert p["plateau_rows"] == 200
+    assert p["q_plateau_Pa"] == pytest.approx(19e6, rel=1e-12)
+    assert p["q_plateau_std_Pa"] == pytest.approx(0.5e6, rel=1e-12)
+    assert p["plateau_axial_strain"] == pytest.approx([0.2995 / 3, 0.2995])
+    # A run without rows of a triaxial stage has no plateau.
+    assert math.isnan(rp.shear_plateau(str(tmp_path))["q_plateau_Pa"])
+
+
+def test_summarize_samples_gives_mean_spread_and_the_gap_to_the_study(tmp_path):
+    dirs = [_reproduce_dir(tmp_path / "s1", 1, 19e6, 21e6, q_ratio_1day=0.5),
+            _reproduce_dir(tmp_path / "s2", 2, 20e6, 22e6, q_ratio_1day=0.4),
+            _reproduce_dir(tmp_path / "s3", 3, 21e6, 23e6)]
+    res = rp.summarize_samples(dirs)
+    q = res["stats"]["q_max_Pa"]
+    assert q["n"] == 3 and q["mean"] == pytest.approx(22e6)
+    assert q["std"] == pytest.approx(1e6) and q["sem"] == pytest.approx(1e6 / math.sqrt(3))
+    assert res["q_max_mean_vs_study"] == pytest.approx(22.0 / 22.6 - 1.0)
+    assert res["stats"]["q_plateau_Pa"]["mean"] == pytest.approx(20e6)
+    # The relaxation figures of the samples whose relaxation finished only.
+    day = res["stats"]["q_ratio_1day"]
+    assert day["n"] == 2 and day["mean"] == pytest.approx(0.45)
+    assert math.isnan(res["samples"][2]["q_ratio_1day"])
+    assert [r["seed"] for r in res["samples"]] == [1, 2, 3]
+    text = rp.format_samples(res)
+    assert "| mean |" in text and "22" in text and "3 samples" in text
+    # The command writes both files and prints the table.
+    assert rp.main(["--summarize", *dirs, "--out", str(tmp_path / "sum")]) == 0
+    with open(tmp_path / "sum" / "samples.json") as f:
+        assert json.load(f)["stats"]["q_max_Pa"]["n"] == 3
+
+
+def test_summarize_samples_refuses_unfinished_shears_and_other_recipes(tmp_path):
+    a = _reproduce_dir(tmp_path / "a", 1, 19e6, 21e6)
+    os.makedirs(tmp_path / "empty")
+    with pytest.raises(ValueError, match="no finished triaxial shear"):
+        rp.summarize_samples([a, str(tmp_path / "empty")])
+    free = _reproduce_dir(tmp_path / "free", 2, 9e6, 10e6, rotation="free")
+    with pytest.raises(ValueError, match="other settings"):
+        rp.summarize_samples([a, free])
+    assert rp.main(["--summarize", a, free]) == 2
+
+
 def test_format_table_handles_missing_numbers():
     text = rp.format_table({"mode": "quick", "dynamic_phase": {"skipped": "no phases.csv"}})
     assert "left out" in text and "q_max" in text
@@ -334,6 +413,9 @@ def test_reproduce_quick_end_to_end(quick_cpu):
               tri["q_max_Pa"], tri["stop_q_Pa"], tri["slope_Pa_per_log10_t"], tri["r2"]):
         assert _finite(v)
     assert tri["stop_q_Pa"] == pytest.approx(0.7 * tri["q_max_Pa"])
+    # The plateau: the shear's last two thirds, below its highest point.
+    assert 0 < tri["q_plateau_Pa"] < tri["q_max_Pa"] and tri["q_plateau_std_Pa"] > 0
+    assert tri["plateau_axial_strain"][1] == pytest.approx(3 * tri["plateau_axial_strain"][0])
     assert oe["sigma_v_ratio_1day"] > 0
     for name in ("oedometric_relaxation", "triaxial_relaxation"):
         r = rj["runs"][name]
