@@ -433,17 +433,19 @@ def figure_forces(runs: Sequence[Tuple[str, str]], out_dir: str,
 
 
 def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
-               record: Dict[str, Any]) -> str:
+               record: Dict[str, Any], progress: bool = False) -> str:
     """The sample of the settings ``cfg`` prepared into ``run_dir`` as a ``run_step``; returns
-    its particle file."""
+    its particle file. progress: the engine's progress lines on stderr (every
+    ``output.progress_seconds``)."""
     from . import lab
 
     backend = backend_of(cfg)
     run_step("sample", run_dir,
               lambda: lab.prepare_sample(run_dir, material=cfg["material"],
                                          contact=cfg["contact"], output=cfg["output"],
-                                         backend=backend, **cfg["sample"]),
-              log, record, resumer(backend))
+                                         backend=backend, progress=progress,
+                                         **cfg["sample"]),
+              log, record, resumer(backend), progress)
     return os.path.join(run_dir, "sample.txt")
 
 
@@ -469,9 +471,11 @@ def age_stage_keys(cfg: Mapping[str, Any]) -> Dict[str, Any]:
 
 def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file: str,
                               log: Callable[[str], None], record: Dict[str, Any],
-                              name: str = "oedometric_relaxation") -> None:
+                              name: str = "oedometric_relaxation",
+                              progress: bool = False) -> None:
     """The study's oedometric relaxation with the settings ``cfg`` (see ``settings``) into
-    ``run_dir``, as a ``run_step`` (skipped when finished, resumed when interrupted)."""
+    ``run_dir``, as a ``run_step`` (skipped when finished, resumed when interrupted);
+    progress: the engine's progress lines on stderr."""
     from . import lab
 
     oe = cfg["oedometric"]
@@ -481,8 +485,8 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
                   run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
                   crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
                   material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
-                  backend=backend),
-              log, record, resumer(backend))
+                  backend=backend, progress=progress),
+              log, record, resumer(backend), progress)
 
 
 def triaxial_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
@@ -551,14 +555,17 @@ def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, 
 def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
               sample: Optional[str] = None, log: Callable[[str], None] = print,
               overrides: Sequence[str] = (), parameters: str = "crushdem",
-              tests: Sequence[str] = TESTS, backend: str = "cpu") -> Dict[str, Any]:
+              tests: Sequence[str] = TESTS, backend: str = "cpu",
+              progress: bool = False) -> Dict[str, Any]:
     """Runs the study's section 3 into ``out`` and draws its figures; returns reproduce.json.
     parameters: a named parameter set (PARAMETER_SETS); overrides: "SECTION.KEY=VALUE" changes
     of the settings on top of it (apply_overrides); backend: what advances every run ("cpu",
     "cuda" or "emulated"); tests: which of TESTS to run ("oedometric":
     the oedometric relaxation; "triaxial": the shear and the triaxial relaxation), so that two
     processes can run them side by side into one ``out`` (the sample first, by either); the
-    figures and reproduce.json then cover the tests whose runs have finished."""
+    figures and reproduce.json then cover the tests whose runs have finished. progress: the
+    engine's progress lines on stderr, one every ``output.progress_seconds`` (60 s at study
+    scale, none with ``quick``), with the stage, q and the share done."""
     unknown = [t for t in tests if t not in TESTS]
     if unknown or not tests:
         raise ValueError(f"--only {','.join(tests)}: expected one or more of {', '.join(TESTS)}")
@@ -595,13 +602,14 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         sample_file = os.path.abspath(sample)
         runs["sample"] = {"skipped": True, "wall_s": 0.0, "file": sample_file}
     else:
-        sample_file = run_sample(cfg, dirs["sample"], log, runs)
+        sample_file = run_sample(cfg, dirs["sample"], log, runs, progress)
         info = read_summary(dirs["sample"]).get("sample") or {}
         runs["sample"].update(grains=info.get("grains"), void_ratio=info.get("void_ratio"))
 
     # 2. Oedometric relaxation.
     if "oedometric" in tests:
-        run_oedometric_relaxation(cfg, dirs["oedometric_relaxation"], sample_file, log, runs)
+        run_oedometric_relaxation(cfg, dirs["oedometric_relaxation"], sample_file, log, runs,
+                                  progress=progress)
     if is_finished(dirs["oedometric_relaxation"]):
         runs.setdefault("oedometric_relaxation", {"skipped": True,
                                                   **timing_record(dirs["oedometric_relaxation"])})
@@ -609,7 +617,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
 
     q_max = math.nan
     if "triaxial" in tests:
-        q_max = _run_triaxial(cfg, dirs, sample_file, log, runs)
+        q_max = _run_triaxial(cfg, dirs, sample_file, log, runs, progress)
     elif is_finished(dirs["triaxial_relaxation"]):
         q_max = _read_triaxial(dirs, runs)
 
@@ -651,7 +659,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
 
 
 def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: str,
-                  log: Callable[[str], None], runs: Dict[str, Any]) -> float:
+                  log: Callable[[str], None], runs: Dict[str, Any], progress: bool) -> float:
     """The triaxial shear (to find q_max), then the triaxial relaxation at q_fraction q_max,
     each a ``run_step``; returns q_max."""
     from . import lab
@@ -659,7 +667,7 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
     backend = backend_of(cfg)
     resume = resumer(backend)
     common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"],
-              "backend": backend}
+              "backend": backend, "progress": progress}
     crushing = dict(cfg["crushing"])
     age = dict(cfg["age"])
     age_stage = age_stage_keys(cfg)
@@ -669,7 +677,7 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
                                         sigma_3=tx["sigma_3"], strain_rate=tx["strain_rate"],
                                         axial_strain=tx["axial_strain"], crushing=crushing,
                                         **common),
-              log, runs, resume)
+              log, runs, resume, progress)
     q_max = _shear_q_max(dirs["triaxial_shear"], runs)
     stop_q = cfg["relaxation"]["q_fraction"] * q_max
 
@@ -679,7 +687,7 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
                   dirs["triaxial_relaxation"], sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
                   strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
                   crushing=crushing, age_stage=age_stage, **age, **common),
-              log, runs, resume)
+              log, runs, resume, progress)
     runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
     return q_max
 
@@ -979,6 +987,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="what advances the runs: cpu (default), cuda (a GPU, in a build with "
                              "CUDA) or emulated (the GPU's step on the host); recorded in "
                              "DIR/settings.json, as the backends agree only statistically")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress lines (by default the engine prints one on stderr "
+                             "every minute at study scale: stage, stresses, share done, ETA)")
     parser.add_argument("--summarize", nargs="+", default=None, metavar="DIR",
                         help="run nothing: put the triaxial figures (q_max, its strain and "
                              "phi', the plateau, q(1 h)/q(0), q(1 day)/q(0), R^2) of these "
@@ -1003,7 +1014,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         result = reproduce(args.out, quick=args.quick, threads=args.threads, sample=args.sample,
                            log=log, overrides=args.set, parameters=args.parameters,
                            tests=[t.strip() for t in args.only.split(",") if t.strip()],
-                           backend=args.backend)
+                           backend=args.backend, progress=not args.quiet)
     except (OSError, ValueError, RuntimeError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2

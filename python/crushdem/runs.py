@@ -31,7 +31,8 @@ def timing_record(run_dir: str) -> Dict[str, Any]:
 
 def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[str], None],
              record: Dict[str, Any],
-             resume: Optional[Callable[[str, bool], Any]] = None) -> None:
+             resume: Optional[Callable[[str, bool], Any]] = None,
+             progress: bool = False) -> None:
     """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing in
     ``record[name]``: wall_s is the run's own wall-clock over every call that advanced it
     (timing.json), wall_s_this_call this call's.
@@ -39,7 +40,8 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
     An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
     instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
     the run starts over. A run that another process is writing (DIR/.lock held) raises
-    RuntimeError: it is neither resumed nor removed.
+    RuntimeError: it is neither resumed nor removed. progress: passed to ``resume`` (the
+    engine's progress lines); ``start`` chooses its own.
     """
     if is_finished(run_dir):
         log(f"{name}: {run_dir} has finished (summary.json): not run again")
@@ -53,7 +55,7 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
     if resume is not None and os.path.isfile(os.path.join(run_dir, "checkpoint.bin")):
         log(f"{name}: resuming the interrupted run in {run_dir} from checkpoint.bin")
         try:
-            resume(run_dir, False)
+            resume(run_dir, progress)
             resumed = True
         except (ValueError, RuntimeError) as e:
             log(f"{name}: cannot resume ({e}): starting over")

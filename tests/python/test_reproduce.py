@@ -264,6 +264,8 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     runs.run_step("r", str(run), start, log.append, record, resume)
     assert calls[-1] == ("resume", str(run), False) and record["r"]["resumed"] is True
     assert record["r"]["wall_s"] == 300.0 and record["r"]["wall_s_this_call"] < 300.0
+    runs.run_step("r", str(run), start, log.append, record, resume, progress=True)
+    assert calls[-1] == ("resume", str(run), True)  # the caller's progress reaches the engine
     (run / "timing.json").unlink()
     runs.run_step("r", str(run), start, log.append, record, failing_resume)
     assert calls[-1] == "start" and record["r"]["resumed"] is False
