@@ -849,7 +849,7 @@ def format_samples(result: Mapping[str, Any]) -> str:
     lines.append("")
     lines.append(f"mean q_max against the study's {result['study_q_max_Pa'] * MPA:g} MPa: "
                  f"{cell(result['q_max_mean_vs_study'], 100.0, '+.1f')} % "
-                 f"(standard error {cell(result['q_max_sem_vs_study'], 100.0, '.1f')} %, "
+                 f"(standard error {cell(result['q_max_sem_vs_study'], 100.0, '.2f')} %, "
                  f"{result['stats']['q_max_Pa']['n']} samples)")
     return "\n".join(lines)
 
