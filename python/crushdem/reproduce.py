@@ -489,11 +489,18 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
               log, record, resumer(backend), progress)
 
 
+def triaxial_stage_index(summary: Mapping[str, Any]) -> Optional[int]:
+    """The index (the ``stage`` column of timeseries.csv) of the first triaxial stage of a
+    summary.json dict; None when there is none."""
+    return next((k for k, st in enumerate(summary.get("stages") or [])
+                 if isinstance(st, dict) and st.get("type") == "triaxial"), None)
+
+
 def triaxial_stage(summary: Mapping[str, Any]) -> Dict[str, Any]:
     """The first triaxial stage of a summary.json dict (q_max_Pa, axial_strain_at_q_max, ...);
     {} when there is none."""
-    return next((st for st in summary.get("stages") or []
-                 if isinstance(st, dict) and st.get("type") == "triaxial"), {})
+    index = triaxial_stage_index(summary)
+    return {} if index is None else summary["stages"][index]
 
 
 def _age_counts(run_dir: str) -> Dict[str, Any]:
@@ -719,10 +726,7 @@ def shear_plateau(shear_dir: str, start_fraction: float = PLATEAU_FROM) -> Dict[
     the run has no rows of its triaxial stage."""
     none = {"q_plateau_Pa": math.nan, "q_plateau_std_Pa": math.nan,
             "plateau_axial_strain": [math.nan, math.nan], "plateau_rows": 0}
-    summary = read_summary(shear_dir)
-    stages = summary.get("stages") or []
-    index = next((k for k, st in enumerate(stages)
-                  if isinstance(st, dict) and st.get("type") == "triaxial"), None)
+    index = triaxial_stage_index(read_summary(shear_dir))
     path = os.path.join(shear_dir, "timeseries.csv")
     if index is None or not os.path.isfile(path):
         return none
@@ -825,11 +829,7 @@ def format_samples(result: Mapping[str, Any]) -> str:
     """summarize_samples' result as a Markdown table (MPa, %)."""
 
     def cell(v: Any, scale: float = 1.0, fmt: str = ".4g") -> str:
-        try:
-            f = float(v) * scale
-        except (TypeError, ValueError):
-            return ""
-        return format(f, fmt) if math.isfinite(f) else ""
+        return _number(v, scale, fmt, missing="")
 
     scales = {"q_max_Pa": (MPA, ".4g"), "axial_strain_at_q_max": (100.0, ".3g"),
               "friction_angle_peak_deg": (1.0, ".3g"), "q_plateau_Pa": (MPA, ".4g"),
@@ -868,6 +868,15 @@ def _json_safe(x: Any) -> Any:
     return x
 
 
+def _number(v: Any, scale: float = 1.0, fmt: str = ".4g", missing: str = "-") -> str:
+    """v times scale formatted with fmt; ``missing`` when v is not a finite number."""
+    try:
+        f = float(v) * scale
+    except (TypeError, ValueError):
+        return missing
+    return format(f, fmt) if math.isfinite(f) else missing
+
+
 def _strain_range(r: Any) -> str:
     """"10-30 %" for [0.1, 0.3]; "-" when it is not two finite numbers."""
     try:
@@ -880,13 +889,7 @@ def _strain_range(r: Any) -> str:
 def format_table(result: Mapping[str, Any]) -> str:
     """The key numbers of reproduce.json as a short plain-text table."""
 
-    def num(v: Any, scale: float = 1.0, fmt: str = ".4g") -> str:
-        try:
-            f = float(v) * scale
-        except (TypeError, ValueError):
-            return "-"
-        return format(f, fmt) if math.isfinite(f) else "-"
-
+    num = _number
     oe = result.get("oedometric_relaxation") or {}
     tri = result.get("triaxial_relaxation") or {}
     dyn = result.get("dynamic_phase") or {}
