@@ -244,12 +244,16 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
                         backend: str = "cpu",
                         stage: Optional[Mapping[str, Any]] = None,
                         age_stage: Optional[Mapping[str, Any]] = None,
+                        branch_from: Union[str, os.PathLike, None] = None,
                         **sections: Any) -> Result:
     """Triaxial stress relaxation (study section 3.2): isotropic compression to ``sigma_3``,
     shear until q reaches ``stop_q`` (e.g. 0.7 q_max), then hold the axial strain with the
     lateral walls servo-controlled at ``sigma_3`` during dynamic phases, and age.
     ``age_stage``: keys for the age stage only (e.g. a faster lateral servo,
-    ``max_strain_rate``, which the other stages must not get)."""
+    ``max_strain_rate``, which the other stages must not get). ``branch_from``: a
+    ``triaxial_test`` (or relaxation) with the same grains, settings and isotropic compression
+    whose state at the start of its shear this run starts from, instead of compressing again;
+    the results are those of the unbranched run."""
     common = stage or {}
     _crushing_with_cracks(sections)
     cfg = _base(sample, sections)
@@ -261,4 +265,5 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
                min_cycles=min_cycles, n_break=n_break, axial="fixed", lateral="servo",
                lateral_stress=sigma_3),
     ]
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
+    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend,
+               branch_from=branch_from, branch_stage=None if branch_from is None else "shear")

@@ -66,7 +66,7 @@ from .analysis import (BACKEND_TOLERANCE, DAY_S, HOUR_S, N_BREAK_TOLERANCE,  # n
                        fit_log_t, has_values, lateral_stress, value_at, vertical_stress)
 from .figures import MPA, mark_times, use_file_backend_without_display
 from .rundir import read_events, read_phases, read_summary, read_timeseries  # noqa: F401
-from .rundir import is_finished
+from .rundir import has_stage_state, is_finished
 from .runs import run_step, set_threads, timing_record
 from .study import (CONTACT, CRUSHING, MATERIAL, NE34,  # noqa: F401  (re-exported)
                     OEDOMETRIC_STRESS_PA, PARAMETER_SETS, SIGMA_3_PA, STUDY_Q_MAX_PA,
@@ -672,31 +672,46 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
     from . import lab
 
     backend = backend_of(cfg)
-    resume = resumer(backend)
-    common = {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"],
-              "backend": backend, "progress": progress}
-    crushing = dict(cfg["crushing"])
-    age = dict(cfg["age"])
-    age_stage = age_stage_keys(cfg)
     tx = cfg["triaxial"]
     run_step("triaxial_shear", dirs["triaxial_shear"],
               lambda: lab.triaxial_test(dirs["triaxial_shear"], sample_file,
                                         sigma_3=tx["sigma_3"], strain_rate=tx["strain_rate"],
-                                        axial_strain=tx["axial_strain"], crushing=crushing,
-                                        **common),
-              log, runs, resume, progress)
+                                        axial_strain=tx["axial_strain"],
+                                        crushing=dict(cfg["crushing"]),
+                                        material=cfg["material"], contact=cfg["contact"],
+                                        output=cfg["output"], backend=backend,
+                                        progress=progress),
+              log, runs, resumer(backend), progress)
     q_max = _shear_q_max(dirs["triaxial_shear"], runs)
-    stop_q = cfg["relaxation"]["q_fraction"] * q_max
-
-    # The triaxial relaxation at 0.7 q_max: the same shear, stopped there.
-    run_step("triaxial_relaxation", dirs["triaxial_relaxation"],
-              lambda: lab.triaxial_relaxation(
-                  dirs["triaxial_relaxation"], sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
-                  strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
-                  crushing=crushing, age_stage=age_stage, **age, **common),
-              log, runs, resume, progress)
+    # The shear's isotropic compression is the relaxation's too: branch from its end.
+    branch = dirs["triaxial_shear"] if has_stage_state(dirs["triaxial_shear"], 1) else None
+    run_triaxial_relaxation(cfg, dirs["triaxial_relaxation"], sample_file,
+                            cfg["relaxation"]["q_fraction"] * q_max, log, runs,
+                            progress=progress, branch_from=branch)
     runs["triaxial_relaxation"].update(_age_counts(dirs["triaxial_relaxation"]))
     return q_max
+
+
+def run_triaxial_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file: str,
+                            stop_q: float, log: Callable[[str], None], record: Dict[str, Any],
+                            name: str = "triaxial_relaxation", progress: bool = False,
+                            branch_from: Optional[str] = None) -> None:
+    """The study's triaxial relaxation with the settings ``cfg``: the shear of the triaxial test
+    stopped at ``stop_q`` (0.7 q_max), then one day of ageing, into ``run_dir`` as a
+    ``run_step``. branch_from: a triaxial shear of the same settings and sample whose state
+    after the isotropic compression this run starts from (same results, fewer steps)."""
+    from . import lab
+
+    backend = backend_of(cfg)
+    tx = cfg["triaxial"]
+    run_step(name, run_dir,
+              lambda: lab.triaxial_relaxation(
+                  run_dir, sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
+                  strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
+                  crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
+                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
+                  backend=backend, progress=progress, branch_from=branch_from),
+              log, record, resumer(backend), progress)
 
 
 def _shear_q_max(shear_dir: str, runs: Dict[str, Any]) -> float:
@@ -938,7 +953,8 @@ quartz sand, one day of ageing each) and draw its four figures into DIR:
 fig1_oedometric_relaxation, fig2_dynamic_phase4, fig3_triaxial_relaxation and
 fig4_force_statistics (PNG, with the CSV of what each draws), plus DIR/reproduce.json with the key
 numbers. Each run is a run directory of its own (DIR/sample, DIR/oedometric_relaxation,
-DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem plot` can draw."""
+DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem plot` can draw; the triaxial
+relaxation starts from the shear's state after its isotropic compression (same results)."""
 
 _EPILOG = """\
 Restarting: a run whose directory already has summary.json (written when it finishes) is NOT

@@ -82,6 +82,12 @@ def is_finished(run_dir: PathLike) -> bool:
     return os.path.isfile(os.path.join(run_dir, "summary.json"))
 
 
+def has_stage_state(run_dir: PathLike, stage: int) -> bool:
+    """Whether the run kept its state at the start of stage ``stage`` (DIR/stages/stage_K.bin),
+    which a branch (``crushdem run --from DIR:STAGE``) starts from."""
+    return os.path.isfile(os.path.join(run_dir, "stages", f"stage_{int(stage)}.bin"))
+
+
 def is_being_written(run_dir: PathLike) -> bool:
     """Whether a crushdem run is writing the directory now: it holds an exclusive ``flock`` on
     DIR/.lock while it runs (released by the kernel when its process ends, however it ends)."""

@@ -442,6 +442,35 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     assert res.returncode == 2 and "other settings" in res.stderr
 
 
+def test_the_triaxial_relaxation_branches_from_the_shear_with_the_same_results(quick_cpu,
+                                                                                tmp_path):
+    """The relaxation starts from the shear run's state after the isotropic compression
+    instead of compressing again, and its files are those of the unbranched run, byte for
+    byte (the branch only skips work)."""
+    out, calls = quick_cpu
+    assert all(c.returncode == 0 for c in calls)
+    relaxation = out / "triaxial_relaxation"
+    with open(relaxation / "summary.json") as f:
+        summary = json.load(f)
+    assert summary["branched_from"]["stage"] == 1
+    assert os.path.samefile(summary["branched_from"]["run"], out / "triaxial_shear")
+    with open(out / "settings.json") as f:
+        cfg = json.load(f)
+    with open(out / "reproduce.json") as f:
+        stop_q = json.load(f)["triaxial_relaxation"]["stop_q_Pa"]
+    unbranched = tmp_path / "unbranched"
+    record = {}
+    installed = pytest.importorskip("crushdem.reproduce")  # runs need the compiled engine
+    installed.run_triaxial_relaxation(cfg, str(unbranched), str(out / "sample" / "sample.txt"),
+                               stop_q, lambda _msg: None, record)
+    with open(unbranched / "summary.json") as f:
+        assert "branched_from" not in json.load(f)
+    for name in ("timeseries.csv", "events.csv", "breakage.csv", "phases.csv"):
+        if os.path.isfile(relaxation / name) or os.path.isfile(unbranched / name):
+            with open(relaxation / name, "rb") as a, open(unbranched / name, "rb") as b:
+                assert a.read() == b.read(), name
+
+
 def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
     """The whole pipeline on the device step (its host emulation: the GPU's bits without a
     GPU), from the CPU run's sample: every run finishes on that backend and lands within the
