@@ -774,19 +774,61 @@ SAMPLE_FIGURES = ("q_max_Pa", "axial_strain_at_q_max", "friction_angle_peak_deg"
                   "q_plateau_Pa", "q_ratio_1h", "q_ratio_1day", "r2")
 
 
+def _sample_of(d: str, cfg: Mapping[str, Any]) -> Tuple[str, str, Dict[str, Any]]:
+    """The sample a reproduce directory ran on: (the real path of its particle file, a short
+    label, the sample run's summary "sample" entry). The file is DIR/sample/sample.txt, or the
+    ``--sample`` file the settings name (the grains and e then from the summary beside it)."""
+    sample = cfg.get("sample") or {}
+    given = sample.get("file")
+    path = os.path.realpath(given if given else os.path.join(d, "sample", "sample.txt"))
+    summary_dir = os.path.dirname(path) if given else os.path.join(d, "sample")
+    info: Dict[str, Any] = {}
+    if os.path.isfile(os.path.join(summary_dir, "summary.json")):
+        info = read_summary(summary_dir).get("sample") or {}
+    seed = sample.get("seed", info.get("seed"))
+    label = f"seed {seed}" if not given and seed is not None else (given or path)
+    return path, label, info
+
+
+def _recipe(cfg: Mapping[str, Any]) -> Dict[str, Any]:
+    """The settings apart from the sample: what a test does to whichever sample it gets."""
+    return {k: v for k, v in cfg.items() if k != "sample"}
+
+
+def _sample_recipe(cfg: Mapping[str, Any]) -> Optional[Dict[str, Any]]:
+    """How the directory prepared its own sample, apart from the seed (None for a --sample
+    file, made elsewhere)."""
+    sample = cfg.get("sample") or {}
+    if "file" in sample:
+        return None
+    return {k: v for k, v in sample.items() if k != "seed"}
+
+
+def _flat(cfg: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
+    out: Dict[str, Any] = {}
+    for k, v in cfg.items():
+        if isinstance(v, Mapping):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
 def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
     """The triaxial figures of several ``crushdem reproduce`` directories (samples of one
-    recipe, e.g. ``--set sample.seed=K``) side by side, with their mean, standard deviation
-    (n - 1) and standard error, and the mean q_max against the study's.
+    recipe: ``--set sample.seed=K``, or prepared samples given by ``--sample``) side by side,
+    with their mean, standard deviation (n - 1) and standard error, and the mean q_max against
+    the study's.
 
     Each directory needs a finished triaxial shear; the relaxation figures (q(1 h)/q(0),
     q(1 day)/q(0), R^2) come from its reproduce.json when the triaxial relaxation has finished
     there, and are left empty otherwise. Raises ValueError naming a directory without a
-    finished shear, or directories made with different settings apart from the sample seed."""
+    finished shear, or directories made with different settings apart from the sample."""
     if not out_dirs:
         raise ValueError("--summarize: expected one or more reproduce directories")
     rows: List[Dict[str, Any]] = []
     recipe = None
+    sample_recipe = None
     for d in out_dirs:
         shear_dir = os.path.join(d, "triaxial_shear")
         if not is_finished(shear_dir):
@@ -796,21 +838,26 @@ def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
         if os.path.isfile(settings_path):
             with open(settings_path) as f:
                 cfg = json.load(f)
-        same = {k: v for k, v in cfg.items() if k != "sample"}
-        sample = dict(cfg.get("sample") or {})
-        sample.pop("seed", None)
-        same["sample"] = sample
+        same = _recipe(cfg)
         if recipe is None:
-            recipe = (d, same)
+            recipe = (d, same, cfg)
         elif same != recipe[1]:
             raise ValueError(f"{d}: made with other settings than {recipe[0]} (settings.json "
-                             "differs in more than the sample seed); compare samples of one "
-                             "recipe")
+                             "differs in more than the sample); compare samples of one "
+                             "recipe, or two recipes with --against")
+        made = _sample_recipe(cfg)
+        if made is not None:
+            if sample_recipe is None:
+                sample_recipe = (d, made)
+            elif made != sample_recipe[1]:
+                raise ValueError(f"{d}: prepares its sample otherwise than {sample_recipe[0]} "
+                                 "(settings.json sample differs in more than the seed)")
         summary = read_summary(shear_dir)
         shear = triaxial_stage(summary)
-        info = read_summary(os.path.join(d, "sample")).get("sample") or {}
+        sample_path, label, info = _sample_of(d, cfg)
         row: Dict[str, Any] = {
-            "dir": d, "seed": (cfg.get("sample") or {}).get("seed"),
+            "dir": d, "sample": label, "sample_file": sample_path,
+            "seed": (cfg.get("sample") or {}).get("seed"),
             "grains": info.get("grains"), "void_ratio": info.get("void_ratio"),
             "q_max_Pa": shear.get("q_max_Pa", math.nan),
             "axial_strain_at_q_max": shear.get("axial_strain_at_q_max", math.nan),
@@ -827,17 +874,80 @@ def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
             v = tri.get(k)
             row[k] = float(v) if isinstance(v, (int, float)) else math.nan
         rows.append(row)
+    q = _stats(rows, SAMPLE_FIGURES)
+    return {"samples": rows, "stats": q, "settings": recipe[2] if recipe else {},
+            "sample_recipe": sample_recipe[1] if sample_recipe else None,
+            "study_q_max_Pa": STUDY_Q_MAX_PA,
+            "q_max_mean_vs_study": q["q_max_Pa"]["mean"] / STUDY_Q_MAX_PA - 1.0,
+            "q_max_sem_vs_study": q["q_max_Pa"]["sem"] / STUDY_Q_MAX_PA}
+
+
+def _stats(rows: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> Dict[str, Dict[str, Any]]:
+    """Per key: n, mean, standard deviation (n - 1) and standard error over the finite
+    values."""
     stats: Dict[str, Dict[str, Any]] = {}
-    for k in SAMPLE_FIGURES:
-        v = np.array([float(r[k]) if r[k] is not None else math.nan for r in rows])
+    for k in keys:
+        v = np.array([float(r[k]) if r.get(k) is not None else math.nan for r in rows])
         v = v[np.isfinite(v)]
         std = float(np.std(v, ddof=1)) if v.size > 1 else math.nan
         stats[k] = {"n": int(v.size), "mean": float(np.mean(v)) if v.size else math.nan,
                     "std": std, "sem": std / math.sqrt(v.size) if v.size > 1 else math.nan}
-    q = stats["q_max_Pa"]
-    return {"samples": rows, "stats": stats, "study_q_max_Pa": STUDY_Q_MAX_PA,
-            "q_max_mean_vs_study": q["mean"] / STUDY_Q_MAX_PA - 1.0,
-            "q_max_sem_vs_study": q["sem"] / STUDY_Q_MAX_PA}
+    return stats
+
+
+PAIRED_FIGURES = ("q_max_Pa", "q_plateau_Pa", "axial_strain_at_q_max")
+
+
+def compare_recipes(variant_dirs: Sequence[str], base_dirs: Sequence[str]) -> Dict[str, Any]:
+    """Two recipes on the same samples: each directory of ``variant_dirs`` is paired with the
+    one of ``base_dirs`` that ran on the same sample (the same particle file: a base's own
+    DIR/sample/sample.txt given to the variant by ``--sample``, or the same seed), and the
+    differences variant - base of q_max, the plateau and the strain at q_max are averaged with
+    their standard error. On one packing the sample-to-sample scatter cancels, so a change of
+    a choice shows with fewer runs. Raises ValueError for a variant without a base on its
+    sample, or when the two recipes have the same settings."""
+    variant = summarize_samples(variant_dirs)
+    base = summarize_samples(base_dirs)
+    fv, fb = _flat(_recipe(variant["settings"])), _flat(_recipe(base["settings"]))
+    changed = {k: [fb.get(k), fv.get(k)] for k in sorted(set(fv) | set(fb))
+               if fv.get(k) != fb.get(k)}
+    if not changed:
+        raise ValueError("--against: the two groups were made with the same settings; "
+                         "--summarize them together instead")
+    # One seed of one sample recipe is one packing (preparation is deterministic).
+    same_recipe = (variant["sample_recipe"] is not None and
+                   variant["sample_recipe"] == base["sample_recipe"])
+
+    def keys(r: Mapping[str, Any]) -> List[Tuple[str, Any]]:
+        out: List[Tuple[str, Any]] = [("file", r["sample_file"])]
+        if same_recipe and r["seed"] is not None:
+            out.append(("seed", r["seed"]))
+        return out
+
+    by_sample: Dict[Tuple[str, Any], Mapping[str, Any]] = {}
+    for r in base["samples"]:
+        for k in keys(r):
+            if k in by_sample:
+                raise ValueError(f"{r['dir']} and {by_sample[k]['dir']}: both ran on "
+                                 f"{r['sample']}; give one directory per sample")
+            by_sample[k] = r
+    pairs: List[Dict[str, Any]] = []
+    for r in variant["samples"]:
+        b = next((by_sample[k] for k in keys(r) if k in by_sample), None)
+        if b is None:
+            raise ValueError(f"{r['dir']}: no directory of --against ran on its sample "
+                             f"({r['sample']})")
+        if any(p["base_dir"] == b["dir"] for p in pairs):
+            raise ValueError(f"{r['dir']}: another directory ran on its sample "
+                             f"({r['sample']}); give one directory per sample")
+        pair: Dict[str, Any] = {"sample": b["sample"], "base_dir": b["dir"], "dir": r["dir"]}
+        for k in PAIRED_FIGURES:
+            pair[f"base_{k}"], pair[k] = b[k], r[k]
+            pair[f"delta_{k}"] = float(r[k]) - float(b[k])
+        pairs.append(pair)
+    return {"changed": changed, "pairs": pairs,
+            "stats": _stats(pairs, [f"delta_{k}" for k in PAIRED_FIGURES]),
+            "variant": variant, "base": base}
 
 
 def format_samples(result: Mapping[str, Any]) -> str:
@@ -849,12 +959,12 @@ def format_samples(result: Mapping[str, Any]) -> str:
     scales = {"q_max_Pa": (MPA, ".4g"), "axial_strain_at_q_max": (100.0, ".3g"),
               "friction_angle_peak_deg": (1.0, ".3g"), "q_plateau_Pa": (MPA, ".4g"),
               "q_ratio_1h": (1.0, ".3f"), "q_ratio_1day": (1.0, ".3f"), "r2": (1.0, ".3f")}
-    head = ("| sample | seed | grains | e | q_max [MPa] | eps_a at q_max [%] | phi' [deg] "
+    head = ("| directory | sample | grains | e | q_max [MPa] | eps_a at q_max [%] | phi' [deg] "
             "| q plateau [MPa] | q(1 h)/q(0) | q(1 day)/q(0) | R^2 |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in result["samples"]:
         lines.append("| " + " | ".join(
-            [r["dir"], str(r["seed"] if r["seed"] is not None else ""),
+            [r["dir"], r["sample"],
              cell(r["grains"], fmt=".0f"), cell(r["void_ratio"], fmt=".3f")] +
             [cell(r[k], *scales[k]) for k in SAMPLE_FIGURES]) + " |")
     for name, key in (("mean", "mean"), ("std", "std"), ("standard error", "sem")):
@@ -867,6 +977,41 @@ def format_samples(result: Mapping[str, Any]) -> str:
                  f"(standard error {cell(result['q_max_sem_vs_study'], 100.0, '.2f')} %, "
                  f"{result['stats']['q_max_Pa']['n']} samples)")
     return "\n".join(lines)
+
+
+def format_comparison(result: Mapping[str, Any]) -> str:
+    """compare_recipes' result as Markdown: what changed, then the pairs and their mean
+    difference with its standard error (MPa, %)."""
+    lines = ["changed from the --against directories: " + ", ".join(
+        f"{k} = {_show_setting(a)} -> {_show_setting(b)}"
+        for k, (a, b) in result["changed"].items()), ""]
+    head = ("| sample | q_max against [MPa] | q_max [MPa] | difference [MPa] "
+            "| plateau against [MPa] | plateau [MPa] | difference [MPa] "
+            "| eps_a at q_max against [%] | eps_a at q_max [%] |")
+    lines += [head, "|" + "---|" * (head.count("|") - 1)]
+    for p in result["pairs"]:
+        lines.append("| " + " | ".join(
+            [p["sample"], _number(p["base_q_max_Pa"], MPA, ".4g"),
+             _number(p["q_max_Pa"], MPA, ".4g"), _number(p["delta_q_max_Pa"], MPA, "+.3f"),
+             _number(p["base_q_plateau_Pa"], MPA, ".4g"), _number(p["q_plateau_Pa"], MPA, ".4g"),
+             _number(p["delta_q_plateau_Pa"], MPA, "+.3f"),
+             _number(p["base_axial_strain_at_q_max"], 100.0, ".3g"),
+             _number(p["axial_strain_at_q_max"], 100.0, ".3g")]) + " |")
+    st = result["stats"]
+    lines.append("")
+    for name, k in (("q_max", "delta_q_max_Pa"), ("plateau", "delta_q_plateau_Pa")):
+        lines.append(f"{name}: mean difference {_number(st[k]['mean'], MPA, '+.3f')} MPa "
+                     f"(standard error {_number(st[k]['sem'], MPA, '.3f')} MPa, "
+                     f"{st[k]['n']} pairs)")
+    v = result["variant"]
+    lines.append(f"q_max against the study's {v['study_q_max_Pa'] * MPA:g} MPa: "
+                 f"{_number(v['q_max_mean_vs_study'], 100.0, '+.1f')} % with the change, "
+                 f"{_number(result['base']['q_max_mean_vs_study'], 100.0, '+.1f')} % without")
+    return "\n".join(lines)
+
+
+def _show_setting(v: Any) -> str:
+    return "(unset)" if v is None else json.dumps(v)
 
 
 def _json_safe(x: Any) -> Any:
@@ -1016,11 +1161,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                              "--set sample.seed=K) side by side with their mean, standard "
                              "deviation and standard error, and the mean q_max against the "
                              "study's")
+    parser.add_argument("--against", nargs="+", default=None, metavar="DIR",
+                        help="with --summarize: finished reproduce directories of another "
+                             "recipe on the same samples (e.g. the default set, where the "
+                             "--summarize ones change one key, each run with --sample "
+                             "BASE/sample/sample.txt or the same sample.seed): each pair's "
+                             "difference in q_max, plateau and strain at q_max, and the mean "
+                             "difference with its standard error; writes comparison.json and "
+                             "comparison.md with --out")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
     if args.threads is not None and args.threads < 1:
         parser.error("--threads must be >= 1")
+    if args.against is not None and args.summarize is None:
+        parser.error("--against needs --summarize DIR...")
     if args.summarize is not None:
-        return _summarize_main(args.summarize, args.out)
+        return _summarize_main(args.summarize, args.out, args.against)
     if args.out is None:
         parser.error("the following arguments are required: --out")
 
@@ -1044,23 +1199,28 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     return 0
 
 
-def _summarize_main(dirs: Sequence[str], out: Optional[str]) -> int:
-    """``crushdem reproduce --summarize DIR... [--out DIR]``."""
+def _summarize_main(dirs: Sequence[str], out: Optional[str],
+                    against: Optional[Sequence[str]] = None) -> int:
+    """``crushdem reproduce --summarize DIR... [--against DIR...] [--out DIR]``."""
     try:
-        result = summarize_samples(dirs)
+        if against is None:
+            result = summarize_samples(dirs)
+            table, name = format_samples(result), "samples"
+        else:
+            result = compare_recipes(dirs, against)
+            table, name = format_comparison(result), "comparison"
     except (OSError, ValueError) as e:
         print(f"crushdem reproduce: error: {e}", file=sys.stderr)
         return 2
-    table = format_samples(result)
     if out is not None:
         os.makedirs(out, exist_ok=True)
-        with open(os.path.join(out, "samples.json"), "w") as f:
+        with open(os.path.join(out, f"{name}.json"), "w") as f:
             json.dump(_json_safe(result), f, indent=2)
             f.write("\n")
-        with open(os.path.join(out, "samples.md"), "w") as f:
+        with open(os.path.join(out, f"{name}.md"), "w") as f:
             f.write(table + "\n")
-        print(os.path.join(out, "samples.json"))
-        print(os.path.join(out, "samples.md"))
+        print(os.path.join(out, f"{name}.json"))
+        print(os.path.join(out, f"{name}.md"))
     print(table)
     return 0
 

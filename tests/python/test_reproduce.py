@@ -280,18 +280,27 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
     assert len(calls) == n and record["r"]["skipped"] and record["r"]["wall_s"] == 12.5
 
 
-def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="blocked"):
+def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="blocked",
+                   d0=None, sample_file=None):
     """A reproduce directory with a finished triaxial shear: isotropic rows (stage 0, large
     strains that must not count), then the shear (stage 1) at q_peak up to 10 % axial strain
     and q_plateau +- 0.5 MPa, alternating, from 10 % to 30 % (200 rows). With q_ratio_1day, a
-    finished triaxial relaxation whose reproduce.json gives it."""
+    finished triaxial relaxation whose reproduce.json gives it. With d0, crushing.d0 set; with
+    sample_file, run on that prepared sample (--sample) instead of its own of seed ``seed``."""
     os.makedirs(out)
+    settings = {"mode": "study", "contact": {"rotation": rotation},
+                "sample": ({"seed": seed, "void_ratio": 0.65} if sample_file is None
+                           else {"file": str(sample_file)})}
+    if d0 is not None:
+        settings["crushing"] = {"d0": d0}
     with open(out / "settings.json", "w") as f:
-        json.dump({"mode": "study", "contact": {"rotation": rotation},
-                   "sample": {"seed": seed, "void_ratio": 0.65}}, f)
-    os.makedirs(out / "sample")
-    with open(out / "sample" / "summary.json", "w") as f:
-        json.dump({"sample": {"grains": 11000 + seed, "void_ratio": 0.652}}, f)
+        json.dump(settings, f)
+    if sample_file is None:
+        os.makedirs(out / "sample")
+        with open(out / "sample" / "summary.json", "w") as f:
+            json.dump({"sample": {"grains": 11000 + seed, "void_ratio": 0.652}}, f)
+        with open(out / "sample" / "sample.txt", "w") as f:
+            f.write(f"# a sample of seed {seed}\n")
     shear = out / "triaxial_shear"
     rows = [{"stage": 0, "stage_axial_strain": 0.25, "deviator_stress_Pa": 0.0}] * 10
     for k in range(300):
@@ -357,6 +366,78 @@ def test_summarize_samples_refuses_unfinished_shears_and_other_recipes(tmp_path)
     with pytest.raises(ValueError, match="other settings"):
         rp.summarize_samples([a, free])
     assert rp.main(["--summarize", a, free]) == 2
+
+
+def test_against_pairs_two_recipes_by_sample_and_averages_the_differences(tmp_path):
+    """A change of one key on the samples of the base recipe: each run paired with the base run
+    on its sample (its file given by --sample, or the same seed), the differences averaged."""
+    b1 = _reproduce_dir(tmp_path / "b1", 1, 19.8e6, 21.0e6)
+    b2 = _reproduce_dir(tmp_path / "b2", 2, 19.9e6, 21.4e6)
+    # Run with --sample on b2's prepared file.
+    v2 = _reproduce_dir(tmp_path / "v2", None, 20.0e6, 21.6e6, d0=1.07e-3,
+                        sample_file=tmp_path / "b2" / "sample" / "sample.txt")
+    res = rp.compare_recipes([v2], [b1, b2])
+    assert res["changed"] == {"crushing.d0": [None, 1.07e-3]}
+    assert [p["base_dir"] for p in res["pairs"]] == [b2]
+    assert res["pairs"][0]["delta_q_max_Pa"] == pytest.approx(0.2e6)
+    # One run on b1's file, whichever order the base directories come in.
+    v1 = _reproduce_dir(tmp_path / "v1", None, 19.9e6, 21.3e6, d0=1.07e-3,
+                        sample_file=tmp_path / "b1" / "sample" / "sample.txt")
+    res = rp.compare_recipes([v1, v2], [b2, b1])
+    assert [p["base_dir"] for p in res["pairs"]] == [b1, b2]
+    d = res["stats"]["delta_q_max_Pa"]
+    assert d["n"] == 2 and d["mean"] == pytest.approx(0.25e6)
+    assert d["sem"] == pytest.approx(0.05e6)
+    assert res["stats"]["delta_q_plateau_Pa"]["mean"] == pytest.approx(0.1e6)
+    text = rp.format_comparison(res)
+    assert "crushing.d0 = (unset) -> 0.00107" in text and "+0.250" in text
+    assert "2 pairs" in text
+    # By seed: a variant that prepared its own sample of seed 2 (the same packing) pairs with
+    # b2, beside one on b1's file.
+    own = _reproduce_dir(tmp_path / "own2", 2, 20.1e6, 21.9e6, d0=1.07e-3)
+    res = rp.compare_recipes([v1, own], [b1, b2])
+    assert [p["base_dir"] for p in res["pairs"]] == [b1, b2]
+    assert res["pairs"][1]["delta_q_max_Pa"] == pytest.approx(0.5e6)
+    # Another sample recipe: a seed is another packing, so only files pair.
+    other = _reproduce_dir(tmp_path / "other2", 2, 20.1e6, 21.9e6, d0=1.07e-3)
+    with open(os.path.join(other, "settings.json")) as f:
+        settings = json.load(f)
+    settings["sample"]["void_ratio"] = 0.7
+    with open(os.path.join(other, "settings.json"), "w") as f:
+        json.dump(settings, f)
+    with pytest.raises(ValueError, match="no directory of --against ran on its sample"):
+        rp.compare_recipes([other], [b1, b2])
+    # The command writes comparison.json and comparison.md.
+    out = tmp_path / "cmp"
+    assert rp.main(["--summarize", v1, v2, "--against", b1, b2, "--out", str(out)]) == 0
+    with open(out / "comparison.json") as f:
+        assert json.load(f)["stats"]["delta_q_max_Pa"]["n"] == 2
+    assert os.path.getsize(out / "comparison.md") > 100
+
+
+def test_against_refuses_unpaired_samples_and_identical_recipes(tmp_path, capsys):
+    b1 = _reproduce_dir(tmp_path / "b1", 1, 19.8e6, 21.0e6)
+    b2 = _reproduce_dir(tmp_path / "b2", 2, 19.9e6, 21.4e6)
+    v3 = _reproduce_dir(tmp_path / "v3", 3, 20.0e6, 21.6e6, d0=1.07e-3)
+    with pytest.raises(ValueError, match="no directory of --against ran on its sample"):
+        rp.compare_recipes([v3], [b1, b2])
+    with pytest.raises(ValueError, match="same settings"):
+        rp.compare_recipes([b1], [b2])
+    twin = _reproduce_dir(tmp_path / "twin", 1, 19.0e6, 21.0e6)
+    with pytest.raises(ValueError, match="both ran on"):
+        rp.compare_recipes([v3], [b1, twin])
+    loose = _reproduce_dir(tmp_path / "loose", 5, 19.0e6, 21.0e6)
+    with open(os.path.join(loose, "settings.json")) as f:
+        settings = json.load(f)
+    settings["sample"]["void_ratio"] = 0.7
+    with open(os.path.join(loose, "settings.json"), "w") as f:
+        json.dump(settings, f)
+    with pytest.raises(ValueError, match="prepares its sample otherwise"):
+        rp.summarize_samples([b1, loose])
+    assert rp.main(["--summarize", v3, "--against", b1, b2]) == 2
+    assert "v3" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        rp.main(["--against", b1])  # --against alone
 
 
 def test_format_table_handles_missing_numbers():
