@@ -281,15 +281,16 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
 
 
 def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="blocked",
-                   d0=None, sample_file=None):
+                   d0=None, sample_file=None, void_ratio=0.65):
     """A reproduce directory with a finished triaxial shear: isotropic rows (stage 0, large
     strains that must not count), then the shear (stage 1) at q_peak up to 10 % axial strain
     and q_plateau +- 0.5 MPa, alternating, from 10 % to 30 % (200 rows). With q_ratio_1day, a
     finished triaxial relaxation whose reproduce.json gives it. With d0, crushing.d0 set; with
-    sample_file, run on that prepared sample (--sample) instead of its own of seed ``seed``."""
+    sample_file, run on that prepared sample (--sample) instead of its own of seed ``seed``
+    (prepared to ``void_ratio``)."""
     os.makedirs(out)
     settings = {"mode": "study", "contact": {"rotation": rotation},
-                "sample": ({"seed": seed, "void_ratio": 0.65} if sample_file is None
+                "sample": ({"seed": seed, "void_ratio": void_ratio} if sample_file is None
                            else {"file": str(sample_file)})}
     if d0 is not None:
         settings["crushing"] = {"d0": d0}
@@ -399,12 +400,7 @@ def test_against_pairs_two_recipes_by_sample_and_averages_the_differences(tmp_pa
     assert [p["base_dir"] for p in res["pairs"]] == [b1, b2]
     assert res["pairs"][1]["delta_q_max_Pa"] == pytest.approx(0.5e6)
     # Another sample recipe: a seed is another packing, so only files pair.
-    other = _reproduce_dir(tmp_path / "other2", 2, 20.1e6, 21.9e6, d0=1.07e-3)
-    with open(os.path.join(other, "settings.json")) as f:
-        settings = json.load(f)
-    settings["sample"]["void_ratio"] = 0.7
-    with open(os.path.join(other, "settings.json"), "w") as f:
-        json.dump(settings, f)
+    other = _reproduce_dir(tmp_path / "other2", 2, 20.1e6, 21.9e6, d0=1.07e-3, void_ratio=0.7)
     with pytest.raises(ValueError, match="no directory of --against ran on its sample"):
         rp.compare_recipes([other], [b1, b2])
     # The command writes comparison.json and comparison.md.
@@ -426,12 +422,7 @@ def test_against_refuses_unpaired_samples_and_identical_recipes(tmp_path, capsys
     twin = _reproduce_dir(tmp_path / "twin", 1, 19.0e6, 21.0e6)
     with pytest.raises(ValueError, match="both ran on"):
         rp.compare_recipes([v3], [b1, twin])
-    loose = _reproduce_dir(tmp_path / "loose", 5, 19.0e6, 21.0e6)
-    with open(os.path.join(loose, "settings.json")) as f:
-        settings = json.load(f)
-    settings["sample"]["void_ratio"] = 0.7
-    with open(os.path.join(loose, "settings.json"), "w") as f:
-        json.dump(settings, f)
+    loose = _reproduce_dir(tmp_path / "loose", 5, 19.0e6, 21.0e6, void_ratio=0.7)
     with pytest.raises(ValueError, match="prepares its sample otherwise"):
         rp.summarize_samples([b1, loose])
     assert rp.main(["--summarize", v3, "--against", b1, b2]) == 2
