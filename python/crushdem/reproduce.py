@@ -439,14 +439,18 @@ def run_sample(cfg: Mapping[str, Any], run_dir: str, log: Callable[[str], None],
     ``output.progress_seconds``)."""
     from . import lab
 
-    backend = backend_of(cfg)
     run_step("sample", run_dir,
-              lambda: lab.prepare_sample(run_dir, material=cfg["material"],
-                                         contact=cfg["contact"], output=cfg["output"],
-                                         backend=backend, progress=progress,
+              lambda: lab.prepare_sample(run_dir, **run_sections(cfg, progress),
                                          **cfg["sample"]),
-              log, record, resumer(backend), progress)
+              log, record, resumer(backend_of(cfg)), progress)
     return os.path.join(run_dir, "sample.txt")
+
+
+def run_sections(cfg: Mapping[str, Any], progress: bool) -> Dict[str, Any]:
+    """The keyword arguments every run of the settings ``cfg`` gets from crushdem.lab: the
+    material, contact and output sections, the backend and the progress lines."""
+    return {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"],
+            "backend": backend_of(cfg), "progress": progress}
 
 
 def backend_of(cfg: Mapping[str, Any]) -> str:
@@ -479,14 +483,12 @@ def run_oedometric_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file:
     from . import lab
 
     oe = cfg["oedometric"]
-    backend = backend_of(cfg)
     run_step(name, run_dir,
               lambda: lab.oedometric_relaxation(
                   run_dir, sample_file, stress=oe["stress"], strain_rate=oe["strain_rate"],
                   crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
-                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
-                  backend=backend, progress=progress),
-              log, record, resumer(backend), progress)
+                  **run_sections(cfg, progress)),
+              log, record, resumer(backend_of(cfg)), progress)
 
 
 def triaxial_stage_index(summary: Mapping[str, Any]) -> Optional[int]:
@@ -671,17 +673,14 @@ def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: 
     each a ``run_step``; returns q_max."""
     from . import lab
 
-    backend = backend_of(cfg)
     tx = cfg["triaxial"]
     run_step("triaxial_shear", dirs["triaxial_shear"],
               lambda: lab.triaxial_test(dirs["triaxial_shear"], sample_file,
                                         sigma_3=tx["sigma_3"], strain_rate=tx["strain_rate"],
                                         axial_strain=tx["axial_strain"],
                                         crushing=dict(cfg["crushing"]),
-                                        material=cfg["material"], contact=cfg["contact"],
-                                        output=cfg["output"], backend=backend,
-                                        progress=progress),
-              log, runs, resumer(backend), progress)
+                                        **run_sections(cfg, progress)),
+              log, runs, resumer(backend_of(cfg)), progress)
     q_max = _shear_q_max(dirs["triaxial_shear"], runs)
     # The shear's isotropic compression is the relaxation's too: branch from its end.
     branch = dirs["triaxial_shear"] if has_stage_state(dirs["triaxial_shear"], 1) else None
@@ -702,16 +701,14 @@ def run_triaxial_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file: s
     after the isotropic compression this run starts from (same results, fewer steps)."""
     from . import lab
 
-    backend = backend_of(cfg)
     tx = cfg["triaxial"]
     run_step(name, run_dir,
               lambda: lab.triaxial_relaxation(
                   run_dir, sample_file, sigma_3=tx["sigma_3"], stop_q=stop_q,
                   strain_rate=tx["strain_rate"], axial_strain=tx["axial_strain"],
                   crushing=dict(cfg["crushing"]), age_stage=age_stage_keys(cfg), **cfg["age"],
-                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
-                  backend=backend, progress=progress, branch_from=branch_from),
-              log, record, resumer(backend), progress)
+                  branch_from=branch_from, **run_sections(cfg, progress)),
+              log, record, resumer(backend_of(cfg)), progress)
 
 
 def _shear_q_max(shear_dir: str, runs: Dict[str, Any]) -> float:
@@ -774,20 +771,20 @@ SAMPLE_FIGURES = ("q_max_Pa", "axial_strain_at_q_max", "friction_angle_peak_deg"
                   "q_plateau_Pa", "q_ratio_1h", "q_ratio_1day", "r2")
 
 
-def _sample_of(d: str, cfg: Mapping[str, Any]) -> Tuple[str, str, Dict[str, Any]]:
-    """The sample a reproduce directory ran on: (the real path of its particle file, a short
-    label, the sample run's summary "sample" entry). The file is DIR/sample/sample.txt, or the
-    ``--sample`` file the settings name (the grains and e then from the summary beside it)."""
+def _sample_of(d: str, cfg: Mapping[str, Any]) -> Dict[str, Any]:
+    """The sample a reproduce directory ran on: the real path of its particle file
+    (``sample_file``), its ``seed`` (None for a ``--sample`` file), a short ``label`` and the
+    sample run's summary entry (``info``: grains, e). The file is DIR/sample/sample.txt, or the
+    ``--sample`` file the settings name (its summary then the one beside it)."""
     sample = cfg.get("sample") or {}
     given = sample.get("file")
-    path = os.path.realpath(given if given else os.path.join(d, "sample", "sample.txt"))
-    summary_dir = os.path.dirname(path) if given else os.path.join(d, "sample")
+    path = os.path.realpath(given or os.path.join(d, "sample", "sample.txt"))
     info: Dict[str, Any] = {}
-    if os.path.isfile(os.path.join(summary_dir, "summary.json")):
-        info = read_summary(summary_dir).get("sample") or {}
-    seed = sample.get("seed", info.get("seed"))
-    label = f"seed {seed}" if not given and seed is not None else (given or path)
-    return path, label, info
+    if os.path.isfile(os.path.join(os.path.dirname(path), "summary.json")):
+        info = read_summary(os.path.dirname(path)).get("sample") or {}
+    seed = None if given else sample.get("seed")
+    label = given or (f"seed {seed}" if seed is not None else path)
+    return {"sample_file": path, "seed": seed, "label": label, "info": info}
 
 
 def _recipe(cfg: Mapping[str, Any]) -> Dict[str, Any]:
@@ -854,10 +851,11 @@ def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
                                  "(settings.json sample differs in more than the seed)")
         summary = read_summary(shear_dir)
         shear = triaxial_stage(summary)
-        sample_path, label, info = _sample_of(d, cfg)
+        used = _sample_of(d, cfg)
+        info = used["info"]
         row: Dict[str, Any] = {
-            "dir": d, "sample": label, "sample_file": sample_path,
-            "seed": (cfg.get("sample") or {}).get("seed"),
+            "dir": d, "sample": used["label"], "sample_file": used["sample_file"],
+            "seed": used["seed"],
             "grains": info.get("grains"), "void_ratio": info.get("void_ratio"),
             "q_max_Pa": shear.get("q_max_Pa", math.nan),
             "axial_strain_at_q_max": shear.get("axial_strain_at_q_max", math.nan),
