@@ -27,7 +27,9 @@ one point per dynamic phase (the study's red dots):
 * ``fig1_oedometric_relaxation``  sigma_v(t) / sigma_v(4 s), sigma_v = mean of the two axial wall
   stresses. sigma_v(4 s) is interpolated linearly in log t between the phases on either side of
   4 s; when the first phase after t = 0 is already later than 4 s (the first jumps can be long),
-  linearly in t between the t = 0 phase and that one (the CSV header says which).
+  linearly in t between the t = 0 phase and that one (the CSV header says which). With the
+  straight line in log t fitted to the phases with t > 0 and its R^2 (not judged with fewer
+  than 3 such phases: two points lie on any line).
 * ``fig2_dynamic_phase4``  during the 4th dynamic phase of the triaxial relaxation: (a) the
   confining pressure fluctuation and (b) the volumetric strain generated, against the cycles of
   the phase, from the run's ``phases.csv`` (one row every ``record_interval`` steps of each
@@ -162,6 +164,29 @@ def _save(fig, path: str, written: List[str]) -> None:
     written.append(path)
 
 
+def _fit_caveat(fit: Mapping[str, Any]) -> str:
+    """Why a fit has no R^2: two points lie on any line."""
+    return "" if math.isfinite(fit["r2"]) else (
+        f" (not judged: {fit['points']} phase(s) with t > 0, a line needs 3 to be tested)")
+
+
+def _fit_line(fit: Mapping[str, Any], t: np.ndarray) -> np.ndarray:
+    """The fitted line at the phases' times (NaN at t = 0, off the log axis)."""
+    return np.where(t > 0, fit["intercept"] + fit["slope"] * np.log10(np.where(t > 0, t, 1.0)),
+                    math.nan)
+
+
+def _draw_fit(ax, fit: Mapping[str, Any], t: np.ndarray, scale: float, unit: str) -> None:
+    """The straight line in log t over the phases with t > 0, dashed, with its slope and R^2."""
+    if not math.isfinite(fit["slope"]):
+        return
+    pos = t > 0
+    tt = np.geomspace(np.min(t[pos]), np.max(t[pos]), 50)
+    r2 = f"{fit['r2']:.3f}" if math.isfinite(fit["r2"]) else f"n/a ({fit['points']} points)"
+    ax.semilogx(tt, (fit["intercept"] + fit["slope"] * np.log10(tt)) * scale, "--", color="k",
+                lw=1.2, label=f"fit: {fit['slope'] * scale:+.3g} {unit}, $R^2$ = {r2}")
+
+
 def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[str, Any]:
     """fig1_oedometric_relaxation.{png,csv} from ``run_dir``/events.csv; returns its numbers."""
     ev = read_events(run_dir)
@@ -176,6 +201,7 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
     ratio = s / s_ref if math.isfinite(s_ref) and s_ref != 0 else np.full(s.size, math.nan)
     r_1h, how_1h = value_at(t, ratio, HOUR_S)
     r_1d, how_1d = value_at(t, ratio, DAY_S)
+    fit = fit_log_t(t, ratio)
     base = os.path.join(out_dir, "fig1_oedometric_relaxation")
     _write_csv(base + ".csv", [
         "Oedometric stress relaxation (study Figure 1): one row per dynamic phase.",
@@ -183,6 +209,8 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
         "sigma_v_ratio = sigma_v / sigma_v(4 s).",
         f"sigma_v(4 s) = {s_ref!r} Pa: {how}.",
         f"ratio at 1 h = {r_1h!r} ({how_1h}); at 1 day = {r_1d!r} ({how_1d}).",
+        f"fit over the {fit['points']} phases with t > 0: sigma_v_ratio = {fit['intercept']!r} + "
+        f"{fit['slope']!r} log10(t / 1 s); R^2 = {fit['r2']!r}{_fit_caveat(fit)}",
         f"source: {os.path.join(run_dir, 'events.csv')}",
     ], {
         "dynamic_phase": column(ev, "dynamic_phase", idx).astype(np.int64)
@@ -190,6 +218,7 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
         "ageing_time_s": t,
         "sigma_v_Pa": s,
         "sigma_v_ratio": ratio,
+        "sigma_v_ratio_fit": _fit_line(fit, t),
         "sigma_v_over_first_phase": s / s[0] if s.size and s[0] else np.full(s.size, math.nan),
         "breakages_instant": column(ev, "breakages_instant", idx),
         "breakages_crack": column(ev, "breakages_crack", idx),
@@ -201,6 +230,7 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
     ax.semilogx(t[pos], ratio[pos], "-", color="0.3", lw=1.2, zorder=1, label="DEM")
     ax.semilogx(t[pos], ratio[pos], "o", color="red", ms=5, zorder=2,
                 label="dynamic phases (end)")
+    _draw_fit(ax, fit, t, 1.0, "per log cycle")
     if math.isfinite(s_ref):
         ax.plot([T_REF_S], [1.0], "s", mfc="none", mec="k", ms=7,
                 label=f"$\\sigma_v$(4 s) = {s_ref * MPA:.3g} MPa")
@@ -222,7 +252,9 @@ def figure_oedometric(run_dir: str, out_dir: str, written: List[str]) -> Dict[st
             "sigma_v_4s_Pa": s_ref, "sigma_v_4s_method": how,
             "sigma_v_ratio_1h": r_1h, "sigma_v_ratio_1h_method": how_1h,
             "sigma_v_ratio_1day": r_1d, "sigma_v_ratio_1day_method": how_1d,
-            "sigma_v_ratio_end": float(ratio[-1]) if ratio.size else math.nan}
+            "sigma_v_ratio_end": float(ratio[-1]) if ratio.size else math.nan,
+            "ratio_slope_per_log10_t": fit["slope"], "ratio_intercept": fit["intercept"],
+            "r2": fit["r2"], "fit_points": fit["points"]}
 
 
 def figure_dynamic_phase(run_dir: str, out_dir: str, written: List[str],
@@ -308,8 +340,6 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
     ratio = q / q0 if math.isfinite(q0) and q0 != 0 else np.full(q.size, math.nan)
     r_1h, how_1h = value_at(t, ratio, HOUR_S)
     r_1d, how_1d = value_at(t, ratio, DAY_S)
-    q_fit = np.where(t > 0, fit["intercept"] + fit["slope"] * np.log10(np.where(t > 0, t, 1.0)),
-                     math.nan)
     lateral = lateral_stress(ev)
     base = os.path.join(out_dir, "fig3_triaxial_relaxation")
     _write_csv(base + ".csv", [
@@ -317,7 +347,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
         "lateral wall stress at the end of the phase.",
         f"fit over the {fit['points']} phases with t > 0: q = {fit['intercept']!r} + "
         f"{fit['slope']!r} log10(t / 1 s) [Pa]; slope per log10 cycle = {fit['slope']!r} Pa; "
-        f"R^2 = {fit['r2']!r}",
+        f"R^2 = {fit['r2']!r}{_fit_caveat(fit)}",
         f"q at the first phase (t = 0) = {q0!r} Pa; q_max of the shear = {q_max!r} Pa",
         f"q / q(t = 0) at 1 h = {r_1h!r} ({how_1h}); at 1 day = {r_1d!r} ({how_1d}).",
         f"source: {os.path.join(run_dir, 'events.csv')}",
@@ -326,7 +356,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
         if has_values(ev, "dynamic_phase") else np.arange(idx.size),
         "ageing_time_s": t,
         "deviator_stress_Pa": q,
-        "q_fit_Pa": q_fit,
+        "q_fit_Pa": _fit_line(fit, t),
         "q_over_q_start": ratio,
         "q_over_q_max": q / q_max if math.isfinite(q_max) and q_max else np.full(q.size,
                                                                                  math.nan),
@@ -344,11 +374,7 @@ def figure_triaxial(run_dir: str, out_dir: str, written: List[str],
     if math.isfinite(q0):  # t = 0 has no place on the log axis: drawn as a level
         ax.axhline(q0 * MPA, color="tab:red", ls=":", lw=1.0,
                    label=f"q at t = 0: {q0 * MPA:.3g} MPa")
-    if math.isfinite(fit["slope"]):
-        tt = np.geomspace(np.min(t[pos]), np.max(t[pos]), 50)
-        ax.semilogx(tt, (fit["intercept"] + fit["slope"] * np.log10(tt)) * MPA, "--", color="k",
-                    lw=1.2, label=f"fit: {fit['slope'] * MPA:+.3g} MPa per log cycle, "
-                                  f"$R^2$ = {fit['r2']:.3f}")
+    _draw_fit(ax, fit, t, MPA, "MPa per log cycle")
     ax.set_xlabel("ageing time $t$ [s] (log scale)")
     ax.set_ylabel("deviator stress $q$ [MPa]")
     ax.set_title(f"Triaxial stress relaxation from q = {q0 * MPA:.3g} MPa" +
@@ -768,7 +794,15 @@ def _read_triaxial(dirs: Mapping[str, str], runs: Dict[str, Any]) -> float:
 
 
 SAMPLE_FIGURES = ("q_max_Pa", "axial_strain_at_q_max", "friction_angle_peak_deg",
-                  "q_plateau_Pa", "q_ratio_1h", "q_ratio_1day", "r2")
+                  "q_plateau_Pa", "q_ratio_1h", "q_ratio_1day", "r2", "sigma_v_ratio_1day",
+                  "oedometric_r2")
+# The relaxation figures --summarize reads from a directory's reproduce.json once the run has
+# finished there: run -> {column: key in reproduce.json's entry of that run}.
+RELAXATION_FIGURES = {
+    "triaxial_relaxation": {"q_ratio_1h": "q_ratio_1h", "q_ratio_1day": "q_ratio_1day",
+                            "r2": "r2"},
+    "oedometric_relaxation": {"sigma_v_ratio_1day": "sigma_v_ratio_1day",
+                              "oedometric_r2": "r2"}}
 
 
 def _sample_of(d: str, cfg: Mapping[str, Any]) -> Dict[str, Any]:
@@ -861,16 +895,17 @@ def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
             "axial_strain_at_q_max": shear.get("axial_strain_at_q_max", math.nan),
             "friction_angle_peak_deg": shear.get("friction_angle_peak_deg", math.nan),
             **shear_plateau(shear_dir)}
-        tri: Dict[str, Any] = {}
-        if is_finished(os.path.join(d, "triaxial_relaxation")):
-            try:
-                with open(os.path.join(d, "reproduce.json")) as f:
-                    tri = json.load(f).get("triaxial_relaxation") or {}
-            except (OSError, ValueError):
-                tri = {}
-        for k in ("q_ratio_1h", "q_ratio_1day", "r2"):
-            v = tri.get(k)
-            row[k] = float(v) if isinstance(v, (int, float)) else math.nan
+        drawn: Dict[str, Any] = {}
+        try:
+            with open(os.path.join(d, "reproduce.json")) as f:
+                drawn = json.load(f)
+        except (OSError, ValueError):
+            drawn = {}
+        for run, figures in RELAXATION_FIGURES.items():
+            found = (drawn.get(run) or {}) if is_finished(os.path.join(d, run)) else {}
+            for column_name, key in figures.items():
+                v = found.get(key)
+                row[column_name] = float(v) if isinstance(v, (int, float)) else math.nan
         rows.append(row)
     q = _stats(rows, SAMPLE_FIGURES)
     return {"samples": rows, "stats": q, "settings": recipe[2] if recipe else {},
@@ -956,9 +991,11 @@ def format_samples(result: Mapping[str, Any]) -> str:
 
     scales = {"q_max_Pa": (MPA, ".4g"), "axial_strain_at_q_max": (100.0, ".3g"),
               "friction_angle_peak_deg": (1.0, ".3g"), "q_plateau_Pa": (MPA, ".4g"),
-              "q_ratio_1h": (1.0, ".3f"), "q_ratio_1day": (1.0, ".3f"), "r2": (1.0, ".3f")}
+              "q_ratio_1h": (1.0, ".3f"), "q_ratio_1day": (1.0, ".3f"), "r2": (1.0, ".3f"),
+              "sigma_v_ratio_1day": (1.0, ".3f"), "oedometric_r2": (1.0, ".3f")}
     head = ("| directory | sample | grains | e | q_max [MPa] | eps_a at q_max [%] | phi' [deg] "
-            "| q plateau [MPa] | q(1 h)/q(0) | q(1 day)/q(0) | R^2 |")
+            "| q plateau [MPa] | q(1 h)/q(0) | q(1 day)/q(0) | q R^2 "
+            "| sigma_v(1 day)/sigma_v(4 s) | sigma_v R^2 |")
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in result["samples"]:
         lines.append("| " + " | ".join(
@@ -1057,6 +1094,8 @@ def format_table(result: Mapping[str, Any]) -> str:
              f"  {'sigma_v(1 h) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1h'))}",
              f"  {'sigma_v(1 day) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1day'))}"
              "   (plausible: 0.70-0.97)",
+             f"  {'sigma_v fit R^2 (phases with t > 0)':<40}{num(oe.get('r2'), fmt='.3f')}"
+             f"   ({num(oe.get('fit_points'), fmt='.0f')} phases)",
              f"  {'q_max [MPa]':<40}{num(tri.get('q_max_Pa'), MPA)}   (study: 22.6)",
              f"  {'q plateau, mean +- std [MPa]':<40}{num(tri.get('q_plateau_Pa'), MPA)}"
              f" +- {num(tri.get('q_plateau_std_Pa'), MPA, '.2g')}"
@@ -1067,7 +1106,8 @@ def format_table(result: Mapping[str, Any]) -> str:
              f"  {'q(1 h) / q(0)':<40}{num(tri.get('q_ratio_1h'))}",
              f"  {'q(1 day) / q(0)':<40}{num(tri.get('q_ratio_1day'))}",
              f"  {'q slope [MPa per log10 cycle]':<40}{num(tri.get('slope_Pa_per_log10_t'), MPA)}",
-             f"  {'q fit R^2':<40}{num(tri.get('r2'), fmt='.3f')}"]
+             f"  {'q fit R^2 (phases with t > 0)':<40}{num(tri.get('r2'), fmt='.3f')}"
+             f"   ({num(tri.get('fit_points'), fmt='.0f')} phases)"]
     if "skipped" in dyn:
         lines.append(f"  {'Figure 2':<40}left out: {dyn['skipped']}")
     else:

@@ -159,6 +159,24 @@ def test_figure_oedometric_normalises_at_4_s(tmp_path):
     for r, t in zip(rows, T_AGE):
         assert float(r["ageing_time_s"]) == t
         assert float(r["sigma_v_ratio"]) == pytest.approx(_sigma_v(t) / s4)
+    # sigma_v falls linearly in log t: the fit over the phases with t > 0 finds it exactly.
+    assert res["fit_points"] == len(T_AGE) - 1
+    assert res["ratio_slope_per_log10_t"] == pytest.approx(-0.3e6 / s4)
+    assert res["r2"] == pytest.approx(1.0)
+    assert rows[0]["sigma_v_ratio_fit"] == ""  # t = 0 is off the log axis
+    assert float(rows[4]["sigma_v_ratio_fit"]) == pytest.approx(_sigma_v(T_AGE[4]) / s4)
+    assert any("R^2 = " in c for c in comments)
+
+
+def test_figure_oedometric_does_not_judge_a_line_through_two_phases(tmp_path):
+    # Fewer than N_break grains fail after the first jump: one more phase, at one day.
+    run = _oedometric_run(tmp_path, times=[0.0, 18.0, 86400.0])
+    res = rp.figure_oedometric(run, str(tmp_path), [])
+    assert res["fit_points"] == 2 and math.isnan(res["r2"])
+    assert math.isfinite(res["ratio_slope_per_log10_t"])
+    comments, _ = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    assert any("not judged: 2 phase(s) with t > 0" in c for c in comments)
+    assert "(2 phases)" in rp.format_table({"oedometric_relaxation": res})
 
 
 def test_figure_oedometric_first_phase_after_4_s(tmp_path):
@@ -281,7 +299,7 @@ def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
 
 
 def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="blocked",
-                   d0=None, sample_file=None, void_ratio=0.65):
+                   d0=None, sample_file=None, void_ratio=0.65, sigma_v_ratio_1day=None):
     """A reproduce directory with a finished triaxial shear: isotropic rows (stage 0, large
     strains that must not count), then the shear (stage 1) at q_peak up to 10 % axial strain
     and q_plateau +- 0.5 MPa, alternating, from 10 % to 30 % (200 rows). With q_ratio_1day, a
@@ -314,13 +332,19 @@ def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="bl
             {"type": "isotropic", "q_max_Pa": 1e5},
             {"type": "triaxial", "q_max_Pa": q_peak, "axial_strain_at_q_max": 0.05,
              "friction_angle_peak_deg": 31.0}]}, f)
+    drawn = {}
     if q_ratio_1day is not None:
-        os.makedirs(out / "triaxial_relaxation")
-        with open(out / "triaxial_relaxation" / "summary.json", "w") as f:
+        drawn["triaxial_relaxation"] = {"q_ratio_1h": 0.6, "q_ratio_1day": q_ratio_1day,
+                                        "r2": 0.99}
+    if sigma_v_ratio_1day is not None:
+        drawn["oedometric_relaxation"] = {"sigma_v_ratio_1day": sigma_v_ratio_1day, "r2": 0.98}
+    for run in drawn:
+        os.makedirs(out / run)
+        with open(out / run / "summary.json", "w") as f:
             json.dump({}, f)
+    if drawn:
         with open(out / "reproduce.json", "w") as f:
-            json.dump({"triaxial_relaxation": {"q_ratio_1h": 0.6, "q_ratio_1day": q_ratio_1day,
-                                               "r2": 0.99}}, f)
+            json.dump(drawn, f)
     return str(out)
 
 
@@ -337,8 +361,9 @@ def test_shear_plateau_averages_the_shear_from_a_third_of_its_strain(tmp_path):
 
 def test_summarize_samples_gives_mean_spread_and_the_gap_to_the_study(tmp_path):
     dirs = [_reproduce_dir(tmp_path / "s1", 1, 19e6, 21e6, q_ratio_1day=0.5),
-            _reproduce_dir(tmp_path / "s2", 2, 20e6, 22e6, q_ratio_1day=0.4),
-            _reproduce_dir(tmp_path / "s3", 3, 21e6, 23e6)]
+            _reproduce_dir(tmp_path / "s2", 2, 20e6, 22e6, q_ratio_1day=0.4,
+                           sigma_v_ratio_1day=0.95),
+            _reproduce_dir(tmp_path / "s3", 3, 21e6, 23e6, sigma_v_ratio_1day=0.93)]
     res = rp.summarize_samples(dirs)
     q = res["stats"]["q_max_Pa"]
     assert q["n"] == 3 and q["mean"] == pytest.approx(22e6)
@@ -349,6 +374,11 @@ def test_summarize_samples_gives_mean_spread_and_the_gap_to_the_study(tmp_path):
     day = res["stats"]["q_ratio_1day"]
     assert day["n"] == 2 and day["mean"] == pytest.approx(0.45)
     assert math.isnan(res["samples"][2]["q_ratio_1day"])
+    oed = res["stats"]["sigma_v_ratio_1day"]
+    assert oed["n"] == 2 and oed["mean"] == pytest.approx(0.94)
+    assert math.isnan(res["samples"][0]["sigma_v_ratio_1day"])
+    assert res["samples"][2]["oedometric_r2"] == pytest.approx(0.98)
+    assert math.isnan(res["samples"][2]["r2"])  # its triaxial relaxation has not run
     assert [r["seed"] for r in res["samples"]] == [1, 2, 3]
     text = rp.format_samples(res)
     assert "| mean |" in text and "22" in text and "3 samples" in text
