@@ -40,7 +40,8 @@ one point per dynamic phase (the study's red dots):
   contacts, triaxial and oedometric relaxation.
 
 ``DIR/reproduce.json`` holds the key numbers (sigma_v ratios at 1 h and 1 day, q_max, the fit,
-phases, breakages, grains, wall-clock time of each run); a table of them is printed at the end.
+phases, breakages, grains, wall-clock time of each run, and the crushdem version and commit of
+the call that wrote it); a table of them is printed at the end.
 
 ``--quick`` runs the same pipeline on a 500-grain sample (e = 0.75: a cube that small packs
 looser, docs/laboratory-tests.md) with short dynamic phases, to check the pipeline in a few
@@ -660,7 +661,7 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     # out here and drawn by the call that finishes it, or by a later one).
     written: List[str] = []
     result: Dict[str, Any] = {"mode": cfg["mode"], "threads": used_threads,
-                              "settings": "settings.json", "runs": runs}
+                              "settings": "settings.json", **_made_by(), "runs": runs}
     relaxations = []
     if is_finished(dirs["oedometric_relaxation"]):
         result["oedometric_relaxation"] = figure_oedometric(dirs["oedometric_relaxation"], out,
@@ -691,6 +692,13 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
         json.dump(_json_safe(result), f, indent=2)
         f.write("\n")
     return result
+
+
+def _made_by() -> Dict[str, str]:
+    """The crushdem version and commit of this call (every run's summary.json has the engine's
+    too; a directory advanced by several calls shows the last)."""
+    from . import _core  # the compiled module, imported only when something runs
+    return {"crushdem_version": _core.__version__, "crushdem_commit": _core.__commit__}
 
 
 def _run_triaxial(cfg: Mapping[str, Any], dirs: Mapping[str, str], sample_file: str,

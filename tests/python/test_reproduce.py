@@ -521,6 +521,10 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     assert 0 < tri["q_plateau_Pa"] < tri["q_max_Pa"] and tri["q_plateau_std_Pa"] > 0
     assert tri["plateau_axial_strain"][1] == pytest.approx(3 * tri["plateau_axial_strain"][0])
     assert oe["sigma_v_ratio_1day"] > 0
+    assert oe["fit_points"] >= 1
+    import crushdem
+    assert rj["crushdem_version"] == crushdem.__version__
+    assert rj["crushdem_commit"] == crushdem.__commit__
     for name in ("oedometric_relaxation", "triaxial_relaxation"):
         r = rj["runs"][name]
         assert r["dynamic_phases"] >= 2 and r["grains_end"] > 0 and _finite(r["wall_s"])
