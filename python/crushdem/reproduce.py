@@ -619,10 +619,17 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     if os.path.isfile(settings_path):
         with open(settings_path) as f:
             before = json.load(f)
-        if before != json.loads(json.dumps(cfg)):
+        now = json.loads(json.dumps(cfg))
+        if before != now:
+            there, here = _flat(before), _flat(now)
+            differ = "; ".join(f"{k} = {_show_setting(there.get(k))} there, "
+                               f"{_show_setting(here.get(k))} in this call"
+                               for k in sorted(set(there) | set(here))
+                               if there.get(k) != here.get(k))
             raise ValueError(f"{out} holds results made with other settings ({settings_path}: "
-                             f"mode {before.get('mode')!r}, this call {cfg['mode']!r}); use "
-                             "another --out, or delete that directory")
+                             f"{differ}); give the same --parameters, --set and --sample as "
+                             "the call that made them, another --out, or delete that "
+                             "directory")
     else:
         with open(settings_path, "w") as f:
             json.dump(cfg, f, indent=2)
@@ -1157,10 +1164,11 @@ the same DIR stops
 with an error instead of mixing results.
 
 Study scale (default): the 4 mm REV of examples/sample_rev.toml (about 11,400 grains,
-e = 0.65), Table 1 with rotation blocked and d0 = 1 mm (--parameters crushdem; --parameters
-table1 for free rotation and d0 = d50), crushing with crack growth (density scaling of small fragments), dynamic
-phases of 150,000 cycles, N_break = 30, triaxial shear at 50 /s to 30 %: many hours to days
-on a 2-core workstation.
+e = 0.65), Table 1 with rotation blocked and d0 = 1.07 mm (--parameters crushdem;
+--parameters blocked_d0_1mm for the set with d0 = 1 mm, table1 for free rotation and d0 = d50),
+crushing with crack growth (density scaling of small fragments), dynamic phases of 150,000
+cycles, N_break = 30, triaxial shear at 50 /s to 30 %: about 2.5-3 hours of one core for the
+triaxial test and 30 minutes for the oedometric one (--only, side by side on two cores).
 --quick: 500 grains at e = 0.75, 10,000-cycle phases, N_break = 3, shear at 100 /s to 15 %:
 a few minutes on one core, to check the pipeline (its numbers are not the study's)."""
 

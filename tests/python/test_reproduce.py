@@ -546,6 +546,7 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", str(out)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
+    assert 'mode = "quick" there, "study" in this call' in res.stderr
 
 
 def test_the_triaxial_relaxation_branches_from_the_shear_with_the_same_results(quick_cpu,
@@ -615,6 +616,7 @@ def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
                           str(out), "--sample", str(sample)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
+    assert 'backend = "emulated" there, (unset) in this call' in res.stderr
 
 
 def test_set_overrides_change_settings_and_name_what_is_wrong():
@@ -646,10 +648,30 @@ def test_sample_settings_and_a_sample_file_exclude_each_other(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_directory_of_other_settings_is_refused_naming_what_differs(tmp_path):
+    out = tmp_path / "out"
+    os.makedirs(out)
+    with open(out / "settings.json", "w") as f:
+        json.dump(rp.settings(quick=True, parameters="blocked_d0_1mm"), f)
+    with pytest.raises(ValueError, match="other settings") as err:
+        rp.reproduce(str(out), quick=True, log=lambda m: None)
+    msg = str(err.value)
+    assert "crushing.d0 = 0.001 there, 0.00107 in this call" in msg
+    assert 'parameters = "blocked_d0_1mm" there, (unset) in this call' in msg
+    assert "mode" not in msg  # only what differs
+    # The same settings again: accepted up to the run (here: the check only).
+    assert rp.apply_overrides(rp.settings(quick=True), ["crushing.d0=1e-3"])["crushing"] == \
+        rp.settings(quick=True, parameters="blocked_d0_1mm")["crushing"]
+
+
 def test_parameter_sets_are_table1_plus_the_decision_study_choice():
     chosen = rp.settings(quick=False)
     table1 = rp.settings(quick=False, parameters="table1")
-    assert chosen["contact"]["rotation"] == "blocked" and chosen["crushing"]["d0"] == 1e-3
+    assert chosen["contact"]["rotation"] == "blocked" and chosen["crushing"]["d0"] == 1.07e-3
+    # The set before d0 = 1.07 mm, kept by name: only d0 differs.
+    before = rp.settings(quick=False, parameters="blocked_d0_1mm")
+    assert before["crushing"] == {**chosen["crushing"], "d0": 1e-3}
+    assert before["contact"] == chosen["contact"]
     # The earlier defaults: the engine's free rotation and d0 = d50 (no key), recorded by name.
     assert "rotation" not in table1["contact"] and "d0" not in table1["crushing"]
     assert table1["parameters"] == "table1" and "parameters" not in chosen
@@ -657,7 +679,7 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
     for section in ("contact", "crushing"):
         rest = {k: v for k, v in chosen[section].items() if k not in ("rotation", "d0")}
         assert rest == table1[section]
-    with pytest.raises(ValueError, match="expected one of crushdem, table1"):
+    with pytest.raises(ValueError, match="expected one of crushdem, blocked_d0_1mm, table1"):
         rp.settings(quick=True, parameters="pfc")
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",
                           "--parameters", "pfc"], capture_output=True, text=True, timeout=60)

@@ -80,7 +80,7 @@ const ParamTable<CrushingConfig>& crushing_params() {
        "[1 - var, 1 + var]"},
       {"d0", &K::d0, "m",
        "reference diameter; 0 = d50 of the grains present when the test starts (CHOICE; "
-       "crushdem's study parameter set: 1 mm, docs/model.md 2.1)",
+       "crushdem's study parameter set: 1.07 mm, docs/model.md 2.1)",
        non_negative, "a reference diameter in m (0 = d50 of the initial grains)"},
       {"r_prime",
        ParamChoice<K>{[](const K& k) { return k.r_prime; },
