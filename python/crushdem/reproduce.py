@@ -1189,9 +1189,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="use this prepared sample.txt (e.g. runs/sample_rev/sample.txt) "
                              "instead of preparing one in DIR/sample")
     parser.add_argument("--parameters", default="crushdem", choices=list(PARAMETER_SETS),
-                        help="named parameter set: " + "; ".join(
-                            f"{k}: {v[2]}" for k, v in PARAMETER_SETS.items()) +
-                        " (default: crushdem)")
+                        help="named parameter set: " + "; ".join(  # argparse %-formats help
+                            f"{k}: {v[2]}" for k, v in PARAMETER_SETS.items()).replace("%", "%%")
+                        + " (default: crushdem)")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="change one setting, e.g. --set contact.rotation=free, --set "
                              "crushing.r_prime=2R_star or --set sample.seed=2 (another sample "
