@@ -619,13 +619,10 @@ def reproduce(out: str, quick: bool = False, threads: Optional[int] = None,
     if os.path.isfile(settings_path):
         with open(settings_path) as f:
             before = json.load(f)
-        now = json.loads(json.dumps(cfg))
-        if before != now:
-            there, here = _flat(before), _flat(now)
-            differ = "; ".join(f"{k} = {_show_setting(there.get(k))} there, "
-                               f"{_show_setting(here.get(k))} in this call"
-                               for k in sorted(set(there) | set(here))
-                               if there.get(k) != here.get(k))
+        changed = settings_changes(before, json.loads(json.dumps(cfg)))
+        if changed:
+            differ = "; ".join(f"{k} = {_show_setting(a)} there, {_show_setting(b)} in this call"
+                               for k, (a, b) in changed.items())
             raise ValueError(f"{out} holds results made with other settings ({settings_path}: "
                              f"{differ}); give the same --parameters, --set and --sample as "
                              "the call that made them, another --out, or delete that "
@@ -850,6 +847,15 @@ def _sample_recipe(cfg: Mapping[str, Any]) -> Optional[Dict[str, Any]]:
     return {k: v for k, v in sample.items() if k != "seed"}
 
 
+def settings_changes(before: Mapping[str, Any], after: Mapping[str, Any]
+                     ) -> Dict[str, List[Any]]:
+    """The dotted keys whose values differ between two settings dicts: {key: [before, after]}
+    (None where a key is absent), sorted by key."""
+    fa, fb = _flat(before), _flat(after)
+    return {k: [fa.get(k), fb.get(k)] for k in sorted(set(fa) | set(fb))
+            if fa.get(k) != fb.get(k)}
+
+
 def _flat(cfg: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
     out: Dict[str, Any] = {}
     for k, v in cfg.items():
@@ -956,9 +962,7 @@ def compare_recipes(variant_dirs: Sequence[str], base_dirs: Sequence[str]) -> Di
     sample, or when the two recipes have the same settings."""
     variant = summarize_samples(variant_dirs)
     base = summarize_samples(base_dirs)
-    fv, fb = _flat(_recipe(variant["settings"])), _flat(_recipe(base["settings"]))
-    changed = {k: [fb.get(k), fv.get(k)] for k in sorted(set(fv) | set(fb))
-               if fv.get(k) != fb.get(k)}
+    changed = settings_changes(_recipe(base["settings"]), _recipe(variant["settings"]))
     if not changed:
         raise ValueError("--against: the two groups were made with the same settings; "
                          "--summarize them together instead")
