@@ -68,7 +68,7 @@ def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
                  crushing=dict(cfg["crushing"]), age_stage=rp.age_stage_keys(cfg), **age,
                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
                  branch_from=runs[30]),
-             print, {})
+             print, {}, rp.resumer(rp.backend_of(cfg)))
     curves = {}
     for n_break, out in runs.items():
         ev = read_events(out)
