@@ -31,15 +31,15 @@ def timing_record(run_dir: str) -> Dict[str, Any]:
 
 def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[str], None],
              record: Dict[str, Any],
-             resume: Optional[Callable[[str, bool], Any]] = None,
+             resume: Optional[Callable[[str, bool], Any]],
              progress: bool = False) -> None:
     """Runs ``start()`` unless ``run_dir`` already has a finished run; records the timing in
     ``record[name]``: wall_s is the run's own wall-clock over every call that advanced it
     (timing.json), wall_s_this_call this call's.
 
-    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` (when given)
-    instead of being started over; if that fails (e.g. the checkpoint belongs to another build),
-    the run starts over. A run that another process is writing (DIR/.lock held) raises
+    An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` instead of
+    being started over; if that fails (e.g. the checkpoint belongs to another build), or
+    ``resume`` is None (explicitly: nothing can resume this run), the run starts over. A run that another process is writing (DIR/.lock held) raises
     RuntimeError: it is neither resumed nor removed. progress: passed to ``resume`` (the
     engine's progress lines); ``start`` chooses its own.
     """
