@@ -117,13 +117,13 @@ void expect_saved_simulation_continues_bit_for_bit(const RunConfig& cfg) {
   ASSERT_GT(ca->breakages(BreakCause::Instant), 0u) << "nothing broke: the test is too gentle";
 
   StateWriter out;
-  a.save_state(out);
-  ca->save_state(out);
+  save_state(a, out);
+  save_state(*ca, out);
   Simulation b(cfg.simulation);
   Crusher cb(cfg.crushing, SplitPattern::default14());
   StateReader in(out.bytes(), "memory");
-  b.load_state(in);
-  cb.load_state(in);
+  load_state(b, in);
+  load_state(cb, in);
   EXPECT_TRUE(in.at_end());
 
   advance(a, *ca, 3000);

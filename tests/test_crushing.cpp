@@ -91,7 +91,7 @@ TEST(Crushing, GrainBetweenWallsBreaksAtTheHertzForce) {
   crusher.begin(sim);
   const auto ev = squeeze_until_break(sim, crusher, 0.02);
   ASSERT_EQ(ev.size(), 1u);
-  const double F_theory = hertz_break_force(3.75e9, R, sim.contact_params().E_star);
+  const double F_theory = hertz_break_force(3.75e9, R, sim.config().material.E_star());
   EXPECT_NEAR(F_theory, 6.5, 0.05);  // docs/model.md 2.1
   // The force on the top wall when the criterion was met (the step before the split).
   const double F = ev[0].sigma / 3.75e9;  // sigma >= sigma_lim at the first crossing
@@ -101,7 +101,7 @@ TEST(Crushing, GrainBetweenWallsBreaksAtTheHertzForce) {
   EXPECT_EQ(sim.particles().size(), 14u);
   // Force from sigma: F = sigma pi R delta, delta from Hertz: compare with the closed form.
   const double delta =
-      std::pow(3.0 * F_theory / (4.0 * sim.contact_params().E_star * std::sqrt(R)), 2.0 / 3.0);
+      std::pow(3.0 * F_theory / (4.0 * sim.config().material.E_star() * std::sqrt(R)), 2.0 / 3.0);
   EXPECT_NEAR(ev[0].sigma * kPi * R * delta / F_theory, 1.0, 0.01);
 }
 
@@ -115,11 +115,11 @@ TEST(Crushing, TwoGrainsBreakTogetherAtTheHertzForce) {
   sim.step();  // contact forces exist before the top wall moves
   const auto ev = squeeze_until_break(sim, crusher, 0.02);
   ASSERT_EQ(ev.size(), 2u);  // the same contact stress on both: both break in that step
-  const double F_theory = hertz_break_force(3.75e9, 0.5 * R, sim.contact_params().E_star);
+  const double F_theory = hertz_break_force(3.75e9, 0.5 * R, sim.config().material.E_star());
   EXPECT_NEAR(F_theory, 1.62, 0.01);
   const double Rs = 0.5 * R;
   const double delta =
-      std::pow(3.0 * F_theory / (4.0 * sim.contact_params().E_star * std::sqrt(Rs)), 2.0 / 3.0);
+      std::pow(3.0 * F_theory / (4.0 * sim.config().material.E_star() * std::sqrt(Rs)), 2.0 / 3.0);
   EXPECT_NEAR(ev[0].sigma * kPi * Rs * delta / F_theory, 1.0, 0.01);
   EXPECT_LT(ev[0].sigma / 3.75e9, 1.0 + 1e-3);
   EXPECT_EQ(sim.particles().size(), 28u);

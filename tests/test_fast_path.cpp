@@ -94,13 +94,12 @@ void check(const Law& law, NormalLaw law_kind) {
 
 TEST(FastPath, HertzEqualsTheExactKernelWhereverItIsNotFlagged) {
   const SimulationConfig cfg = testing::box_config(-1.0, 1.0);
-  check(HertzLaw{make_contact_params(cfg.material, cfg.contact).E_star}, NormalLaw::Hertz);
+  check(ContactLaw(cfg.material, cfg.contact).pair_law<HertzNormal>(), NormalLaw::Hertz);
 }
 
 TEST(FastPath, RoughLawEqualsTheExactKernelWhereverItIsNotFlagged) {
   const SimulationConfig cfg = testing::box_config(-1.0, 1.0, NormalLaw::Rough);
-  const ContactParams cp = make_contact_params(cfg.material, cfg.contact);
-  check(RoughHertzLaw{cp.E_star, cp.rough_pp}, NormalLaw::Rough);
+  check(ContactLaw(cfg.material, cfg.contact).pair_law<RoughNormal>(), NormalLaw::Rough);
 }
 
 }  // namespace

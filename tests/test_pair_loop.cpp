@@ -22,8 +22,10 @@ struct Totals {
 
 // Brute-force O(N^2) forces and torques of the first force evaluation (zero tangential history,
 // no increment), from the simulation's own particle arrays.
+// rough: the grain-grain constants whose regimes are counted (all zero for Hertz: one regime).
 template <class Law>
-Totals reference(const Simulation& sim, const Law& law, const ContactParams& cp) {
+Totals reference(const Simulation& sim, const Law& law, const ContactParams& cp,
+                 const RoughHertzParams& rough) {
   const ParticleStore& p = sim.particles();
   const std::size_t N = p.size();
   Totals t;
@@ -45,7 +47,7 @@ Totals reference(const Simulation& sim, const Law& law, const ContactParams& cp)
       t.force[j] -= pc.c.force;
       t.torque[i] += pc.a_i * pc.tn;
       t.torque[j] += pc.a_j * pc.tn;
-      const int regime = pc.delta <= cp.rough_pp.d_T1 ? 0 : (pc.delta <= cp.rough_pp.d_T2 ? 1 : 2);
+      const int regime = pc.delta <= rough.d_T1 ? 0 : (pc.delta <= rough.d_T2 ? 1 : 2);
       ++t.rough_regimes[regime];
     }
   }
@@ -82,10 +84,12 @@ void check(NormalLaw law_kind, bool wide_skin = false) {
       most = std::max<std::size_t>(most, off[i + 1] - off[i]);
     ASSERT_GT(most, 136u);
   }
-  const ContactParams cp = make_contact_params(sim.config().material, sim.config().contact);
-  const Totals ref = law_kind == NormalLaw::Hertz
-                         ? reference(sim, HertzLaw{cp.E_star}, cp)
-                         : reference(sim, RoughHertzLaw{cp.E_star, cp.rough_pp}, cp);
+  const ContactLaw& law = sim.contact_law();
+  const ContactParams& cp = law.params();
+  const Totals ref =
+      law_kind == NormalLaw::Hertz
+          ? reference(sim, law.pair_law<HertzNormal>(), cp, RoughHertzParams{})
+          : reference(sim, law.pair_law<RoughNormal>(), cp, law.normal_params<RoughNormal>().pp);
   const ParticleStore& p = sim.particles();
   double f_max = 0.0, t_max = 0.0;
   for (std::size_t i = 0; i < p.size(); ++i) {

@@ -120,11 +120,11 @@ TEST_P(Pruning, ACheckpointedRunContinuesBitIdentically) {
   full.step(300);
   first.step(150);
   StateWriter out;
-  first.save_state(out);
+  save_state(first, out);
   Simulation second = make_sample(true, GetParam());
   second.step(40);  // a pruned list of its own, for another state
   StateReader in(out.bytes(), "memory");
-  second.load_state(in);
+  load_state(second, in);
   second.step(150);
   testing::expect_same_state(full, second);
 }

@@ -143,7 +143,11 @@ TEST(RotationConfig, ReadWrittenAndInferredFromRollingFriction) {
   // Written out and read back.
   const toml::Table t = to_toml(parse("rotation = \"blocked\"\n").simulation);
   EXPECT_EQ(t.at("contact").table->at("rotation").str, "blocked");
-  EXPECT_EQ(make_contact_params(rolling.simulation.material, rolling.simulation.contact).mu_r, 0.3);
+  const ContactLaw rolling_law(rolling.simulation.material, rolling.simulation.contact);
+  ASSERT_TRUE(rolling_law.has_couple());
+  EXPECT_EQ(std::get<ContactLaw::Chosen<RollingResistance>>(rolling_law.couple()).params.mu_r, 0.3);
+  EXPECT_EQ(rolling_law.pair_history().size(), 2u);  // the tangential spring and the moment
+  EXPECT_STREQ(rolling_law.pair_history()[1].name, "mr");
   const RunConfig blocked = parse("rotation = \"blocked\"\n");
   EXPECT_EQ(make_contact_params(blocked.simulation.material, blocked.simulation.contact).spin_scale,
             0.0);

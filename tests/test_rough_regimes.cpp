@@ -72,7 +72,7 @@ TEST(RoughRegimes, MayReachHertzNeverMissesAContactInThatRegime) {
 
 TEST(RoughRegimes, LawWithoutHertzRegimeGivesTheSameBitsBelowIt) {
   for (const RoughHertzParams& p : params()) {
-    const RoughHertzLaw full{3.95e10, p};
+    const RoughHertzLaw full{3.95e10, p, rough_table(p).host};
     const RoughHertzLawT<false> below = full.without_hertz_regime();
     std::vector<double> deltas{-1e-7,
                                0.0,
@@ -108,8 +108,7 @@ void check_pairs(bool hertz_pair) {
   SimulationConfig cfg = testing::box_config(-spacing, (side + 1) * spacing, NormalLaw::Rough);
   cfg.contact.restitution = 0.5;  // viscous damping: the secant stiffness is used too
   Simulation sim(cfg);
-  const ContactParams cp = make_contact_params(cfg.material, cfg.contact);
-  const RoughHertzParams& p = cp.rough_pp;
+  const RoughHertzParams& p = sim.contact_law().normal_params<RoughNormal>().pp;
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int k = 0; k < pairs; ++k) {
@@ -126,7 +125,8 @@ void check_pairs(bool hertz_pair) {
   }
   sim.compute_forces();
   ASSERT_EQ(sim.num_contacts(), static_cast<std::size_t>(pairs));
-  const RoughHertzLaw law{cp.E_star, p};
+  const RoughHertzLaw law = sim.contact_law().pair_law<RoughNormal>();
+  const ContactParams& cp = sim.contact_params();
   const ParticleStore& s = sim.particles();
   const NeighborList& nl = sim.neighbors();
   std::vector<std::size_t> index(s.size());

@@ -38,12 +38,7 @@ TEST(LocalDamping, EqualsTheBranchingFormBitForBit) {
 
 // Overlap at which the normal law carries force F (bisection on the monotone law).
 double overlap_for(double F, double R_star, const Simulation& sim, bool wall) {
-  const ContactParams& cp = sim.contact_params();
-  const bool rough = sim.config().contact.law == NormalLaw::Rough;
-  auto force = [&](double d) {
-    return rough ? rough_hertz_normal(d, R_star, cp.E_star, wall ? cp.rough_pw : cp.rough_pp).F_n
-                 : hertz_normal(d, R_star, cp.E_star).F_n;
-  };
+  auto force = [&](double d) { return sim.normal_force(d, R_star, wall).F_n; };
   double lo = 0.0, hi = 1e-5;
   for (int k = 0; k < 200; ++k) {
     const double mid = 0.5 * (lo + hi);

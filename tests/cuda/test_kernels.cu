@@ -39,16 +39,13 @@ __global__ void evaluate(Law law, ContactParams cp, const Input* in, ContactResp
     }                                                                                        \
   } while (0)
 
-// Copies a law's two power tables (one block: pow_c's nodes follow pow_b's, as the kernel
-// expects) to the device and points the views at the copy.
-void to_device(RoughHertzParams& r, std::vector<double*>& owned) {
+// Copies a table block to the device (the whole block: the kernel picks a table by an offset).
+const double* to_device(const TableBlock& b, std::vector<double*>& owned) {
   double* d = nullptr;
-  const std::size_t one = 2 * static_cast<std::size_t>(r.pow_b.n + 1);
-  CHECK_CUDA(cudaMalloc(&d, sizeof(double) * 2 * one));
-  CHECK_CUDA(cudaMemcpy(d, r.pow_b.nodes, sizeof(double) * 2 * one, cudaMemcpyHostToDevice));
+  CHECK_CUDA(cudaMalloc(&d, sizeof(double) * b.count));
+  CHECK_CUDA(cudaMemcpy(d, b.host, sizeof(double) * b.count, cudaMemcpyHostToDevice));
   owned.push_back(d);
-  r.pow_b.nodes = d;
-  r.pow_c.nodes = d + one;
+  return d;
 }
 
 template <class Law>
@@ -108,19 +105,21 @@ int main() {
   int passed = 0, failed = 0;
   {
     cc.law = NormalLaw::Hertz;
-    const ContactParams cp = make_contact_params(m, cc);
-    (compare("hertz", HertzLaw{cp.E_star}, HertzLaw{cp.E_star}, cp, in) ? passed : failed)++;
+    const ContactLaw law(m, cc);
+    const HertzLaw hertz = law.pair_law<HertzNormal>();
+    (compare("hertz", hertz, hertz, law.params(), in) ? passed : failed)++;
   }
   std::vector<double*> owned;
   for (auto [k1, k2] : {std::pair{0.05, 5.0}, std::pair{1.0, 100.0}}) {
     cc.law = NormalLaw::Rough;
     cc.k1 = k1;
     cc.k2 = k2;
-    const ContactParams cp = make_contact_params(m, cc);
-    RoughHertzLaw host{cp.E_star, cp.rough_pp};
+    const ContactLaw law(m, cc);
+    const RoughHertzLaw host = law.pair_law<RoughNormal>();
     RoughHertzLaw dev = host;
-    to_device(dev.rough, owned);
-    (compare(k1 < 0.5 ? "rough(0.05,5)" : "rough(1,100)", host, dev, cp, in) ? passed : failed)++;
+    dev.nodes = to_device(law.tables()[0], owned);
+    (compare(k1 < 0.5 ? "rough(0.05,5)" : "rough(1,100)", host, dev, law.params(), in) ? passed
+                                                                                       : failed)++;
   }
   for (double* d : owned) cudaFree(d);
   std::printf("%d passed, %d failed\n", passed, failed);

@@ -67,15 +67,16 @@ __global__ void k_kick_drift(View v) {
   }
 }
 
-template <class Law, bool Rolling>
-__global__ void k_contacts(View v, Law pair_law, Law wall_law) {
+// One kernel per combination of the contact law's sub-models (Laws::visit()).
+template <class Model>
+__global__ void k_contacts(View v, Model model) {
   if (v.ctrl->halt) return;
   const Index t = blockIdx.x * blockDim.x + threadIdx.x;
   const Index M = v.ctrl->M;
   if (t < M) {
-    pair_item<Law, Rolling>(v, pair_law, t);
+    pair_item(v, model, t);
   } else if (t - M < v.ctrl->Mw) {
-    wall_item(v, wall_law, t - M);
+    wall_item(v, model, t - M);
   }
 }
 
@@ -113,11 +114,11 @@ __global__ void k_crushing_halt(View v) {
   if (!v.ctrl->halt && v.ctrl->failures > 0) v.ctrl->halt = kFailure;
 }
 
-template <class Law>
-__global__ void k_inspect_blocks(View v, Law law, unsigned grains) {
+template <class Model>
+__global__ void k_inspect_blocks(View v, Model model, unsigned grains) {
   __shared__ InspectSum sm[kInspectBlock];
   const unsigned i = blockIdx.x * kInspectBlock + threadIdx.x;
-  sm[threadIdx.x] = i < grains ? inspect_item(v, law, i) : InspectSum{0.0, 0.0, 0.0};
+  sm[threadIdx.x] = i < grains ? inspect_item(v, model, i) : InspectSum{0.0, 0.0, 0.0};
   __syncthreads();
   for (int s = kInspectBlock / 2; s > 0; s >>= 1) {
     if (static_cast<int>(threadIdx.x) < s) add_inspect(sm[threadIdx.x], sm[threadIdx.x + s]);
@@ -170,20 +171,16 @@ class CudaApi : public Api {
     if (bytes) CD_CUDA(cudaMemcpyAsync(host, dev, bytes, cudaMemcpyDeviceToHost, stream_));
     CD_CUDA(cudaStreamSynchronize(stream_));
   }
-  Laws place_laws(const Laws& host) override {
-    Laws d = host;
-    if (host.rough) {
-      // Each law's two tables are one block on the host (power_table_pair(): the kernel picks
-      // pow_c by an offset from pow_b's nodes) and are copied as one.
-      RoughHertzParams* laws[2] = {&d.rough_pp.rough, &d.rough_pw.rough};
-      for (RoughHertzParams* r : laws) {
-        const std::size_t one = 2 * static_cast<std::size_t>(r->pow_b.n + 1);
-        double* t = static_cast<double*>(allocate(2 * one * sizeof(double)));
-        upload(t, r->pow_b.nodes, 2 * one * sizeof(double));
-        tables_.push_back(t);
-        r->pow_b.nodes = t;
-        r->pow_c.nodes = t + one;
-      }
+  Laws place_laws(const ContactLaw& law) override {
+    // Each table block the law's evaluators read, copied whole (a block may hold several
+    // tables that the kernel picks by an offset).
+    Laws d{law, {}};
+    for (std::size_t k = 0; k < law.tables().size(); ++k) {
+      const TableBlock& b = law.tables()[k];
+      double* t = static_cast<double*>(allocate(b.count * sizeof(double)));
+      upload(t, b.host, b.count * sizeof(double));
+      tables_.push_back(t);
+      d.placed[k] = t;
     }
     return d;
   }
@@ -204,11 +201,9 @@ class CudaApi : public Api {
   void inspect(const View& v, const Laws& laws, unsigned grains) override {
     const unsigned blocks = (grains + kInspectBlock - 1) / kInspectBlock;
     if (blocks > 0) {
-      if (laws.rough) {
-        k_inspect_blocks<<<blocks, kInspectBlock, 0, stream_>>>(v, laws.rough_pp, grains);
-      } else {
-        k_inspect_blocks<<<blocks, kInspectBlock, 0, stream_>>>(v, laws.hertz, grains);
-      }
+      laws.visit([&](const auto& model) {
+        k_inspect_blocks<<<blocks, kInspectBlock, 0, stream_>>>(v, model, grains);
+      });
     }
     k_inspect_total<<<1, kInspectBlock, 0, stream_>>>(v, blocks);
     CD_CUDA(cudaGetLastError());
@@ -223,17 +218,7 @@ class CudaApi : public Api {
   void launch_forces(const View& v, const Laws& laws) {
     const int gc = grid(v.entry_capacity + v.wall_entry_capacity, kContactBlock);
     const int gp = grid(v.grain_capacity);
-    if (laws.rough && laws.rolling) {
-      k_contacts<RoughHertzLaw, true>
-          <<<gc, kContactBlock, 0, stream_>>>(v, laws.rough_pp, laws.rough_pw);
-    } else if (laws.rough) {
-      k_contacts<RoughHertzLaw, false>
-          <<<gc, kContactBlock, 0, stream_>>>(v, laws.rough_pp, laws.rough_pw);
-    } else if (laws.rolling) {
-      k_contacts<HertzLaw, true><<<gc, kContactBlock, 0, stream_>>>(v, laws.hertz, laws.hertz);
-    } else {
-      k_contacts<HertzLaw, false><<<gc, kContactBlock, 0, stream_>>>(v, laws.hertz, laws.hertz);
-    }
+    laws.visit([&](const auto& model) { k_contacts<<<gc, kContactBlock, 0, stream_>>>(v, model); });
     k_gather<<<gp + kNumWalls, kBlock, 0, stream_>>>(v, static_cast<unsigned>(gp));
     if (v.fail) {  // no launch without crushing
       k_crushing<<<gp, kBlock, 0, stream_>>>(v);

@@ -5,21 +5,28 @@
 // device's bits on any machine. This header has no CUDA types.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <memory>
+#include <utility>
 
 #include "crushdem/backend/device_step.hpp"
-#include "crushdem/contact/hertz.hpp"
-#include "crushdem/contact/rough_hertz.hpp"
+#include "crushdem/contact/contact_model.hpp"
 
 namespace crushdem::device {
 
-/// The contact laws of a run on the device (a rough law's power tables in device memory).
+/// The contact law of a run with its table blocks where the kernels read them (device copies on
+/// a GPU, the host's in the emulation). visit() calls f(ContactModel<N, C>) for the configured
+/// combination: the one place a launch is instantiated per law. The kernels take the model's
+/// evaluators and couple parameters; the shared parameters (friction, which a controller
+/// changes) they read from the View.
 struct Laws {
-  bool rough = false;
-  bool rolling = false;
-  HertzLaw hertz;
-  RoughHertzLaw rough_pp, rough_pw;
+  ContactLaw law;
+  std::array<const double*, kMaxLawTables> placed{};
+  template <class F>
+  decltype(auto) visit(F&& f) const {
+    return with_law(law, placed.data(), std::forward<F>(f));
+  }
 };
 
 class Api {
@@ -34,8 +41,9 @@ class Api {
   virtual void release(void* p) = 0;
   virtual void upload(void* device, const void* host, std::size_t bytes) = 0;
   virtual void download(void* host, const void* device, std::size_t bytes) = 0;
-  /// The laws with their tables where the kernels can read them (device copies on a GPU).
-  virtual Laws place_laws(const Laws& host) = 0;
+  /// The law with its table blocks where the kernels can read them (copied to the device on a
+  /// GPU; the host's own in the emulation).
+  virtual Laws place_laws(const ContactLaw& law) = 0;
   /// Runs up to `steps` whole steps; stops early when a kernel sets Control::halt (the control
   /// block says how many finished and why it stopped).
   virtual void run_steps(const View& v, const Laws& laws, int steps) = 0;

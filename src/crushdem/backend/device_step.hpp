@@ -86,37 +86,127 @@ struct Control {
   WallDev walls[kNumWalls];
 };
 
+/// What a device array is counted by.
+enum class Count { Grains, Entries, WallEntries, GrainsPlusOne };
+/// When a run holds it: always, with the contact load tracked (crushing), with the crushing check.
+enum class When { Always, Load, Crushing };
+
+// The device's arrays that mirror host arrays of the Simulation, declared once. Each row: the
+// View member, its element type, what it is counted by, whether the device writes it (a sync
+// downloads it; otherwise the device only reads it), when the run holds it, whether the
+// per-entry R*, sqrt(R*) and m* derive from it (a host change then uploads everything), and the
+// host array (an expression on `s`, the Simulation, and `crusher`, the run's Crusher; expanded
+// by host code only). The View's members and backend/device_stepper.cpp's transfer list both
+// come from these rows; the contact history the law declares comes on top (View::ph).
+#define CD_DEVICE_FIELDS(X)                                                               \
+  X(x, double, Grains, true, Always, false, s.particles().x)                              \
+  X(y, double, Grains, true, Always, false, s.particles().y)                              \
+  X(z, double, Grains, true, Always, false, s.particles().z)                              \
+  X(vx, double, Grains, true, Always, false, s.particles().vx)                            \
+  X(vy, double, Grains, true, Always, false, s.particles().vy)                            \
+  X(vz, double, Grains, true, Always, false, s.particles().vz)                            \
+  X(wx, double, Grains, true, Always, false, s.particles().wx)                            \
+  X(wy, double, Grains, true, Always, false, s.particles().wy)                            \
+  X(wz, double, Grains, true, Always, false, s.particles().wz)                            \
+  X(fx, double, Grains, true, Always, false, s.particles().fx)                            \
+  X(fy, double, Grains, true, Always, false, s.particles().fy)                            \
+  X(fz, double, Grains, true, Always, false, s.particles().fz)                            \
+  X(tx, double, Grains, true, Always, false, s.particles().tx)                            \
+  X(ty, double, Grains, true, Always, false, s.particles().ty)                            \
+  X(tz, double, Grains, true, Always, false, s.particles().tz)                            \
+  /* the resultant force before local damping (for output) */                             \
+  X(fux, double, Grains, true, Always, false, s.resultant_force(0))                       \
+  X(fuy, double, Grains, true, Always, false, s.resultant_force(1))                       \
+  X(fuz, double, Grains, true, Always, false, s.resultant_force(2))                       \
+  X(radius, double, Grains, false, Always, true, s.particles().radius)                    \
+  X(mass, double, Grains, false, Always, true, s.particles().mass)                        \
+  X(inv_mass, double, Grains, false, Always, true, s.particles().inv_mass)                \
+  X(inv_inertia, double, Grains, false, Always, false, s.particles().inv_inertia)         \
+  /* the positions at the last list build */                                              \
+  X(x0, double, Grains, false, Always, false, s.neighbors().x_ref())                      \
+  X(y0, double, Grains, false, Always, false, s.neighbors().y_ref())                      \
+  X(z0, double, Grains, false, Always, false, s.neighbors().z_ref())                      \
+  /* the half list and its touching flags */                                              \
+  X(owner, Index, Entries, false, Always, false, s.neighbors().owner)                     \
+  X(nb, Index, Entries, false, Always, false, s.neighbors().neighbors)                    \
+  X(touch, std::uint8_t, Entries, true, Always, false, s.history().touching)              \
+  /* wall entries: grain and wall; tangential history and the results of the last pass */ \
+  X(wp, Index, WallEntries, false, Always, false, s.wall_contacts().particle)             \
+  X(ww, std::uint8_t, WallEntries, false, Always, false, s.wall_contacts().wall)          \
+  X(wftx, double, WallEntries, true, Always, false, s.wall_contacts().ft_x)               \
+  X(wfty, double, WallEntries, true, Always, false, s.wall_contacts().ft_y)               \
+  X(wftz, double, WallEntries, true, Always, false, s.wall_contacts().ft_z)               \
+  X(wfx, double, WallEntries, true, Always, false, s.wall_contacts().fx)                  \
+  X(wfy, double, WallEntries, true, Always, false, s.wall_contacts().fy)                  \
+  X(wfz, double, WallEntries, true, Always, false, s.wall_contacts().fz)                  \
+  X(wtx, double, WallEntries, true, Always, false, s.wall_contacts().tx)                  \
+  X(wty, double, WallEntries, true, Always, false, s.wall_contacts().ty)                  \
+  X(wtz, double, WallEntries, true, Always, false, s.wall_contacts().tz)                  \
+  X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n)                 \
+  X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n)                 \
+  X(wdelta, double, WallEntries, true, Always, false, s.wall_contacts().delta)            \
+  /* the contact load per grain (both ways: the host's forces fill it too) */             \
+  X(LS, double, Grains, true, Load, false, s.contact_load().sigma)                        \
+  X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max)                      \
+  X(LNX, double, Grains, true, Load, false, s.contact_load().nx)                          \
+  X(LNY, double, Grains, true, Load, false, s.contact_load().ny)                          \
+  X(LNZ, double, Grains, true, Load, false, s.contact_load().nz)                          \
+  /* crushing: strengths and crack half-lengths */                                        \
+  X(sigma_lim, double, Grains, false, Crushing, false,                                    \
+    s.particles().field(crusher->strength_field()))                                       \
+  X(crack_a, double, Grains, true, Crushing, false, s.particles().field(crusher->crack_field()))
+
+// The device-only arrays: what the device derives at an upload or keeps between kernels. Each
+// row: the View member, its element type, what it is counted by, when the run holds it.
+#define CD_DEVICE_SCRATCH(X)                                                                 \
+  /* the list as CSR with N + 1 offsets, its reverse (the entries where a grain is the       \
+     partner, in increasing order), per-entry R*, sqrt(R*) and m*, the wall entries' CSR */  \
+  X(off, Index, GrainsPlusOne, Always)                                                       \
+  X(roff, Index, GrainsPlusOne, Always)                                                      \
+  X(rev, Index, Entries, Always)                                                             \
+  X(RS, double, Entries, Always)                                                             \
+  X(SRS, double, Entries, Always)                                                            \
+  X(ME, double, Entries, Always)                                                             \
+  X(woff, Index, GrainsPlusOne, Always)                                                      \
+  /* reaction records per entry: force on the owner, torques on owner and partner */         \
+  X(rfx, double, Entries, Always)                                                            \
+  X(rfy, double, Entries, Always)                                                            \
+  X(rfz, double, Entries, Always)                                                            \
+  X(rix, double, Entries, Always)                                                            \
+  X(riy, double, Entries, Always)                                                            \
+  X(riz, double, Entries, Always)                                                            \
+  X(rjx, double, Entries, Always)                                                            \
+  X(rjy, double, Entries, Always)                                                            \
+  X(rjz, double, Entries, Always)                                                            \
+  /* contact load per pair entry (sigma_c, elastic F_n, normal i -> j) and per wall entry */ \
+  X(esig, double, Entries, Load)                                                             \
+  X(eFn, double, Entries, Load)                                                              \
+  X(enx, double, Entries, Load)                                                              \
+  X(eny, double, Entries, Load)                                                              \
+  X(enz, double, Entries, Load)                                                              \
+  X(wsig, double, WallEntries, Load)                                                         \
+  X(wFel, double, WallEntries, Load)                                                         \
+  /* failure flags of the last crushing check */                                             \
+  X(fail, std::uint8_t, Grains, Crushing)
+
+/// Room for the pair history the contact law declares (ContactModel::kPairHistory at most).
+constexpr int kMaxPairHistory = 2;
+
 /// Everything a kernel touches, passed by value: fixed between uploads that do not reallocate
-/// or change a parameter (a change makes a new view and, on the GPU, a new graph).
+/// or change a parameter (a change makes a new view and, on the GPU, a new graph). An array the
+/// run does not hold is null.
 struct View {
-  // Per grain, both ways.
-  double *x, *y, *z, *vx, *vy, *vz, *wx, *wy, *wz, *fx, *fy, *fz, *tx, *ty, *tz;
-  double *fux, *fuy, *fuz;  // resultant force before local damping (for output)
-  // Per grain, uploaded only (they change with the layout).
-  const double *radius, *mass, *inv_mass, *inv_inertia, *x0, *y0, *z0;
-  // The half list, its reverse (entries where the grain is the partner) and per-entry R*,
-  // sqrt(R*), m*.
-  const Index *owner, *nb, *off, *roff, *rev;
-  const double *RS, *SRS, *ME;
-  // Per entry, both ways: tangential force and rolling moment on the owner (null without
-  // rolling resistance), touching flag.
-  double *ftx, *fty, *ftz;
-  double *mrx, *mry, *mrz;
-  std::uint8_t* touch;
-  double *rfx, *rfy, *rfz, *rix, *riy, *riz, *rjx, *rjy, *rjz;  // reaction records per entry
-  // Contact load (null unless tracked): per pair entry sigma_c, elastic F_n and the normal
-  // i -> j; per wall entry sigma_c and elastic F_n; per grain the maxima.
-  double *esig, *eFn, *enx, *eny, *enz, *wsig, *wFel;
-  double *LS, *LF, *LNX, *LNY, *LNZ;
-  double inv_pi_k, load_factor;  // 1 / (pi r'/R*) and r'/R*
-  // Wall entries: grain, wall, CSR by grain; history and results, both ways.
-  const Index *wp, *woff;
-  const std::uint8_t* ww;
-  double *wftx, *wfty, *wftz, *wfx, *wfy, *wfz, *wtx, *wty, *wtz, *wFn, *wkn, *wdelta;
-  // Crushing (null unless on): strength (up), crack half-length (both ways), failure flags.
-  const double* sigma_lim;
-  double* crack_a;
-  std::uint8_t* fail;
+#define CD_VIEW_FIELD(name, T, count, writes, when, feeds, host) T* name;
+#define CD_VIEW_SCRATCH(name, T, count, when) T* name;
+  CD_DEVICE_FIELDS(CD_VIEW_FIELD)
+  CD_DEVICE_SCRATCH(CD_VIEW_SCRATCH)
+#undef CD_VIEW_FIELD
+#undef CD_VIEW_SCRATCH
+  // The pair history the law declares (ContactLaw::pair_history()), per entry, both ways: vector
+  // k's components ph[k][0..2] (ph[0]: the tangential spring force on the owner).
+  double* ph[kMaxPairHistory][3];
+  double inv_pi_k, load_factor;  // 1 / (pi r'/R*) and r'/R* (contact load)
+  // Crushing (with `fail`): crack growth.
   double d_c, v0, n_charles;
   bool crack_growth;
   std::uint64_t crush_interval;  // 0: no crushing check
@@ -160,8 +250,11 @@ CD_HD inline void finish_drift(const View& v, double m2) {
   if (rebuild_due(std::sqrt(m2), travel, v.skin)) c.halt = kRebuild;
 }
 
-template <class Law, bool Rolling>
-CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
+/// One pair entry with the contact law `model` (a ContactModel: its pair evaluator and couple);
+/// the shared parameters come from the view.
+template <class Model>
+CD_HD inline void pair_item(const View& v, const Model& model, Index e) {
+  double* const* ft = v.ph[0];
   const Index i = v.owner[e], j = v.nb[e];
   const Vec3 xi{v.x[i], v.y[i], v.z[i]};
   const double ri = v.radius[i];
@@ -171,29 +264,32 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   if (d2 >= rsum * rsum) {
     if (v.touch[e]) {
       v.touch[e] = 0;
-      v.ftx[e] = v.fty[e] = v.ftz[e] = 0.0;
-      if constexpr (Rolling) v.mrx[e] = v.mry[e] = v.mrz[e] = 0.0;
+      ft[0][e] = ft[1][e] = ft[2][e] = 0.0;
+      if constexpr (Model::kCouple) v.ph[1][0][e] = v.ph[1][1][e] = v.ph[1][2][e] = 0.0;
     }
     return;
   }
   const Vec3 wi{v.wx[i], v.wy[i], v.wz[i]};
   const Vec3 wj{v.wx[j], v.wy[j], v.wz[j]};
   const double h = v.ctrl->h;
-  const PairContact pc = pair_contact(
-      law, dx, d2, ri, v.radius[j], Vec3{v.vx[i] - v.vx[j], v.vy[i] - v.vy[j], v.vz[i] - v.vz[j]},
-      wi, wj, v.RS[e], v.SRS[e], v.ME[e], Vec3{v.ftx[e], v.fty[e], v.ftz[e]}, v.cp, h);
+  const PairContact pc =
+      pair_contact(model.pair_law, dx, d2, ri, v.radius[j],
+                   Vec3{v.vx[i] - v.vx[j], v.vy[i] - v.vy[j], v.vz[i] - v.vz[j]}, wi, wj, v.RS[e],
+                   v.SRS[e], v.ME[e], Vec3{ft[0][e], ft[1][e], ft[2][e]}, v.cp, h);
   const ContactResponse& c = pc.c;
-  v.ftx[e] = c.F_t.x;
-  v.fty[e] = c.F_t.y;
-  v.ftz[e] = c.F_t.z;
+  ft[0][e] = c.F_t.x;
+  ft[1][e] = c.F_t.y;
+  ft[2][e] = c.F_t.z;
   v.touch[e] = 1;
   Vec3 ti = pc.a_i * pc.tn, tj = pc.a_j * pc.tn;
-  if constexpr (Rolling) {
-    const Vec3 M_r = pair_rolling_moment(
-        pc.n, pc.c.k_n, pc.c.F_n, Vec3{v.mrx[e], v.mry[e], v.mrz[e]}, wi, wj, v.RS[e], v.cp, h);
-    v.mrx[e] = M_r.x;
-    v.mry[e] = M_r.y;
-    v.mrz[e] = M_r.z;
+  if constexpr (Model::kCouple) {
+    double* const* ch = v.ph[1];
+    const Vec3 M_r = Model::CoupleModel::moment(model.couple, pc.n, pc.c.k_n, pc.c.F_n,
+                                                Vec3{ch[0][e], ch[1][e], ch[2][e]}, wi, wj, v.RS[e],
+                                                v.cp.tangential_ratio, h);
+    ch[0][e] = M_r.x;
+    ch[1][e] = M_r.y;
+    ch[2][e] = M_r.z;
     ti += M_r;
     tj -= M_r;
   }
@@ -215,8 +311,8 @@ CD_HD inline void pair_item(const View& v, const Law& law, Index e) {
   }
 }
 
-template <class Law>
-CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
+template <class Model>
+CD_HD inline void wall_item(const View& v, const Model& model, Index e) {
   const Index i = v.wp[e];
   const int k = v.ww[e];
   const WallDev& W = v.ctrl->walls[k];
@@ -230,7 +326,7 @@ CD_HD inline void wall_item(const View& v, const Law& law, Index e) {
     return;
   }
   const WallContact wcon = wall_contact(
-      law, wall_outward_normal(k), dist, delta, v.radius[i], v.mass[i],
+      model.wall_law, wall_outward_normal(k), dist, delta, v.radius[i], v.mass[i],
       Vec3{v.vx[i], v.vy[i], v.vz[i]}, Vec3{v.wx[i], v.wy[i], v.wz[i]},
       wall_velocity_vector(k, W.velocity), Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, v.cp, v.ctrl->h);
   const ContactResponse& r = wcon.c;
@@ -384,8 +480,8 @@ CD_HD inline void advance_clock(const View& v) {
 
 /// Grain i's share of the inspection: its resultant force's magnitude, and the elastic F_n of
 /// its own touching pairs (as Simulation::contacts() computes them) with their count.
-template <class Law>
-CD_HD inline InspectSum inspect_item(const View& v, const Law& law, Index i) {
+template <class Model>
+CD_HD inline InspectSum inspect_item(const View& v, const Model& model, Index i) {
   InspectSum s{std::sqrt(v.fux[i] * v.fux[i] + v.fuy[i] * v.fuy[i] + v.fuz[i] * v.fuz[i]), 0.0,
                0.0};
   for (Index e = v.off[i]; e < v.off[i + 1]; ++e) {
@@ -393,7 +489,7 @@ CD_HD inline InspectSum inspect_item(const View& v, const Law& law, Index i) {
     const Index j = v.nb[e];
     const double dx = v.x[j] - v.x[i], dy = v.y[j] - v.y[i], dz = v.z[j] - v.z[i];
     const double delta = v.radius[i] + v.radius[j] - std::sqrt(dx * dx + dy * dy + dz * dz);
-    s.F_n += law(delta, v.RS[e], v.SRS[e]).F_n;
+    s.F_n += model.pair_law(delta, v.RS[e], v.SRS[e]).F_n;
     s.pairs += 1.0;
   }
   return s;

@@ -43,7 +43,11 @@ class EmulatedApi : public device::Api {
   void download(void* host, const void* dev, std::size_t bytes) override {
     if (bytes) std::memcpy(host, dev, bytes);
   }
-  device::Laws place_laws(const device::Laws& host) override { return host; }
+  device::Laws place_laws(const ContactLaw& law) override {
+    device::Laws out{law, {}};
+    for (std::size_t k = 0; k < law.tables().size(); ++k) out.placed[k] = law.tables()[k].host;
+    return out;
+  }
   void run_steps(const View& v, const device::Laws& laws, int steps) override {
     for (int s = 0; s < steps; ++s) {
       if (v.ctrl->halt) return;
@@ -54,11 +58,7 @@ class EmulatedApi : public device::Api {
   }
   void finish_step(const View& v, const device::Laws& laws) override { forces(v, laws); }
   void inspect(const View& v, const device::Laws& laws, unsigned grains) override {
-    if (laws.rough) {
-      inspect_with(v, laws.rough_pp, grains);
-    } else {
-      inspect_with(v, laws.hertz, grains);
-    }
+    laws.visit([&](const auto& model) { inspect_with(v, model, grains); });
   }
   void read_control(const View& v, Control& host) override { host = *v.ctrl; }
 
@@ -70,8 +70,8 @@ class EmulatedApi : public device::Api {
   }
 
   // The kernels' two passes and trees, in their order.
-  template <class Law>
-  static void inspect_with(const View& v, const Law& law, unsigned grains) {
+  template <class Model>
+  static void inspect_with(const View& v, const Model& model, unsigned grains) {
     constexpr int B = device::kInspectBlock;
     const unsigned blocks = (grains + B - 1) / B;
     std::vector<device::InspectSum> part(B);
@@ -79,7 +79,7 @@ class EmulatedApi : public device::Api {
       for (int t = 0; t < B; ++t) {
         const unsigned i = b * B + static_cast<unsigned>(t);
         part[static_cast<std::size_t>(t)] =
-            i < grains ? device::inspect_item(v, law, i) : device::InspectSum{0.0, 0.0, 0.0};
+            i < grains ? device::inspect_item(v, model, i) : device::InspectSum{0.0, 0.0, 0.0};
       }
       tree(part);
       v.inspect_partial[b] = part[0];
@@ -106,21 +106,12 @@ class EmulatedApi : public device::Api {
     }
   }
 
-  template <class Law, bool Rolling>
-  static void pairs(const View& v, const Law& law) {
-    for (Index e = 0; e < v.ctrl->M; ++e) device::pair_item<Law, Rolling>(v, law, e);
-  }
-
   static void forces(const View& v, const device::Laws& laws) {
     Control& c = *v.ctrl;
-    if (laws.rough) {
-      laws.rolling ? pairs<RoughHertzLaw, true>(v, laws.rough_pp)
-                   : pairs<RoughHertzLaw, false>(v, laws.rough_pp);
-      for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, laws.rough_pw, e);
-    } else {
-      laws.rolling ? pairs<HertzLaw, true>(v, laws.hertz) : pairs<HertzLaw, false>(v, laws.hertz);
-      for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, laws.hertz, e);
-    }
+    laws.visit([&](const auto& model) {
+      for (Index e = 0; e < c.M; ++e) device::pair_item(v, model, e);
+      for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, model, e);
+    });
     std::vector<device::WallSum> part(device::kWallThreads);
     for (int k = 0; k < kNumWalls; ++k) {
       for (int t = 0; t < device::kWallThreads; ++t) {
@@ -146,27 +137,21 @@ class EmulatedApi : public device::Api {
 
 // --- the mirror: what the device holds, as one list ---------------------------------------------
 
-enum class Count { Grains, Entries, WallEntries };
+using device::Count;
+using device::When;
 
-/// One array the device holds: where its host copy is, its size, the view pointer it sets, and
-/// the bytes last transferred (the shadow), which tell whether host code changed it since.
+/// One array the device holds that mirrors a host array (a row of CD_DEVICE_FIELDS, or a
+/// declared history vector's component): its host array, its size, the view pointer it sets,
+/// and the bytes last transferred (the shadow), which tell whether host code changed it since.
 struct Field {
   using HostArray = std::function<std::pair<void*, std::size_t>(Simulation&)>;
   using Bind = std::function<void(View&, void*)>;
-  Field(const char* name_, Count count_, bool both_ways_, std::size_t elem_, HostArray host_,
-        Bind bind_)
-      : name(name_),
-        count(count_),
-        both_ways(both_ways_),
-        elem(elem_),
-        host(std::move(host_)),
-        bind(std::move(bind_)) {}
-  const char* name;
-  Count count;
-  bool both_ways;  // downloaded by sync() (false: the device only reads it)
+  std::string name;
+  Count count = Count::Grains;
+  bool both_ways = false;  // downloaded by sync() (false: the device only reads it)
   // Per-entry data (R*, sqrt(R*), m*) derives from it: a host change needs a full upload.
   bool feeds_entries = false;
-  std::size_t elem;
+  std::size_t elem = 0;
   // The host array's data and its element count (checked against the device's count).
   HostArray host;
   Bind bind;
@@ -175,13 +160,22 @@ struct Field {
   std::vector<unsigned char> shadow;
 };
 
-template <class T>
-std::function<void(View&, void*)> binder(T* View::*member) {
-  return [member](View& v, void* p) { v.*member = static_cast<T*>(p); };
-}
-template <class T>
-std::function<void(View&, void*)> binder(const T* View::*member) {
-  return [member](View& v, void* p) { v.*member = static_cast<const T*>(p); };
+/// A device-only array (a row of CD_DEVICE_SCRATCH), or a buffer of the control block.
+struct Scratch {
+  std::string name;
+  Count count = Count::Grains;
+  When when = When::Always;
+  std::size_t elem = 0;
+  std::function<void(View&, void*)> bind;
+  void* p = nullptr;
+  std::size_t cap = 0;
+};
+
+/// The data pointer and element count of a host vector, whatever its constness (read-only rows
+/// are never written through it).
+template <class Vector>
+std::pair<void*, std::size_t> host_array(Vector& v) {
+  return {const_cast<void*>(static_cast<const void*>(v.data())), v.size()};
 }
 
 }  // namespace
@@ -205,13 +199,9 @@ bool device::cuda_built() {
 
 struct DeviceStepper::Impl {
   std::unique_ptr<device::Api> api;
-  std::vector<Field> fields;
-  // Derived per-entry arrays (from the list, radii and masses) and device-only scratch.
-  struct Scratch {
-    void* p = nullptr;
-    std::size_t cap = 0;
-  };
-  Scratch off, roff, rev, RS, SRS, ME, woff, rf[9], esig[5], wsig[2], fail, ctrl_buf, partial;
+  std::vector<Field> fields;     // mirrors of host arrays, this run's (make_fields())
+  std::vector<Scratch> scratch;  // device-only arrays, every row (held when the run needs them)
+  Scratch ctrl_buf, partial;     // the control block and the inspection's partial sums
   device::Laws laws;
   View view{};
   Control ctrl{};  // the host's copy of the control block
@@ -222,7 +212,8 @@ struct DeviceStepper::Impl {
   bool clock_current = true;
   std::uint64_t layout = ~std::uint64_t{0};
   const Simulation* owner = nullptr;  // the Simulation the device copy is of
-  bool rolling = false, load = false, crushing = false;
+  std::size_t history = 0;            // pair history vectors the law declares
+  bool load = false, crushing = false;
   Crusher* crusher = nullptr;
   BreakageSink sink;
   std::size_t N = 0, M = 0, Mw = 0;
@@ -230,20 +221,19 @@ struct DeviceStepper::Impl {
   double particle_steps = 0.0;
   static constexpr int kBatch = device::kBatchSteps;
 
-  explicit Impl(std::unique_ptr<device::Api> a) : api(std::move(a)) {}
+  explicit Impl(std::unique_ptr<device::Api> a) : api(std::move(a)) {
+#define CD_SCRATCH_ROW(name_, T, count_, when_)                            \
+  scratch.push_back(Scratch{#name_, Count::count_, When::when_, sizeof(T), \
+                            [](View& v, void* p) { v.name_ = static_cast<T*>(p); }});
+    CD_DEVICE_SCRATCH(CD_SCRATCH_ROW)
+#undef CD_SCRATCH_ROW
+  }
 
   ~Impl() {
     for (Field& f : fields) release(f.buf);
-    for (Scratch* s : scratch()) release(s->p);
-  }
-
-  std::vector<Scratch*> scratch() {
-    std::vector<Scratch*> all = {&off, &roff, &rev,  &RS,       &SRS,
-                                 &ME,  &woff, &fail, &ctrl_buf, &partial};
-    for (auto& s : rf) all.push_back(&s);
-    for (auto& s : esig) all.push_back(&s);
-    for (auto& s : wsig) all.push_back(&s);
-    return all;
+    for (Scratch& s : scratch) release(s.p);
+    release(ctrl_buf.p);
+    release(partial.p);
   }
 
   void release(void*& p) {
@@ -260,136 +250,76 @@ struct DeviceStepper::Impl {
     return true;
   }
 
-  std::size_t count(const Field& f) const {
-    switch (f.count) {
+  std::size_t count(Count c) const {
+    switch (c) {
       case Count::Grains: return N;
       case Count::Entries: return M;
       case Count::WallEntries: return Mw;
+      case Count::GrainsPlusOne: return N + 1;
     }
     return 0;
+  }
+  std::size_t count(const Field& f) const {
+    return count(f.count);
+  }
+
+  bool holds(When w) const {
+    return w == When::Always || (w == When::Load && load) || (w == When::Crushing && crushing);
+  }
+
+  Scratch& scratch_named(const char* name) {
+    for (Scratch& s : scratch) {
+      if (s.name == name) return s;
+    }
+    throw RuntimeFailure(std::string("device: no scratch array '") + name + "'");
   }
 
   // --- the list of fields ----------------------------------------------------------------------
 
-  /// A field whose host array is `get(sim)`: a std::vector<T> of the Simulation.
-  template <class Get, class Member>
-  void add(const char* name, Count count, bool both_ways, Get get, Member View::*member) {
-    using Vector = std::remove_reference_t<decltype(get(std::declval<Simulation&>()))>;
-    fields.emplace_back(
-        name, count, both_ways, sizeof(typename Vector::value_type),
-        [get](Simulation& s) {
-          auto& v = get(s);
-          return std::pair<void*, std::size_t>(
-              const_cast<void*>(static_cast<const void*>(v.data())), v.size());
-        },
-        binder(member));
-  }
-
-  /// The member `m` of the part `part(sim)` of the Simulation, as a field.
-  template <class Part, class T, class Member>
-  void add_member(const char* name, Count count, bool both_ways, Part& (*part)(Simulation&),
-                  std::vector<T> Part::*m, Member View::*member) {
-    add(
-        name, count, both_ways, [ part, m ](Simulation & s) -> auto& { return part(s).*m; },
-        member);
-  }
-
-  /// The fields of this run, the one list of what the device holds (rolling history, contact
-  /// load and crushing fields only when on).
-  void make_fields() {
+  /// The fields of this run, the one list of what the device mirrors: the rows of
+  /// CD_DEVICE_FIELDS the run holds, then each component of each pair history vector the contact
+  /// law declares.
+  void make_fields(const Simulation& sim) {
     for (Field& f : fields) release(f.buf);
     fields.clear();
-    using V = View;
-    using PS = ParticleStore;
-    using WC = WallContacts;
-    using CH = ContactHistory;
-    constexpr Count G = Count::Grains, E = Count::Entries, W = Count::WallEntries;
-    const auto grains = +[](Simulation& s) -> PS& { return s.particles(); };
-    const auto history = +[](Simulation& s) -> CH& { return s.history(); };
-    const auto walls = +[](Simulation& s) -> WC& { return s.wall_contacts(); };
-    const auto load_of = +[](Simulation& s) -> ContactLoad& { return s.contact_load(); };
-    const auto list = +[](Simulation& s) -> NeighborList& {
-      return const_cast<NeighborList&>(s.neighbors());  // read only: never downloaded
-    };
-    // Per grain, both ways: motion, forces and torques.
-    const std::tuple<const char*, std::vector<double> PS::*, double * V::*> motion[] = {
-        {"x", &PS::x, &V::x},    {"y", &PS::y, &V::y},    {"z", &PS::z, &V::z},
-        {"vx", &PS::vx, &V::vx}, {"vy", &PS::vy, &V::vy}, {"vz", &PS::vz, &V::vz},
-        {"wx", &PS::wx, &V::wx}, {"wy", &PS::wy, &V::wy}, {"wz", &PS::wz, &V::wz},
-        {"fx", &PS::fx, &V::fx}, {"fy", &PS::fy, &V::fy}, {"fz", &PS::fz, &V::fz},
-        {"tx", &PS::tx, &V::tx}, {"ty", &PS::ty, &V::ty}, {"tz", &PS::tz, &V::tz}};
-    for (const auto& [name, m, v] : motion) add_member(name, G, true, grains, m, v);
-    // The undamped resultant, both ways.
-    double* V::*resultant[3] = {&V::fux, &V::fuy, &V::fuz};
-    const char* resultant_names[3] = {"fux", "fuy", "fuz"};
-    for (int k = 0; k < 3; ++k) {
-      add(
-          resultant_names[k], G,
-          true, [k](Simulation & s) -> auto& { return s.resultant_force(k); }, resultant[k]);
+    Crusher* const run_crusher = crusher;
+#define CD_FIELD_ROW(name_, T, count_, writes, when_, feeds, host_expr) \
+  if (holds(When::when_)) {                                             \
+    Field f;                                                            \
+    f.name = #name_;                                                    \
+    f.count = Count::count_;                                            \
+    f.both_ways = writes;                                               \
+    f.feeds_entries = feeds;                                            \
+    f.elem = sizeof(T);                                                 \
+    f.host = [crusher = run_crusher](Simulation& s) {                   \
+      static_cast<void>(crusher);                                       \
+      return host_array(host_expr);                                     \
+    };                                                                  \
+    f.bind = [](View& v, void* p) { v.name_ = static_cast<T*>(p); };    \
+    fields.push_back(std::move(f));                                     \
+  }
+    CD_DEVICE_FIELDS(CD_FIELD_ROW)
+#undef CD_FIELD_ROW
+    const std::vector<HistoryField> declared = sim.history().fields();
+    history = declared.size();
+    if (history > static_cast<std::size_t>(device::kMaxPairHistory)) {
+      throw RuntimeFailure(
+          "device: the contact law keeps more history vectors than the device step");
     }
-    // Per grain, read only: sizes and inertia, and the positions at the last list build.
-    // The last element: whether the per-entry R* and m* derive from it.
-    const std::tuple<const char*, std::vector<double> PS::*, const double * V::*, bool> sizes[] = {
-        {"radius", &PS::radius, &V::radius, true},
-        {"mass", &PS::mass, &V::mass, true},
-        {"inv_mass", &PS::inv_mass, &V::inv_mass, true},
-        {"inv_inertia", &PS::inv_inertia, &V::inv_inertia, false}};
-    for (const auto& [name, m, v, feeds_entries] : sizes) {
-      add_member(name, G, false, grains, m, v);
-      fields.back().feeds_entries = feeds_entries;
-    }
-    const double* V::*reference[3] = {&V::x0, &V::y0, &V::z0};
-    const char* reference_names[3] = {"x0", "y0", "z0"};
-    for (int k = 0; k < 3; ++k) {
-      add(
-          reference_names[k], G, false,
-          [k](Simulation & s) -> auto& {
-            const NeighborList& nl = s.neighbors();
-            return k == 0 ? nl.x_ref() : (k == 1 ? nl.y_ref() : nl.z_ref());
-          },
-          reference[k]);
-    }
-    // The list (read only) and the per-entry history (both ways).
-    add_member("owner", E, false, list, &NeighborList::owner, &V::owner);
-    add_member("nb", E, false, list, &NeighborList::neighbors, &V::nb);
-    const std::tuple<const char*, std::vector<double> CH::*, double * V::*> pair_history[] = {
-        {"ftx", &CH::ft_x, &V::ftx}, {"fty", &CH::ft_y, &V::fty}, {"ftz", &CH::ft_z, &V::ftz},
-        {"mrx", &CH::mr_x, &V::mrx}, {"mry", &CH::mr_y, &V::mry}, {"mrz", &CH::mr_z, &V::mrz}};
-    for (const auto& [name, m, v] : pair_history) {
-      if (rolling || name[0] == 'f') add_member(name, E, true, history, m, v);
-    }
-    add_member("touch", E, true, history, &CH::touching, &V::touch);
-    // Wall entries: which grain and wall (read only), history and results (both ways).
-    add_member("wp", W, false, walls, &WC::particle, &V::wp);
-    add_member("ww", W, false, walls, &WC::wall, &V::ww);
-    const std::tuple<const char*, std::vector<double> WC::*, double * V::*> wall[] = {
-        {"wftx", &WC::ft_x, &V::wftx}, {"wfty", &WC::ft_y, &V::wfty},
-        {"wftz", &WC::ft_z, &V::wftz}, {"wfx", &WC::fx, &V::wfx},
-        {"wfy", &WC::fy, &V::wfy},     {"wfz", &WC::fz, &V::wfz},
-        {"wtx", &WC::tx, &V::wtx},     {"wty", &WC::ty, &V::wty},
-        {"wtz", &WC::tz, &V::wtz},     {"wFn", &WC::F_n, &V::wFn},
-        {"wkn", &WC::k_n, &V::wkn},    {"wdelta", &WC::delta, &V::wdelta}};
-    for (const auto& [name, m, v] : wall) add_member(name, W, true, walls, m, v);
-    if (load) {  // the contact load per grain (both ways: the host's forces fill it too)
-      using CL = ContactLoad;
-      const std::tuple<const char*, std::vector<double> CL::*, double * V::*> rows[] = {
-          {"LS", &CL::sigma, &V::LS},
-          {"LF", &CL::F_n_max, &V::LF},
-          {"LNX", &CL::nx, &V::LNX},
-          {"LNY", &CL::ny, &V::LNY},
-          {"LNZ", &CL::nz, &V::LNZ}};
-      for (const auto& [name, m, v] : rows) add_member(name, G, true, load_of, m, v);
-    }
-    if (crushing) {  // strengths (read only) and crack lengths (both ways)
-      const std::size_t strength = crusher->strength_field(), crack = crusher->crack_field();
-      add(
-          "sigma_lim", G,
-          false, [strength](Simulation & s) -> auto& { return s.particles().field(strength); },
-          &V::sigma_lim);
-      add(
-          "crack_a", G,
-          true, [crack](Simulation & s) -> auto& { return s.particles().field(crack); },
-          &V::crack_a);
+    for (std::size_t k = 0; k < declared.size(); ++k) {
+      for (int c = 0; c < 3; ++c) {
+        Field f;
+        f.name = std::string(declared[k].name) + "_" + "xyz"[c];
+        f.count = Count::Entries;
+        f.both_ways = true;
+        f.elem = sizeof(double);
+        f.host = [k, c](Simulation& s) {
+          ContactHistory::Vectors& h = s.history().pair[k];
+          return host_array(c == 0 ? h.x : (c == 1 ? h.y : h.z));
+        };
+        f.bind = [k, c](View& v, void* p) { v.ph[k][c] = static_cast<double*>(p); };
+        fields.push_back(std::move(f));
+      }
     }
   }
 
@@ -398,8 +328,7 @@ struct DeviceStepper::Impl {
   /// Whether the run's fields or the layout changed since the last full upload.
   bool layout_changed(const Simulation& sim) const {
     return !have_device || &sim != owner || sim.layout_version() != layout ||
-           rolling != (sim.contact_params().mu_r > 0.0) ||
-           load != (sim.contact_load_factor() > 0.0) ||
+           history != sim.history().fields().size() || load != (sim.contact_load_factor() > 0.0) ||
            crushing != (crusher != nullptr && sim.contact_load_factor() > 0.0);
   }
 
@@ -423,31 +352,22 @@ struct DeviceStepper::Impl {
   }
 
   void full_upload(Simulation& sim) {
-    const bool r = sim.contact_params().mu_r > 0.0, l = sim.contact_load_factor() > 0.0;
+    const bool l = sim.contact_load_factor() > 0.0;
     const bool c = crusher != nullptr && l;
-    if (fields.empty() || r != rolling || l != load || c != crushing) {
-      rolling = r;
+    if (fields.empty() || &sim != owner || history != sim.history().fields().size() || l != load ||
+        c != crushing) {
       load = l;
       crushing = c;
-      make_fields();
+      make_fields(sim);
     }
-    if (!have_device) {
-      const ContactParams& cp = sim.contact_params();
-      device::Laws host;
-      host.rough = sim.config().contact.law == NormalLaw::Rough;
-      host.hertz = HertzLaw{cp.E_star};
-      host.rough_pp = RoughHertzLaw{cp.E_star, cp.rough_pp};
-      host.rough_pw = RoughHertzLaw{cp.E_star, cp.rough_pw};
-      laws = api->place_laws(host);
-    }
-    laws.rolling = rolling;
+    if (!have_device || &sim != owner) laws = api->place_laws(sim.contact_law());
     const ParticleStore& p = sim.particles();
     const NeighborList& nl = sim.neighbors();
     const WallContacts& wc = sim.wall_contacts();
     N = p.size();
     M = nl.neighbors.size();
     Mw = wc.size();
-    if (sim.history().ft_x.size() != M || wc.offsets.size() != N + 1) {
+    if (sim.history().tangential().x.size() != M || wc.offsets.size() != N + 1) {
       throw RuntimeFailure("device upload: contact history and neighbour list disagree");
     }
     for (Field& f : fields) upload_field(f, sim);
@@ -470,22 +390,22 @@ struct DeviceStepper::Impl {
       srs[e] = std::sqrt(rs[e]);
       me[e] = pair_m_eff(p.inv_mass[i], p.inv_mass[j]);
     }
-    put(off, offsets);
-    put(roff, r_off);
-    put(rev, r_ent);
-    put(RS, rs);
-    put(SRS, srs);
-    put(ME, me);
-    put(woff, wc.offsets);
-    for (auto& s : rf) reserve(s.p, s.cap, M * sizeof(double));
-    if (load) {
-      for (auto& s : esig) reserve(s.p, s.cap, M * sizeof(double));
-      for (auto& s : wsig) reserve(s.p, s.cap, Mw * sizeof(double));
+    // Every scratch array the run holds gets its room; the derived ones their values. The
+    // failure flags start cleared where new (the crushing check writes every grain's).
+    for (Scratch& s : scratch) {
+      if (!holds(s.when) || !reserve(s.p, s.cap, count(s.count) * s.elem)) continue;
+      if (s.name == "fail") {
+        const std::vector<std::uint8_t> none(s.cap, 0);
+        api->upload(s.p, none.data(), s.cap);
+      }
     }
-    if (crushing && reserve(fail.p, fail.cap, N)) {
-      const std::vector<std::uint8_t> none(fail.cap, 0);
-      api->upload(fail.p, none.data(), fail.cap);
-    }
+    put("off", offsets);
+    put("roff", r_off);
+    put("rev", r_ent);
+    put("RS", rs);
+    put("SRS", srs);
+    put("ME", me);
+    put("woff", wc.offsets);
     reserve(ctrl_buf.p, ctrl_buf.cap, sizeof(Control));
     reserve(partial.p, partial.cap, (N / device::kInspectBlock + 1) * sizeof(device::InspectSum));
     layout = sim.layout_version();
@@ -495,7 +415,8 @@ struct DeviceStepper::Impl {
   }
 
   template <class T>
-  void put(Scratch& s, const std::vector<T>& v) {
+  void put(const char* name, const std::vector<T>& v) {
+    Scratch& s = scratch_named(name);
     reserve(s.p, s.cap, v.size() * sizeof(T));
     api->upload(s.p, v.data(), v.size() * sizeof(T));
   }
@@ -537,7 +458,7 @@ struct DeviceStepper::Impl {
   void download_fields(Simulation& sim, std::initializer_list<const char*> names) {
     for (Field& f : fields) {
       for (const char* name : names) {
-        if (std::strcmp(f.name, name) != 0) continue;
+        if (f.name != name) continue;
         const std::size_t bytes = count(f) * f.elem;
         void* dst = host_data(f, sim);
         api->download(dst, f.buf, bytes);
@@ -554,25 +475,14 @@ struct DeviceStepper::Impl {
     View u;
     std::memset(static_cast<void*>(&u), 0, sizeof u);
     for (Field& f : fields) f.bind(u, f.buf);
-    u.off = static_cast<const Index*>(off.p);
-    u.roff = static_cast<const Index*>(roff.p);
-    u.rev = static_cast<const Index*>(rev.p);
-    u.RS = static_cast<const double*>(RS.p);
-    u.SRS = static_cast<const double*>(SRS.p);
-    u.ME = static_cast<const double*>(ME.p);
-    u.woff = static_cast<const Index*>(woff.p);
-    double** rec[9] = {&u.rfx, &u.rfy, &u.rfz, &u.rix, &u.riy, &u.riz, &u.rjx, &u.rjy, &u.rjz};
-    for (int k = 0; k < 9; ++k) *rec[k] = static_cast<double*>(rf[k].p);
+    for (Scratch& s : scratch) {
+      if (holds(s.when)) s.bind(u, s.p);
+    }
     if (load) {
-      double** e[5] = {&u.esig, &u.eFn, &u.enx, &u.eny, &u.enz};
-      for (int k = 0; k < 5; ++k) *e[k] = static_cast<double*>(esig[k].p);
-      u.wsig = static_cast<double*>(wsig[0].p);
-      u.wFel = static_cast<double*>(wsig[1].p);
       u.load_factor = sim.contact_load_factor();
       u.inv_pi_k = 1.0 / (kPi * sim.contact_load_factor());
     }
     if (crushing) {
-      u.fail = static_cast<std::uint8_t*>(fail.p);
       const CrushingConfig& c = crusher->config();
       u.d_c = crusher->d_c();
       u.v0 = c.v0;
@@ -582,7 +492,7 @@ struct DeviceStepper::Impl {
     }
     u.ctrl = static_cast<Control*>(ctrl_buf.p);
     u.inspect_partial = static_cast<device::InspectSum*>(partial.p);
-    std::size_t room[3] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}};
+    std::size_t room[4] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}};
     for (const Field& f : fields) {
       std::size_t& r = room[static_cast<int>(f.count)];
       r = std::min(r, f.cap / f.elem);
@@ -601,7 +511,7 @@ struct DeviceStepper::Impl {
       d.servo_alpha = w.servo_alpha;
       d.max_speed = w.max_speed;
     }
-    std::memcpy(static_cast<void*>(&u.cp), &sim.contact_params(), sizeof u.cp);
+    u.cp = sim.contact_params();
     return u;
   }
 
@@ -762,7 +672,7 @@ struct DeviceStepper::Impl {
   void split_failed(Simulation& sim) {
     sync_all(sim);
     std::vector<std::uint8_t> flags(N);
-    api->download(flags.data(), fail.p, N);
+    api->download(flags.data(), scratch_named("fail").p, N);
     std::vector<std::pair<std::size_t, BreakCause>> grains;
     for (std::size_t i = 0; i < N; ++i) {
       if (flags[i] == static_cast<std::uint8_t>(GrainFailure::None)) continue;
@@ -780,7 +690,9 @@ struct DeviceStepper::Impl {
     clock_current = false;  // the next sync inspects the state after the split
   }
 
-  void sync_all(Simulation& sim) { sync(sim, Sync::All); }
+  void sync_all(Simulation& sim) {
+    sync(sim, Sync::All);
+  }
 
   void sync(Simulation& sim, Sync what) {
     if (!have_device) return;
@@ -835,7 +747,8 @@ void DeviceStepper::sync(Simulation& sim, Sync what) {
 std::size_t DeviceStepper::device_bytes() const {
   std::size_t b = 0;
   for (const Field& f : impl_->fields) b += f.cap;
-  for (Impl::Scratch* s : impl_->scratch()) b += s->cap;
+  for (const Scratch& s : impl_->scratch) b += s.cap;
+  b += impl_->ctrl_buf.cap + impl_->partial.cap;
   return b;
 }
 

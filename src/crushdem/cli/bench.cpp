@@ -167,12 +167,12 @@ int bench_main(const BenchArgs& a) {
       add_packing_particles(settler, pk);
       settler.step(static_cast<std::uint64_t>(settle));
       StateWriter state;
-      settler.save_state(state);
+      save_state(settler, state);
       bytes = state.bytes();
       if (!settled_state.empty()) write_file_atomically(settled_state, header + bytes);
     }
     StateReader in(std::move(bytes), "the settled state");
-    sim.load_state(in);
+    load_state(sim, in);
     double p = 0.0;
     for (int k = 0; k < kNumWalls; ++k) {
       sim.walls().config(k) = cfg.walls[static_cast<std::size_t>(k)];

@@ -1,9 +1,11 @@
-// One contact's response, assembled from the pure parts (normal law, viscous damping, Mindlin
-// tangential with Coulomb cap, rolling resistance), in the manner of LAMMPS `pair granular`. The
-// same function serves grain-grain and grain-wall contacts; only the geometry passed in differs.
+// One contact's response, assembled from the pure parts of the contact law
+// (contact/contact_model.hpp: normal law, viscous damping, Mindlin tangential with Coulomb cap;
+// the couple sub-model, rolling resistance, adds its moment in the loops), in the manner of
+// LAMMPS `pair granular`. The same function serves grain-grain and grain-wall contacts; only the
+// geometry passed in differs.
 #pragma once
 
-#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/contact/contact_model.hpp"
 #include "crushdem/contact/damping.hpp"
 #include "crushdem/contact/rolling.hpp"
 #include "crushdem/contact/tangential.hpp"
@@ -97,17 +99,6 @@ CD_HD_INLINE PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
                                            F_t_old, p.mu, p, dt);
   out.tn = cross(n, out.c.tangential);
   return out;
-}
-
-/// The rolling moment on grain i of a pair contact evaluated by pair_contact() (its normal n,
-/// tangent normal stiffness k_n and elastic F_n: pc.n, pc.c.k_n, pc.c.F_n), from the stored one
-/// (contact/rolling.hpp); k_t is the Mindlin tangent stiffness of that contact. j receives the
-/// opposite moment. Shared by every backend's pair loop. Plain values, not the PairContact:
-/// a struct passed by reference inside an `omp simd` loop becomes a per-lane array in memory,
-/// and the loop no longer vectorises.
-CD_HD inline Vec3 pair_rolling_moment(Vec3 n, double k_n, double F_n, Vec3 M_r_old, Vec3 w_i,
-                                      Vec3 w_j, double R_star, const ContactParams& p, double dt) {
-  return rolling_moment(M_r_old, n, w_i - w_j, dt, p.tangential_ratio * k_n, R_star, p.mu_r, F_n);
 }
 
 /// One grain-wall contact, shared by every backend's wall loop. n: the wall's outward normal;

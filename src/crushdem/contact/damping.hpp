@@ -9,6 +9,7 @@
 
 #include <cmath>
 
+#include "crushdem/core/params.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
@@ -22,6 +23,28 @@ CD_HD inline double tsuji_alpha(double e) {
 struct ViscousDamping {
   double alpha_n = 0.0;  // 0 = no viscous damping
   double tangential_factor = 1.0;
+};
+
+/// The key of [contact] the viscous damping owns.
+struct ViscousConfig {
+  double restitution = 1.0;  // < 1 adds Tsuji viscous damping (off by default)
+  static const ParamTable<ViscousConfig>& config_params() {
+    using C = ViscousConfig;
+    static const ParamTable<C> table = {
+        {"restitution", &C::restitution, "-",
+         "< 1 adds Tsuji viscous contact damping (as LAMMPS `damping tsuji`) for this coefficient "
+         "of restitution; the fit is approximate (a head-on impact with 0.5 rebounds at 0.55); "
+         "1 = none",
+         [](double v) { return v > 0.0 && v <= 1.0; },
+         "a coefficient of restitution in (0, 1] (1 = no viscous damping)"},
+    };
+    return table;
+  }
+  ViscousDamping derive() const {
+    ViscousDamping d;
+    if (restitution < 1.0) d.alpha_n = std::sqrt(2.0) * tsuji_alpha(restitution);
+    return d;
+  }
 };
 
 /// eta = alpha sqrt(m* F_n / delta); `stiffness` is F_n / delta (the secant stiffness).

@@ -8,6 +8,8 @@
 
 #include <cmath>
 
+#include "crushdem/contact/material.hpp"
+#include "crushdem/core/params.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
@@ -30,11 +32,6 @@ CD_HD inline double pair_m_eff(double inv_mass_1, double inv_mass_2) {
   return 1.0 / (inv_mass_1 + inv_mass_2);
 }
 
-/// E* for two grains of one material from the shear modulus G and Poisson's ratio nu.
-CD_HD inline double effective_modulus(double G, double nu) {
-  return G / (1.0 - nu);
-}
-
 CD_HD inline NormalForce hertz_normal(double delta, double R_star, double E_star) {
   if (delta <= 0.0) return {};
   const double k_n = 2.0 * E_star * std::sqrt(R_star * delta);
@@ -47,6 +44,27 @@ struct HertzLaw {
   CD_HD NormalForce operator()(double delta, double R_star, double /*sqrt_R_star*/) const {
     return hertz_normal(delta, R_star, E_star);
   }
+};
+
+/// The normal sub-model `contact.law = "hertz"` (the interface every normal sub-model has:
+/// contact/contact_model.hpp): no keys beyond [material], no tables.
+struct HertzNormal {
+  static constexpr const char* kName = "hertz";
+  static constexpr const char* kDoc = "smooth Hertz";
+  struct Config {};
+  static const ParamTable<Config>& config_params() {
+    static const ParamTable<Config> none;
+    return none;
+  }
+  static void check(const Config&) {}
+  struct Params {  // plain values, the same on the host and the device
+    double E_star = 0.0;
+  };
+  static Params derive(const MaterialConfig& m, const Config&) { return {m.E_star()}; }
+  static constexpr int kTables = 0;
+  using Law = HertzLaw;
+  static Law pair_law(const Params& p, const double* const*) { return {p.E_star}; }
+  static Law wall_law(const Params& p, const double* const*) { return {p.E_star}; }
 };
 
 }  // namespace crushdem

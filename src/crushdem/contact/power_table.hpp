@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstddef>
 
 #include "crushdem/core/types.hpp"
 
@@ -47,6 +48,14 @@ struct PowerTable {
   double p = 0.0;
 
   CD_HD double operator()(double x) const { return power_table_lookup(nodes, 0, n, inv_h, x); }
+};
+
+/// A block of table nodes on the host that a law's evaluator reads: where it is and how many
+/// doubles it holds (a device backend copies it into its own memory and hands the evaluator
+/// that copy).
+struct TableBlock {
+  const double* host = nullptr;
+  std::size_t count = 0;
 };
 
 /// The tables of x^p1 and x^p2 in one block, the second right after the first:

@@ -10,9 +10,29 @@
 #include <cmath>
 #include <limits>
 
+#include "crushdem/contact/history_field.hpp"
+#include "crushdem/core/params.hpp"
 #include "crushdem/core/types.hpp"
 
 namespace crushdem {
+
+/// The tangential sub-model's history: one spring per contact (grain pairs and walls).
+inline constexpr HistoryField kTangentialHistory = {"ft",
+                                                    "tangential spring force on the owner [N]"};
+
+/// The keys of [contact] the tangential sub-model owns (the grain-grain friction is
+/// material.friction).
+struct TangentialConfig {
+  double wall_friction = 0.0;  // mu against walls (CHOICE)
+  static const ParamTable<TangentialConfig>& config_params() {
+    using C = TangentialConfig;
+    static const ParamTable<C> table = {
+        {"wall_friction", &C::wall_friction, "-", "friction coefficient against walls (CHOICE)",
+         [](double v) { return v >= 0.0; }, "a friction coefficient >= 0"},
+    };
+    return table;
+  }
+};
 
 /// k_t / k_n for one material.
 CD_HD inline double mindlin_stiffness_ratio(double nu) {

@@ -8,8 +8,11 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
+#include <type_traits>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -21,8 +24,8 @@ namespace crushdem {
 /// to its struct. `set` throws ConfigError naming `key` for a value not in `choices`.
 template <class S>
 struct ParamChoice {
-  std::string (*get)(const S&);
-  void (*set)(S&, const std::string& value, const std::string& key);
+  std::function<std::string(const S&)> get;
+  std::function<void(S&, const std::string& value, const std::string& key)> set;
   std::string_view choices;  // for messages and docs, e.g. "\"hertz\" or \"rough\""
 };
 
@@ -45,11 +48,48 @@ struct Param {
   std::string_view default_doc = {};
   // The key applies only where this holds (a servo target with a servo wall): written to
   // config.toml and range-checked only then; always when null.
-  bool (*applies)(const S&) = nullptr;
+  std::function<bool(const S&)> applies = {};
 };
 
 template <class S>
 using ParamTable = std::vector<Param<S>>;
+
+/// A member pointer of a base (T Part::*) as one of the derived whole (T S::*).
+template <class S, class T, class Part>
+T S::*member_of_whole(T Part::*m) {
+  return m;
+}
+
+/// The rows of a part's table as rows of the whole it is a base of (a contact law's keys as
+/// keys of [contact]): member pointers of a base convert to member pointers of the derived.
+template <class S, class Part>
+void append_rows(ParamTable<S>& out, const ParamTable<Part>& rows) {
+  static_assert(std::is_base_of_v<Part, S>, "the part must be a base of the whole");
+  for (const Param<Part>& p : rows) {
+    Param<S> q;
+    q.key = p.key;
+    q.unit = p.unit;
+    q.doc = p.doc;
+    q.ok = p.ok;
+    q.expected = p.expected;
+    q.default_doc = p.default_doc;
+    if (p.applies) q.applies = [f = p.applies](const S& s) { return f(s); };
+    std::visit(
+        [&q](const auto& m) {
+          using M = std::decay_t<decltype(m)>;
+          if constexpr (std::is_same_v<M, ParamChoice<Part>>) {
+            q.member = ParamChoice<S>{
+                [g = m.get](const S& s) { return g(s); },
+                [f = m.set](S& s, const std::string& v, const std::string& key) { f(s, v, key); },
+                m.choices};
+          } else {
+            q.member = member_of_whole<S>(m);
+          }
+        },
+        p.member);
+    out.push_back(std::move(q));
+  }
+}
 
 /// The range checks of `table` on `obj`; errors name "section.key", the value and the range.
 template <class S>

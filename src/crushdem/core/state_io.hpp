@@ -145,4 +145,70 @@ class StateReader {
   int version_ = kStateVersion;
 };
 
+/// One declaration of an object's state serves both directions (as cereal's `serialize`): an
+/// object that keeps state between steps has `void state(StateArchive& a)`, which names each
+/// field once, in file order; the archive writes it (save_state()) or reads it into the same
+/// member (load_state()). A field that a later format added says since which
+/// (`a.since(3, v)`): an older file does not hold it, and the member keeps its value. Checks
+/// that only a read needs go under `if (a.loading())`. kStateVersion is the newest `since`.
+class StateArchive {
+ public:
+  explicit StateArchive(StateWriter& out) : out_(&out) {}
+  explicit StateArchive(StateReader& in) : in_(&in) {}
+  bool loading() const { return in_ != nullptr; }
+  /// The format being read, or kStateVersion when writing.
+  int version() const { return in_ ? in_->version() : kStateVersion; }
+  /// A named marker, checked when reading: a mismatch means a corrupt or foreign file.
+  void section(const char* name) {
+    if (out_) {
+      out_->tag(name);
+    } else {
+      in_->tag(name);
+    }
+  }
+  /// Fields: plain values, vectors of them, strings, lists of strings, random engines.
+  template <class... T>
+  void operator()(T&... v) {
+    (one(v), ...);
+  }
+  /// Fields held from format `version` on.
+  template <class... T>
+  void since(int version, T&... v) {
+    if (this->version() >= version) (one(v), ...);
+  }
+  /// A field with no member behind it (a count, a size): `v` is written, the value read is
+  /// returned.
+  template <class T>
+  T value(T v) {
+    one(v);
+    return v;
+  }
+
+ private:
+  template <class T>
+  void one(T& v) {
+    if (out_) {
+      out_->put(static_cast<const T&>(v));
+    } else {
+      in_->get(v);
+    }
+  }
+  StateWriter* out_ = nullptr;
+  StateReader* in_ = nullptr;
+};
+
+/// Writes the state `obj` declares (its state(StateArchive&), which a write only reads).
+template <class T>
+void save_state(const T& obj, StateWriter& out) {
+  StateArchive a(out);
+  const_cast<T&>(obj).state(a);
+}
+
+/// Reads the state `obj` declares.
+template <class T>
+void load_state(T& obj, StateReader& in) {
+  StateArchive a(in);
+  obj.state(a);
+}
+
 }  // namespace crushdem

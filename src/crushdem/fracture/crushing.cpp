@@ -330,36 +330,13 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim,
   return events;
 }
 
-void Crusher::save_state(StateWriter& out) const {
-  out.tag("crusher");
-  out.put(strength_rng_.engine_state());
-  out.put(orientation_rng_.engine_state());
-  out.put(crack_rng_.engine_state());
-  out.put(static_cast<std::uint64_t>(strength_field_));
-  out.put(static_cast<std::uint64_t>(crack_field_));
-  for (const double v :
-       {last_check_time_, d0_, d_c_, d50_, d_ref_, rho_, removed_volume_, removed_mass_}) {
-    out.put(v);
-  }
-  out.put(initial_d_);
-  out.put(count_[0]);
-  out.put(count_[1]);
-}
-
-void Crusher::load_state(StateReader& in) {
-  in.tag("crusher");
-  in.get(strength_rng_.engine());
-  in.get(orientation_rng_.engine());
-  in.get(crack_rng_.engine());
-  strength_field_ = static_cast<std::size_t>(in.value<std::uint64_t>());
-  crack_field_ = static_cast<std::size_t>(in.value<std::uint64_t>());
-  for (double* v :
-       {&last_check_time_, &d0_, &d_c_, &d50_, &d_ref_, &rho_, &removed_volume_, &removed_mass_}) {
-    in.get(*v);
-  }
-  in.get(initial_d_);
-  in.get(count_[0]);
-  in.get(count_[1]);
+void Crusher::state(StateArchive& a) {
+  a.section("crusher");
+  a(strength_rng_.engine(), orientation_rng_.engine(), crack_rng_.engine());
+  strength_field_ = static_cast<std::size_t>(a.value(static_cast<std::uint64_t>(strength_field_)));
+  crack_field_ = static_cast<std::size_t>(a.value(static_cast<std::uint64_t>(crack_field_)));
+  a(last_check_time_, d0_, d_c_, d50_, d_ref_, rho_, removed_volume_, removed_mass_);
+  a(initial_d_, count_[0], count_[1]);
 }
 
 }  // namespace crushdem

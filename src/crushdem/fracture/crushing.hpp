@@ -122,9 +122,8 @@ class Crusher {
   const CrushingConfig& config() const { return cfg_; }
   const SplitPattern& pattern() const { return pattern_; }
   /// Random streams, reference sizes and accounting (the per-grain strengths and cracks are
-  /// particle fields, saved with the Simulation). load_state() replaces begin() on resume.
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  /// particle fields, saved with the Simulation). Loading it replaces begin() on resume.
+  void state(StateArchive& a);
 
  private:
   CrushingConfig cfg_;

@@ -16,28 +16,30 @@ bool wall_key_less(const ContactHistory::WallVector& u, const ContactHistory::Wa
 
 }  // namespace
 
+void ContactHistory::declare(const std::vector<HistoryField>& fields) {
+  fields_ = fields;
+  pair.assign(fields.size(), Vectors{});
+  kept_pairs.assign(fields.size(), {});
+  kept = false;
+}
+
 void ContactHistory::capture_pair_vectors(const ParticleStore& p, const NeighborList& nl,
-                                          const std::vector<double>& x,
-                                          const std::vector<double>& y,
-                                          const std::vector<double>& z,
-                                          std::vector<PairVector>& out) const {
+                                          const Vectors& v, std::vector<PairVector>& out) const {
   out.clear();
-  for (std::size_t e = 0; e < x.size(); ++e) {
-    if (x[e] == 0.0 && y[e] == 0.0 && z[e] == 0.0) continue;
+  for (std::size_t e = 0; e < v.x.size(); ++e) {
+    if (v.x[e] == 0.0 && v.y[e] == 0.0 && v.z[e] == 0.0) continue;
     const ParticleId ia = p.id[nl.owner[e]], ib = p.id[nl.neighbors[e]];
     if (ia < ib) {
-      out.push_back({ia, ib, x[e], y[e], z[e]});
+      out.push_back({ia, ib, v.x[e], v.y[e], v.z[e]});
     } else {
-      out.push_back({ib, ia, -x[e], -y[e], -z[e]});
+      out.push_back({ib, ia, -v.x[e], -v.y[e], -v.z[e]});
     }
   }
   std::sort(out.begin(), out.end());
 }
 
 void ContactHistory::restore_pair_vectors(const ParticleStore& p, const NeighborList& nl,
-                                          const std::vector<PairVector>& saved,
-                                          std::vector<double>& x, std::vector<double>& y,
-                                          std::vector<double>& z) {
+                                          const std::vector<PairVector>& saved, Vectors& v) {
   if (saved.empty()) return;
   const std::size_t M = nl.neighbors.size();
 #pragma omp parallel for schedule(static) if (worth_threading(M))
@@ -48,9 +50,9 @@ void ContactHistory::restore_pair_vectors(const ParticleStore& p, const Neighbor
     auto it = std::lower_bound(saved.begin(), saved.end(), PairVector{a, b, 0, 0, 0});
     if (it != saved.end() && it->a == a && it->b == b) {
       const double s = ia == a ? 1.0 : -1.0;
-      x[e] = s * it->x;
-      y[e] = s * it->y;
-      z[e] = s * it->z;
+      v.x[e] = s * it->x;
+      v.y[e] = s * it->y;
+      v.z[e] = s * it->z;
       touching[e] = 1;  // makes the force pass clear it if the pair has separated
     }
   }
@@ -59,8 +61,9 @@ void ContactHistory::restore_pair_vectors(const ParticleStore& p, const Neighbor
 void ContactHistory::capture(const ParticleStore& p, const NeighborList& nl,
                              const WallContacts& wc) {
   if (kept) return;
-  capture_pair_vectors(p, nl, ft_x, ft_y, ft_z, kept_pairs);
-  capture_pair_vectors(p, nl, mr_x, mr_y, mr_z, kept_rolling);  // empty without rolling
+  for (std::size_t k = 0; k < pair.size(); ++k) {
+    capture_pair_vectors(p, nl, pair[k], kept_pairs[k]);
+  }
   kept_walls.clear();
   for (std::size_t e = 0; e < wc.size(); ++e) {
     if (wc.ft_x[e] == 0.0 && wc.ft_y[e] == 0.0 && wc.ft_z[e] == 0.0) continue;
@@ -70,15 +73,16 @@ void ContactHistory::capture(const ParticleStore& p, const NeighborList& nl,
   kept = true;
 }
 
-void ContactHistory::rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc,
-                             bool rolling) {
+void ContactHistory::rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc) {
   const std::size_t M = nl.neighbors.size();
-  for (auto* a : {&ft_x, &ft_y, &ft_z}) a->assign(M, 0.0);
-  for (auto* a : {&mr_x, &mr_y, &mr_z}) a->assign(rolling ? M : 0, 0.0);
+  for (Vectors& v : pair) {
+    for (auto* a : {&v.x, &v.y, &v.z}) a->assign(M, 0.0);
+  }
   touching.assign(M, 0);
   if (!kept) return;
-  restore_pair_vectors(p, nl, kept_pairs, ft_x, ft_y, ft_z);
-  if (rolling) restore_pair_vectors(p, nl, kept_rolling, mr_x, mr_y, mr_z);
+  for (std::size_t k = 0; k < pair.size(); ++k) {
+    restore_pair_vectors(p, nl, kept_pairs[k], pair[k]);
+  }
   for (std::size_t e = 0; e < wc.size(); ++e) {
     const WallVector key{p.id[wc.particle[e]], wc.wall[e], 0, 0, 0};
     auto it = std::lower_bound(kept_walls.begin(), kept_walls.end(), key, wall_key_less);
@@ -88,16 +92,15 @@ void ContactHistory::rebuild(const ParticleStore& p, const NeighborList& nl, Wal
       wc.ft_z[e] = it->z;
     }
   }
-  kept_pairs.clear();
-  kept_rolling.clear();
+  for (auto& k : kept_pairs) k.clear();
   kept_walls.clear();
   kept = false;
 }
 
 std::size_t ContactHistory::memory_bytes() const {
   std::size_t b = 0;
-  for (const auto* v : {&ft_x, &ft_y, &ft_z, &mr_x, &mr_y, &mr_z}) {
-    b += v->capacity() * sizeof(double);
+  for (const Vectors& v : pair) {
+    for (const auto* a : {&v.x, &v.y, &v.z}) b += a->capacity() * sizeof(double);
   }
   return b + touching.capacity();
 }

@@ -1,7 +1,7 @@
-// Contact history: what a contact carries from one step to the next (the tangential spring
-// force, the rolling moment with rolling resistance on, whether it touched), per entry of the
-// neighbour list and of the wall contacts, kept across neighbour rebuilds and topology changes
-// by particle ids.
+// Contact history: what a contact carries from one step to the next (each vector the contact law
+// declares: the tangential spring force, the rolling moment with rolling resistance on; and
+// whether it touched), per entry of the neighbour list and of the wall contacts, kept across
+// neighbour rebuilds and topology changes by particle ids.
 //
 // Entries are indices into lists that change: a rebuild re-sorts the particles and makes a new
 // list, a topology change compacts the store. Before indices change, capture() keeps every
@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "crushdem/contact/history_field.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
@@ -36,34 +37,43 @@ class ContactHistory {
     int wall;
     double x, y, z;
   };
+  /// One declared field's components per neighbour entry.
+  struct Vectors {
+    std::vector<double> x, y, z;
+  };
 
-  // Per neighbour entry: the tangential force on the owner, the rolling moment on the owner
-  // (rolling resistance only; empty otherwise) and whether the pair touched at the last pass.
-  std::vector<double> ft_x, ft_y, ft_z;
-  std::vector<double> mr_x, mr_y, mr_z;
+  /// The history vectors each neighbour entry keeps, as the contact law declares them
+  /// (ContactLaw::pair_history(): the tangential spring first); sizes `pair` and `kept_pairs`.
+  void declare(const std::vector<HistoryField>& fields);
+  const std::vector<HistoryField>& fields() const { return fields_; }
+
+  // Per neighbour entry: each declared vector on the owner (pair[0]: the tangential spring
+  // force), and whether the pair touched at the last pass.
+  std::vector<Vectors> pair;
   std::vector<std::uint8_t> touching;
+  Vectors& tangential() { return pair[0]; }
+  const Vectors& tangential() const { return pair[0]; }
 
   /// Keeps the history of the current lists by ids (nothing when kept already and not yet put
   /// back): called before any change of particle indices.
   void capture(const ParticleStore& p, const NeighborList& nl, const WallContacts& wc);
-  /// After a new list: the per-entry arrays sized to it (zero; the rolling ones only with
-  /// `rolling`), then what capture() kept put back on the matching entries (walls into wc).
-  void rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc, bool rolling);
+  /// After a new list: the per-entry arrays sized to it (zero), then what capture() kept put
+  /// back on the matching entries (walls into wc).
+  void rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc);
   std::size_t memory_bytes() const;
 
-  // What capture() kept (saved in checkpoints: a state may be saved between capture() and
-  // rebuild()); `kept` until rebuild() has put it back.
-  std::vector<PairVector> kept_pairs, kept_rolling;
+  // What capture() kept, per declared field (saved in checkpoints: a state may be saved between
+  // capture() and rebuild()); `kept` until rebuild() has put it back.
+  std::vector<std::vector<PairVector>> kept_pairs;
   std::vector<WallVector> kept_walls;
   bool kept = false;
 
  private:
-  void capture_pair_vectors(const ParticleStore& p, const NeighborList& nl,
-                            const std::vector<double>& x, const std::vector<double>& y,
-                            const std::vector<double>& z, std::vector<PairVector>& out) const;
+  void capture_pair_vectors(const ParticleStore& p, const NeighborList& nl, const Vectors& v,
+                            std::vector<PairVector>& out) const;
   void restore_pair_vectors(const ParticleStore& p, const NeighborList& nl,
-                            const std::vector<PairVector>& saved, std::vector<double>& x,
-                            std::vector<double>& y, std::vector<double>& z);
+                            const std::vector<PairVector>& saved, Vectors& v);
+  std::vector<HistoryField> fields_;
 };
 
 }  // namespace crushdem

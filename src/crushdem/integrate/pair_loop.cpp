@@ -18,16 +18,18 @@ using Idx = std::ptrdiff_t;
 // Everything the pair loop touches, passed by value into the per-column worker so the compiler
 // sees plain locals (inside an OpenMP region shared variables are reached through a pointer and
 // reloaded after every store, which cost 10 % of the step).
-template <class Law>
+template <class Model>
 struct PairLoopView {
-  Law law;
+  typename Model::Law law;
   ContactParams cp;
+  typename Model::CoupleModel::Params couple;
   double h;
   const NeighborList::Index *off, *nb, *col_off, *col_mem;
   const double *X, *Y, *Z, *R, *VX, *VY, *VZ, *WX, *WY, *WZ;
   double *ftx, *fty, *ftz;
   std::uint8_t* touch;
-  double *mrx = nullptr, *mry = nullptr, *mrz = nullptr;  // rolling moment (Rolling only)
+  // The couple sub-model's history vector (the rolling moment; Model::kCouple only).
+  double *chx = nullptr, *chy = nullptr, *chz = nullptr;
   // Contact load (crushing), null when not tracked: max sigma_c, max F_n and its normal.
   double *LS = nullptr, *LF = nullptr, *LNX = nullptr, *LNY = nullptr, *LNZ = nullptr;
   double inv_pi_k = 0.0;                // 1 / (pi r'/R*)
@@ -56,8 +58,8 @@ struct PairLoopView {
 enum BatchField : std::size_t {
   // inputs
   kDX, kDY, kDZ, kD2, kRI, kRJ, kDVX, kDVY, kDVZ, kWIX, kWIY, kWIZ, kWJX, kWJY, kWJZ, kIMI, kIMJ,
-  // inputs (the rolling moment's: overwritten by the new one)
-  kFTX, kFTY, kFTZ, kMRX, kMRY, kMRZ,
+  // inputs (the couple's history: overwritten by the new one)
+  kFTX, kFTY, kFTZ, kCHX, kCHY, kCHZ,
   // outputs
   kFX, kFY, kFZ, kTNX, kTNY, kTNZ, kAI, kAJ, kFN, kDELTA, kNX, kNY, kNZ,
   // the new history
@@ -128,9 +130,10 @@ struct PairBatch {
 // law) left the loop scalar.
 // `law` is the pair loop's law or a variant of it for this batch (evaluate_batch()); by value,
 // with cp and h, so that the loop reads them from registers.
-template <bool Rolling, bool kFastPath, class LaneLaw, class View>
-[[gnu::noinline]] void evaluate_lanes(const LaneLaw law, const ContactParams cp, const double h,
-                                      View b, std::size_t n) {
+template <class Couple, bool kCouple, bool kFastPath, class LaneLaw, class View>
+[[gnu::noinline]] void evaluate_lanes(const LaneLaw law, const ContactParams cp,
+                                      const typename Couple::Params couple, const double h, View b,
+                                      std::size_t n) {
   // Named restrict pointers (not an array of them): the compiler must see that the stores
   // into the batch cannot change where its columns are, or it does not vectorise.
   double* __restrict const bDX = b.f(kDX);
@@ -153,9 +156,9 @@ template <bool Rolling, bool kFastPath, class LaneLaw, class View>
   double* __restrict const bFTX = b.f(kFTX);
   double* __restrict const bFTY = b.f(kFTY);
   double* __restrict const bFTZ = b.f(kFTZ);
-  double* __restrict const bMRX = b.f(kMRX);
-  double* __restrict const bMRY = b.f(kMRY);
-  double* __restrict const bMRZ = b.f(kMRZ);
+  double* __restrict const bCHX = b.f(kCHX);
+  double* __restrict const bCHY = b.f(kCHY);
+  double* __restrict const bCHZ = b.f(kCHZ);
   double* __restrict const bFX = b.f(kFX);
   double* __restrict const bFY = b.f(kFY);
   double* __restrict const bFZ = b.f(kFZ);
@@ -198,13 +201,14 @@ template <bool Rolling, bool kFastPath, class LaneLaw, class View>
     bNX[m] = pc.n.x;
     bNY[m] = pc.n.y;
     bNZ[m] = pc.n.z;
-    if constexpr (Rolling) {
-      const Vec3 M_r = pair_rolling_moment(
-          pc.n, pc.c.k_n, pc.c.F_n, Vec3{bMRX[m], bMRY[m], bMRZ[m]},
-          Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star, cp, h);
-      bMRX[m] = M_r.x;
-      bMRY[m] = M_r.y;
-      bMRZ[m] = M_r.z;
+    if constexpr (kCouple) {
+      const Vec3 M_r =
+          Couple::moment(couple, pc.n, pc.c.k_n, pc.c.F_n, Vec3{bCHX[m], bCHY[m], bCHZ[m]},
+                         Vec3{bWIX[m], bWIY[m], bWIZ[m]}, Vec3{bWJX[m], bWJY[m], bWJZ[m]}, R_star,
+                         cp.tangential_ratio, h);
+      bCHX[m] = M_r.x;
+      bCHY[m] = M_r.y;
+      bCHZ[m] = M_r.z;
     }
   }
 }
@@ -214,9 +218,10 @@ template <bool Rolling, bool kFastPath, class LaneLaw, class View>
 // evaluated exactly (also in vector lanes) and copied back. Each contact gets the bits of an
 // exact evaluation either way, so the results do not depend on how contacts fall into batches.
 // (The rolling moment is exact in the first pass and not evaluated again.)
-template <bool Rolling, std::size_t kCap, class LaneLaw>
-void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, PairBatch& b,
+template <class Model, std::size_t kCap, class LaneLaw>
+void evaluate_batch_with(const LaneLaw& law, const PairLoopView<Model>& L, PairBatch& b,
                          std::size_t n) {
+  using Couple = typename Model::CoupleModel;
   const BatchView<kCap> main = b.view<kCap>();
   // Where most contacts slide (shearing, a sample out of equilibrium) the fast path only adds a
   // second evaluation: after a batch with more than a quarter of its contacts on the exact path,
@@ -225,10 +230,10 @@ void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, 
   constexpr std::size_t kExactOnly = 64;
   if (b.exact_only > 0) {
     --b.exact_only;
-    evaluate_lanes<Rolling, false>(law, cp, h, main, n);
+    evaluate_lanes<Couple, Model::kCouple, false>(law, L.cp, L.couple, L.h, main, n);
     return;
   }
-  evaluate_lanes<Rolling, true>(law, cp, h, main, n);
+  evaluate_lanes<Couple, Model::kCouple, true>(law, L.cp, L.couple, L.h, main, n);
   // The contacts where a rare step applies (branch-free, as in the collect pass).
   const double* nftx = main.f(kNFTX);
   std::size_t* const lane = b.exact_lane.data();
@@ -249,7 +254,7 @@ void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, 
     double* to = side.f(f);
     for (std::size_t k = 0; k < ne; ++k) to[k] = from[lane[k]];
   }
-  evaluate_lanes<false, false>(law, cp, h, side, ne);
+  evaluate_lanes<Couple, false, false>(law, L.cp, L.couple, L.h, side, ne);
   for (const BatchField f : kOutputs) {
     const double* from = side.f(f);
     double* to = main.f(f);
@@ -257,42 +262,49 @@ void evaluate_batch_with(const LaneLaw& law, const ContactParams& cp, double h, 
   }
 }
 
-// Whether any of contacts 0 .. n-1 of a batch may be in the rough law's Hertz regime (p: its
-// grain-grain constants), from the collected distances and radii: a vector reduction without
-// square roots. (The same test in the collect pass, on scalars, cost more instructions than the
-// regime saves: callgrind.)
-template <std::size_t kCap>
-bool batch_may_reach_hertz(const RoughHertzParams& p, const BatchView<kCap> b, std::size_t n) {
+// A normal law that has a cheaper variant for contacts that cannot reach one of its regimes
+// (the rough law without its Hertz regime): may_need_full() tells per contact.
+template <class Law>
+concept HasLaneVariant = requires(const Law& law) {
+  law.without_hertz_regime();
+  law.may_need_full(0.0, 0.0);
+};
+
+// Whether any of contacts 0 .. n-1 of a batch may need the law's full form, from the collected
+// distances and radii: a vector reduction without square roots. (The same test in the collect
+// pass, on scalars, cost more instructions than the regime saves: callgrind.)
+template <std::size_t kCap, class Law>
+bool batch_may_need_full(const Law& law, const BatchView<kCap> b, std::size_t n) {
   const double* __restrict const d2 = b.f(kD2);
   const double* __restrict const r_i = b.f(kRI);
   const double* __restrict const r_j = b.f(kRJ);
   int any = 0;
 #pragma omp simd reduction(| : any)
-  for (std::size_t m = 0; m < n; ++m)
-    any |= rough_may_reach_hertz(d2[m], r_i[m] + r_j[m], p) ? 1 : 0;
+  for (std::size_t m = 0; m < n; ++m) any |= law.may_need_full(d2[m], r_i[m] + r_j[m]) ? 1 : 0;
   return any != 0;
 }
 
-// Evaluates a batch with the pair loop's law, or, for the rough law where none of the batch's
-// contacts can be in its Hertz regime (a sample at rest under a few MPa: none is), with the law
-// that leaves that regime out: the same bits for every contact, without a square root per lane.
-template <class Law, bool Rolling, std::size_t kCap>
-void evaluate_batch(const PairLoopView<Law>& L, PairBatch& b, std::size_t n) {
-  if constexpr (std::is_same_v<Law, RoughHertzLaw>) {
-    if (!batch_may_reach_hertz(L.law.rough, b.view<kCap>(), n)) {
-      evaluate_batch_with<Rolling, kCap>(L.law.without_hertz_regime(), L.cp, L.h, b, n);
+// Evaluates a batch with the pair loop's law, or, where the law has a cheaper variant and none
+// of the batch's contacts needs the full form (the rough law in a sample at rest under a few
+// MPa: no contact is in its Hertz regime), with the variant: the same bits for every contact,
+// without a square root per lane.
+template <class Model, std::size_t kCap>
+void evaluate_batch(const PairLoopView<Model>& L, PairBatch& b, std::size_t n) {
+  if constexpr (HasLaneVariant<typename Model::Law>) {
+    if (!batch_may_need_full(L.law, b.view<kCap>(), n)) {
+      evaluate_batch_with<Model, kCap>(L.law.without_hertz_regime(), L, b, n);
       return;
     }
   }
-  evaluate_batch_with<Rolling, kCap>(L.law, L.cp, L.h, b, n);
+  evaluate_batch_with<Model, kCap>(L.law, L, b, n);
 }
 
 // The contact load of one contact (crushing): the largest contact stress on each grain, and the
 // largest normal force with its normal. j is safe to write for the same reason as its sums
 // (column colouring).
-template <class Law, std::size_t kCap>
-inline void record_contact_load(const PairLoopView<Law>& L, const BatchView<kCap> b, std::size_t m,
-                                std::size_t i, std::size_t j) {
+template <class Model, std::size_t kCap>
+inline void record_contact_load(const PairLoopView<Model>& L, const BatchView<kCap> b,
+                                std::size_t m, std::size_t i, std::size_t j) {
   const double F_n = b.f(kFN)[m];
   const Vec3 normal{b.f(kNX)[m], b.f(kNY)[m], b.f(kNZ)[m]};
   const double sig =
@@ -333,14 +345,14 @@ inline void transpose4(v4d a, v4d b, v4d c, v4d d, v4d row[4]) {
   row[3] = __builtin_shufflevector(ab_odd, cd_odd, 2, 3, 6, 7);
 }
 
-// The scatter pass without rolling resistance: each contact's force and torques added to both
+// The scatter pass without a couple sub-model: each contact's force and torques added to both
 // grains' sums (PackedForce: fx fy fz tx | ty tz) and its new history stored, in the collect
 // order. Each grain's sums get the same IEEE operations in the same order as a scalar loop
 // (x - (-y) is x + y exactly), so the bits do not change; but four contacts at a time are turned
 // from the batch's columns into rows, so that a partner's six sums take one 4-wide and one
 // 2-wide subtraction instead of six scalar ones.
-template <class Law, std::size_t kCap>
-void scatter_sums(const PairLoopView<Law>& L, PairBatch& pb, std::size_t n) {
+template <class Model, std::size_t kCap>
+void scatter_sums(const PairLoopView<Model>& L, PairBatch& pb, std::size_t n) {
   const BatchView<kCap> b = pb.view<kCap>();
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
@@ -394,21 +406,21 @@ void scatter_sums(const PairLoopView<Law>& L, PairBatch& pb, std::size_t n) {
   if (L.LS) {  // the contact load, in the same order (a tie keeps the first normal)
     std::size_t m = 0;
     for (std::size_t r = 0; r < pb.owners; ++r) {
-      for (; m < owner_end[r]; ++m) record_contact_load<Law, kCap>(L, b, m, owner[r], partner[m]);
+      for (; m < owner_end[r]; ++m) record_contact_load<Model, kCap>(L, b, m, owner[r], partner[m]);
     }
   }
 }
 
-// The scatter pass with rolling resistance (scalar): as scatter_sums(), plus the rolling moment
-// on both grains and its new history.
-template <class Law, std::size_t kCap>
-void scatter_sums_rolling(const PairLoopView<Law> L, PairBatch& pb) {
+// The scatter pass with a couple sub-model (rolling resistance; scalar): as scatter_sums(), plus
+// the couple's moment on both grains and its new history.
+template <class Model, std::size_t kCap>
+void scatter_sums_couple(const PairLoopView<Model> L, PairBatch& pb) {
   const BatchView<kCap> b = pb.view<kCap>();
   const double *fx = b.f(kFX), *fy = b.f(kFY), *fz = b.f(kFZ);
   const double *tnx = b.f(kTNX), *tny = b.f(kTNY), *tnz = b.f(kTNZ);
   const double *ai = b.f(kAI), *aj = b.f(kAJ);
   const double *ftx = b.f(kNFTX), *fty = b.f(kNFTY), *ftz = b.f(kNFTZ);
-  const double *mrx = b.f(kMRX), *mry = b.f(kMRY), *mrz = b.f(kMRZ);
+  const double *chx = b.f(kCHX), *chy = b.f(kCHY), *chz = b.f(kCHZ);
   // Local copies of the bookkeeping pointers: they stay in registers through the stores below.
   const NeighborList::Index* const entry = pb.entry.data();
   const NeighborList::Index* const partner = pb.partner.data();
@@ -434,15 +446,15 @@ void scatter_sums_rolling(const PairLoopView<Law> L, PairBatch& pb) {
       L.PF[j].tx += aj[m] * tn.x;
       L.PF[j].ty += aj[m] * tn.y;
       L.PF[j].tz += aj[m] * tn.z;
-      const Vec3 M_r{mrx[m], mry[m], mrz[m]};
-      L.mrx[e] = M_r.x;
-      L.mry[e] = M_r.y;
-      L.mrz[e] = M_r.z;
+      const Vec3 M_r{chx[m], chy[m], chz[m]};
+      L.chx[e] = M_r.x;
+      L.chy[e] = M_r.y;
+      L.chz[e] = M_r.z;
       T += M_r;
       L.PF[j].tx -= M_r.x;
       L.PF[j].ty -= M_r.y;
       L.PF[j].tz -= M_r.z;
-      if (L.LS) record_contact_load<Law, kCap>(L, b, m, i, j);
+      if (L.LS) record_contact_load<Model, kCap>(L, b, m, i, j);
     }
     L.PF[i].fx += F.x;
     L.PF[i].fy += F.y;
@@ -453,13 +465,13 @@ void scatter_sums_rolling(const PairLoopView<Law> L, PairBatch& pb) {
   }
 }
 
-template <class Law, bool Rolling, std::size_t kCap>
-void flush_batch(const PairLoopView<Law> L, PairBatch& pb, std::size_t n) {
-  evaluate_batch<Law, Rolling, kCap>(L, pb, n);
-  if constexpr (Rolling) {
-    scatter_sums_rolling<Law, kCap>(L, pb);
+template <class Model, std::size_t kCap>
+void flush_batch(const PairLoopView<Model> L, PairBatch& pb, std::size_t n) {
+  evaluate_batch<Model, kCap>(L, pb, n);
+  if constexpr (Model::kCouple) {
+    scatter_sums_couple<Model, kCap>(L, pb);
   } else {
-    scatter_sums<Law, kCap>(L, pb, n);
+    scatter_sums<Model, kCap>(L, pb, n);
   }
   pb.owners = 0;
 }
@@ -468,9 +480,10 @@ void flush_batch(const PairLoopView<Law> L, PairBatch& pb, std::size_t n) {
 // inverse masses and the history of entry e, into slot m. (A transposed copy, four partners'
 // velocity lines turned into columns with vector shuffles, measured 5 % slower on the whole
 // step: bench/README.md, session 14.)
-template <class Law, bool Rolling, std::size_t kCap>
-inline void write_motion_inputs(const PairLoopView<Law>& L, const BatchView<kCap> in, std::size_t m,
-                                std::size_t e, double r_i, const detail::PackedVelocity& vi,
+template <class Model, std::size_t kCap>
+inline void write_motion_inputs(const PairLoopView<Model>& L, const BatchView<kCap> in,
+                                std::size_t m, std::size_t e, double r_i,
+                                const detail::PackedVelocity& vi,
                                 const detail::PackedVelocity& vj) {
   in.f(kRI)[m] = r_i;
   in.f(kDVX)[m] = vi.vx - vj.vx;
@@ -487,17 +500,17 @@ inline void write_motion_inputs(const PairLoopView<Law>& L, const BatchView<kCap
   in.f(kFTX)[m] = L.ftx[e];
   in.f(kFTY)[m] = L.fty[e];
   in.f(kFTZ)[m] = L.ftz[e];
-  if constexpr (Rolling) {
-    in.f(kMRX)[m] = L.mrx[e];
-    in.f(kMRY)[m] = L.mry[e];
-    in.f(kMRZ)[m] = L.mrz[e];
+  if constexpr (Model::kCouple) {
+    in.f(kCHX)[m] = L.chx[e];
+    in.f(kCHY)[m] = L.chy[e];
+    in.f(kCHZ)[m] = L.chz[e];
   }
 }
 
 // Appends the touching pairs of particle i to the batch from slot n on (the batch has room for
 // all of i's entries); returns the new fill.
-template <class Law, bool Rolling, PruneMode kMode, std::size_t kCap>
-std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatch& b,
+template <class Model, PruneMode kMode, std::size_t kCap>
+std::size_t collect_particle(const PairLoopView<Model>& L, std::size_t i, PairBatch& b,
                              std::size_t n) {
   const BatchView<kCap> in = b.view<kCap>();
   const detail::PackedPosition pi = L.P[i];
@@ -520,7 +533,7 @@ std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatc
     if (static_cast<int>(!touching) & static_cast<int>(L.touch[e])) {
       // The pair separated (rare): forget its history.
       L.ftx[e] = L.fty[e] = L.ftz[e] = 0.0;
-      if constexpr (Rolling) L.mrx[e] = L.mry[e] = L.mrz[e] = 0.0;
+      if constexpr (Model::kCouple) L.chx[e] = L.chy[e] = L.chz[e] = 0.0;
     }
     L.touch[e] = static_cast<std::uint8_t>(touching);
     slot_entry[n] = e;
@@ -533,7 +546,7 @@ std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatc
     if constexpr (kMode == PruneMode::Use) {
       // Nearly every pruned entry touches: its other inputs are written here, in the same pass,
       // rather than in a second pass over the kept slots.
-      write_motion_inputs<Law, Rolling, kCap>(L, in, n, e, pi.r, vi, L.V[j]);
+      write_motion_inputs<Model, kCap>(L, in, n, e, pi.r, vi, L.V[j]);
     }
     n += touching ? 1 : 0;
     if constexpr (kMode == PruneMode::Build) {
@@ -556,8 +569,7 @@ std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatc
   // about a third of the entries do not touch).
   if constexpr (kMode != PruneMode::Use) {
     for (std::size_t m = n_first; m < n; ++m) {
-      write_motion_inputs<Law, Rolling, kCap>(L, in, m, slot_entry[m], pi.r, vi,
-                                              L.V[slot_partner[m]]);
+      write_motion_inputs<Model, kCap>(L, in, m, slot_entry[m], pi.r, vi, L.V[slot_partner[m]]);
     }
   }
   // A particle without touching pairs adds +0 to sums that start at +0 or are nonzero: it is
@@ -574,8 +586,8 @@ std::size_t collect_particle(const PairLoopView<Law>& L, std::size_t i, PairBatc
 // size); a particle with more pairs than that (a large grain among fragments) gets a batch of
 // its own (`grown`). A grain's pairs are never split between batches, and each contact gets the
 // same bits in any batch, so where the batches end changes no result.
-template <class Law, bool Rolling, PruneMode kMode>
-void pair_column(const PairLoopView<Law> L, Idx col, PairBatch& batch, PairBatch& grown) {
+template <class Model, PruneMode kMode>
+void pair_column(const PairLoopView<Model> L, Idx col, PairBatch& batch, PairBatch& grown) {
   constexpr std::size_t kFixed = PairBatch::kTarget;  // batch.cap
   std::size_t n = 0;
   for (auto k = L.col_off[col]; k < L.col_off[col + 1]; ++k) {
@@ -583,48 +595,60 @@ void pair_column(const PairLoopView<Law> L, Idx col, PairBatch& batch, PairBatch
     // The entries collect_particle() will walk (each needs a slot in the batch).
     const std::size_t degree = kMode == PruneMode::Use ? L.near_count[i] : L.off[i + 1] - L.off[i];
     if (n > 0 && n + degree > kFixed) {
-      flush_batch<Law, Rolling, kFixed>(L, batch, n);
+      flush_batch<Model, kFixed>(L, batch, n);
       n = 0;
     }
     if (degree > kFixed) {  // rare
       grown.reserve(degree);
-      const std::size_t m = collect_particle<Law, Rolling, kMode, 0>(L, i, grown, 0);
-      flush_batch<Law, Rolling, 0>(L, grown, m);
+      const std::size_t m = collect_particle<Model, kMode, 0>(L, i, grown, 0);
+      flush_batch<Model, 0>(L, grown, m);
       continue;
     }
-    n = collect_particle<Law, Rolling, kMode, kFixed>(L, i, batch, n);
+    n = collect_particle<Model, kMode, kFixed>(L, i, batch, n);
   }
-  flush_batch<Law, Rolling, kFixed>(L, batch, n);
+  flush_batch<Model, kFixed>(L, batch, n);
 }
 
 }  // namespace
 
-template <class Law, bool Rolling>
-void CpuPairLoop::evaluate(const Law& law, const ContactParams& cp, double h,
-                           const ParticleStore& p, const NeighborList& nl, bool prune,
-                           ContactHistory& history, ContactLoad* load, double load_factor) {
+void CpuPairLoop::evaluate(const ContactLaw& law, double h, const ParticleStore& p,
+                           const NeighborList& nl, bool prune, ContactHistory& history,
+                           ContactLoad* load, double load_factor) {
+  with_law(law, [&](const auto& model) {
+    evaluate_model(model, h, p, nl, prune, history, load, load_factor);
+  });
+}
+
+template <class Model>
+void CpuPairLoop::evaluate_model(const Model& model, double h, const ParticleStore& p,
+                                 const NeighborList& nl, bool prune, ContactHistory& history,
+                                 ContactLoad* load, double load_factor) {
+  static_assert(Model::kPairHistory <= 2,
+                "the pair loop's batches carry the tangential spring and one couple vector");
   const std::size_t N = p.size();
-  PairLoopView<Law> loop{law,
-                         cp,
-                         h,
-                         nl.offsets.data(),
-                         nl.neighbors.data(),
-                         nl.column_offsets.data(),
-                         nl.column_members.data(),
-                         p.x.data(),
-                         p.y.data(),
-                         p.z.data(),
-                         p.radius.data(),
-                         p.vx.data(),
-                         p.vy.data(),
-                         p.vz.data(),
-                         p.wx.data(),
-                         p.wy.data(),
-                         p.wz.data(),
-                         history.ft_x.data(),
-                         history.ft_y.data(),
-                         history.ft_z.data(),
-                         history.touching.data()};
+  ContactHistory::Vectors& ft = history.tangential();
+  PairLoopView<Model> loop{model.pair_law,
+                           model.cp,
+                           model.couple,
+                           h,
+                           nl.offsets.data(),
+                           nl.neighbors.data(),
+                           nl.column_offsets.data(),
+                           nl.column_members.data(),
+                           p.x.data(),
+                           p.y.data(),
+                           p.z.data(),
+                           p.radius.data(),
+                           p.vx.data(),
+                           p.vy.data(),
+                           p.vz.data(),
+                           p.wx.data(),
+                           p.wy.data(),
+                           p.wz.data(),
+                           ft.x.data(),
+                           ft.y.data(),
+                           ft.z.data(),
+                           history.touching.data()};
   const bool pack = !packed_fresh_ || positions_.size() != N || velocities_.size() != N;
   const bool zero = !sums_zero_ || sums_.size() != N;
   const PruneMode mode = pruned_.begin(nl, prune, pack);
@@ -639,10 +663,11 @@ void CpuPairLoop::evaluate(const Law& law, const ContactParams& cp, double h,
   loop.IM = p.inv_mass.data();
   sums_.resize(N);
   loop.PF = sums_.data();
-  if constexpr (Rolling) {
-    loop.mrx = history.mr_x.data();
-    loop.mry = history.mr_y.data();
-    loop.mrz = history.mr_z.data();
+  if constexpr (Model::kCouple) {
+    ContactHistory::Vectors& couple = history.pair[1];
+    loop.chx = couple.x.data();
+    loop.chy = couple.y.data();
+    loop.chz = couple.z.data();
   }
   if (load != nullptr) {
     for (auto* a : {&load->sigma, &load->F_n_max, &load->nx, &load->ny, &load->nz}) {
@@ -699,13 +724,13 @@ void CpuPairLoop::evaluate(const Law& law, const ContactParams& cp, double h,
       while (shares.next(color, t, threads, col)) {
         switch (mode) {
           case PruneMode::Use:
-            pair_column<Law, Rolling, PruneMode::Use>(loop, static_cast<Idx>(col), batch, grown);
+            pair_column<Model, PruneMode::Use>(loop, static_cast<Idx>(col), batch, grown);
             break;
           case PruneMode::Build:
-            pair_column<Law, Rolling, PruneMode::Build>(loop, static_cast<Idx>(col), batch, grown);
+            pair_column<Model, PruneMode::Build>(loop, static_cast<Idx>(col), batch, grown);
             break;
           case PruneMode::Full:
-            pair_column<Law, Rolling, PruneMode::Full>(loop, static_cast<Idx>(col), batch, grown);
+            pair_column<Model, PruneMode::Full>(loop, static_cast<Idx>(col), batch, grown);
             break;
         }
       }
@@ -713,22 +738,6 @@ void CpuPairLoop::evaluate(const Law& law, const ContactParams& cp, double h,
     }
   }
 }
-
-template void CpuPairLoop::evaluate<HertzLaw, false>(const HertzLaw&, const ContactParams&, double,
-                                                     const ParticleStore&, const NeighborList&,
-                                                     bool, ContactHistory&, ContactLoad*, double);
-template void CpuPairLoop::evaluate<HertzLaw, true>(const HertzLaw&, const ContactParams&, double,
-                                                    const ParticleStore&, const NeighborList&, bool,
-                                                    ContactHistory&, ContactLoad*, double);
-template void CpuPairLoop::evaluate<RoughHertzLaw, false>(const RoughHertzLaw&,
-                                                          const ContactParams&, double,
-                                                          const ParticleStore&, const NeighborList&,
-                                                          bool, ContactHistory&, ContactLoad*,
-                                                          double);
-template void CpuPairLoop::evaluate<RoughHertzLaw, true>(const RoughHertzLaw&, const ContactParams&,
-                                                         double, const ParticleStore&,
-                                                         const NeighborList&, bool, ContactHistory&,
-                                                         ContactLoad*, double);
 
 std::size_t CpuPairLoop::memory_bytes() const {
   return positions_.capacity() * sizeof(detail::PackedPosition) +

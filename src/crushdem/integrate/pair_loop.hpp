@@ -18,7 +18,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/contact/contact_model.hpp"
 #include "crushdem/contact/contact_stress.hpp"
 #include "crushdem/core/work_shares.hpp"
 #include "crushdem/integrate/contact_history.hpp"
@@ -47,16 +47,14 @@ struct alignas(64) PackedForce {
 
 class CpuPairLoop {
  public:
-  /// Evaluates every pair of `nl` with `law` (tangential and rolling history in `history`
-  /// advanced by the step h; 0 refreshes the current state without an increment) and adds each
-  /// contact to both grains' sums (force_sums()). With `load` (crushing), it is sized to the
-  /// grains and filled with each grain's contact load, r' = load_factor R*. prune: the
-  /// configuration's neighbor.prune. Instantiated for HertzLaw and RoughHertzLaw, each with and
-  /// without rolling resistance.
-  template <class Law, bool Rolling>
-  void evaluate(const Law& law, const ContactParams& cp, double h, const ParticleStore& p,
-                const NeighborList& nl, bool prune, ContactHistory& history, ContactLoad* load,
-                double load_factor);
+  /// Evaluates every pair of `nl` with the contact law (its history in `history` advanced by the
+  /// step h; 0 refreshes the current state without an increment) and adds each contact to both
+  /// grains' sums (force_sums()). With `load` (crushing), it is sized to the grains and filled
+  /// with each grain's contact load, r' = load_factor R*. prune: the configuration's
+  /// neighbor.prune. The loop is instantiated for every combination of sub-models
+  /// (with_law()), so choosing one costs no branch in the inner loop.
+  void evaluate(const ContactLaw& law, double h, const ParticleStore& p, const NeighborList& nl,
+                bool prune, ContactHistory& history, ContactLoad* load, double load_factor);
 
   /// The packed copies, which the integrator may write as it moves the grains (then
   /// mark_packed(); anything else that changes positions or velocities leaves them stale and
@@ -74,6 +72,10 @@ class CpuPairLoop {
   std::size_t memory_bytes() const;
 
  private:
+  template <class Model>
+  void evaluate_model(const Model& model, double h, const ParticleStore& p, const NeighborList& nl,
+                      bool prune, ContactHistory& history, ContactLoad* load, double load_factor);
+
   std::vector<detail::PackedPosition> positions_;
   std::vector<detail::PackedVelocity> velocities_;
   std::vector<detail::PackedForce> sums_;

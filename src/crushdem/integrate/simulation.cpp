@@ -79,7 +79,8 @@ void SimulationConfig::validate() const {
 
 Simulation::Simulation(const SimulationConfig& cfg) : cfg_(cfg) {
   cfg_.validate();
-  cp_ = make_contact_params(cfg_.material, cfg_.contact);
+  law_ = ContactLaw(cfg_.material, cfg_.contact);
+  history_.declare(law_.pair_history());
   walls_ = Walls(cfg_.walls);
   time_step_ = TimeStep(cfg_.timestep);
   skin_ = cfg_.neighbor.skin;
@@ -172,7 +173,7 @@ void Simulation::rebuild_neighbors() {
   pair_loop_.mark_stale();  // the packed copies follow the old order
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   wc_.build(p_.x, p_.y, p_.z, p_.radius, walls_, skin_);
-  history_.rebuild(p_, nl_, wc_, rolling());  // tangential (and rolling) history by ids
+  history_.rebuild(p_, nl_, wc_);  // every declared history vector by ids
   walls_.reset_displacements();
   nl_valid_ = true;
   ++layout_version_;
@@ -195,31 +196,13 @@ void Simulation::evaluate_forces(double increment_dt, bool kick, bool drift_next
   const PartScope timed(part_clock_, Part::ContactForces);
   const bool prune = cfg_.neighbor.prune;
   ContactLoad* load = load_factor_ > 0.0 ? &load_ : nullptr;
-  // Rolling resistance is a template flag, so the loops without it carry none of its cost.
-  if (cfg_.contact.law == NormalLaw::Hertz) {
-    const HertzLaw law{cp_.E_star};
-    if (rolling()) {
-      pair_loop_.evaluate<HertzLaw, true>(law, cp_, increment_dt, p_, nl_, prune, history_, load,
-                                          load_factor_);
-    } else {
-      pair_loop_.evaluate<HertzLaw, false>(law, cp_, increment_dt, p_, nl_, prune, history_, load,
-                                           load_factor_);
-    }
-    wall_forces(law, cp_, increment_dt, p_, walls_, wc_);
-  } else {
-    const RoughHertzLaw law_pp{cp_.E_star, cp_.rough_pp};
-    if (rolling()) {
-      pair_loop_.evaluate<RoughHertzLaw, true>(law_pp, cp_, increment_dt, p_, nl_, prune, history_,
-                                               load, load_factor_);
-    } else {
-      pair_loop_.evaluate<RoughHertzLaw, false>(law_pp, cp_, increment_dt, p_, nl_, prune, history_,
-                                                load, load_factor_);
-    }
-    wall_forces(RoughHertzLaw{cp_.E_star, cp_.rough_pw}, cp_, increment_dt, p_, walls_, wc_);
-  }
+  // The loops are instantiated for every combination of the law's sub-models, so a law without
+  // a couple (rolling resistance) carries none of its cost.
+  pair_loop_.evaluate(law_, increment_dt, p_, nl_, prune, history_, load, load_factor_);
+  wall_forces(law_, increment_dt, p_, walls_, wc_);
   if (load) wall_contact_load();
   const DriftMaxima next =
-      gather_and_damp(p_, nl_, pair_loop_, wc_, time_step_.value(), cp_.spin_scale,
+      gather_and_damp(p_, nl_, pair_loop_, wc_, time_step_.value(), law_.params().spin_scale,
                       cfg_.damping.local_alpha, kick, drift_next, fu_x_, fu_y_, fu_z_);
   if (drift_next) next_drift_ = next;
   forces_valid_ = true;
@@ -247,82 +230,44 @@ void Simulation::track_contact_load(double r_prime_factor) {
 
 // --- checkpoints -------------------------------------------------------------------------------
 
-void Simulation::save_state(StateWriter& out) const {
-  out.tag("simulation");
-  p_.save_state(out);
-  nl_.save_state(out);
-  walls_.save_state(out);
-  wc_.save_state(out);
-  out.tag("entries");
-  for (const auto* a : {&history_.ft_x, &history_.ft_y, &history_.ft_z, &fu_x_, &fu_y_, &fu_z_}) {
-    out.put(*a);
+void Simulation::state(StateArchive& a) {
+  a.section("simulation");
+  p_.state(a);
+  nl_.state(a);
+  walls_.state(a);
+  wc_.state(a);
+  a.section("entries");
+  ContactHistory::Vectors& ft = history_.tangential();
+  a(ft.x, ft.y, ft.z, fu_x_, fu_y_, fu_z_);
+  // The per-entry R*, m* and sqrt(R*) caches of formats 1 to 5, derived values: written empty,
+  // read and dropped.
+  for (int k = 0; k < 3; ++k) {
+    std::vector<double> unused;
+    a(unused);
   }
-  // Formerly the per-entry R*, m* and sqrt(R*) caches: kept empty so that the format (and old
-  // checkpoints) stay readable.
-  const std::vector<double> none;
-  for (int k = 0; k < 3; ++k) out.put(none);
-  out.put(history_.touching);
-  out.put(wc_.offsets);
-  out.put(history_.kept_pairs);
-  out.put(history_.kept_walls);
-  out.tag("clock");
-  out.put(history_.kept);
-  out.put(skin_);
-  time_step_.save_state(out);
-  out.put(forces_valid_);
-  out.put(nl_valid_);
-  out.put(time_);
-  out.put(steps_);
-  // cp_ holds tables (pointers) built from the configuration: only its friction can change.
-  out.put(cfg_.material.friction);
-  out.put(cp_.mu);
-  out.put(load_factor_);
-  for (const auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) {
-    out.put(*a);
+  a(history_.touching, wc_.offsets, history_.kept_pairs[0], history_.kept_walls);
+  a.section("clock");
+  a(history_.kept, skin_);
+  time_step_.state(a);
+  a(forces_valid_, nl_valid_, time_, steps_);
+  // The law is derived from the configuration again: only its friction can change.
+  double mu = law_.params().mu;
+  a(cfg_.material.friction, mu);
+  law_.set_friction(mu);
+  a(load_factor_, load_.sigma, load_.F_n_max, load_.nx, load_.ny, load_.nz);
+  // The couple sub-model's history vector (the rolling moment; empty without one). Format 3
+  // and later; older checkpoints predate rolling resistance, so their configuration has it off.
+  ContactHistory::Vectors none;
+  std::vector<ContactHistory::PairVector> none_kept;
+  const bool couple = history_.pair.size() > 1;
+  ContactHistory::Vectors& ch = couple ? history_.pair[1] : none;
+  std::vector<ContactHistory::PairVector>& ch_kept = couple ? history_.kept_pairs[1] : none_kept;
+  if (a.version() >= 3) {
+    a.section("rolling");
+    a(ch.x, ch.y, ch.z, ch_kept);
   }
-  out.tag("rolling");  // format 3
-  for (const auto* a : {&history_.mr_x, &history_.mr_y, &history_.mr_z}) out.put(*a);
-  out.put(history_.kept_rolling);
-}
-
-void Simulation::load_state(StateReader& in) {
-  in.tag("simulation");
-  p_.load_state(in);
-  nl_.load_state(in);
-  walls_.load_state(in);
-  wc_.load_state(in);
-  in.tag("entries");
-  for (auto* a : {&history_.ft_x, &history_.ft_y, &history_.ft_z, &fu_x_, &fu_y_, &fu_z_}) {
-    in.get(*a);
-  }
-  std::vector<double> unused;  // R*, m* and sqrt(R*) caches of older builds (derived values)
-  for (int k = 0; k < 3; ++k) in.get(unused);
-  in.get(history_.touching);
-  in.get(wc_.offsets);
-  in.get(history_.kept_pairs);
-  in.get(history_.kept_walls);
-  in.tag("clock");
-  in.get(history_.kept);
-  in.get(skin_);
-  time_step_.load_state(in);
-  in.get(forces_valid_);
-  in.get(nl_valid_);
-  in.get(time_);
-  in.get(steps_);
-  in.get(cfg_.material.friction);
-  in.get(cp_.mu);
-  in.get(load_factor_);
-  for (auto* a : {&load_.sigma, &load_.F_n_max, &load_.nx, &load_.ny, &load_.nz}) in.get(*a);
-  if (in.version() >= 3) {
-    in.tag("rolling");
-    for (auto* a : {&history_.mr_x, &history_.mr_y, &history_.mr_z}) in.get(*a);
-    in.get(history_.kept_rolling);
-  } else {
-    // Older checkpoints predate rolling resistance, so their configuration has it off.
-    for (auto* a : {&history_.mr_x, &history_.mr_y, &history_.mr_z}) a->clear();
-    history_.kept_rolling.clear();
-  }
-  if (rolling() && nl_valid_ && history_.mr_x.size() != nl_.neighbors.size()) {
+  if (!a.loading()) return;
+  if (couple && nl_valid_ && ch.x.size() != nl_.neighbors.size()) {
     throw RuntimeFailure("checkpoint: rolling-resistance history and neighbour list disagree");
   }
   if (nl_valid_ && nl_.num_particles() != p_.size()) {
@@ -344,7 +289,7 @@ void Simulation::set_friction(double mu) {
     throw ConfigError(bad_value("friction", show_number(mu), "a coefficient >= 0"));
   }
   cfg_.material.friction = mu;
-  cp_.mu = mu;
+  law_.set_friction(mu);
 }
 
 void Simulation::step(std::uint64_t n) {
@@ -356,7 +301,7 @@ void Simulation::step(std::uint64_t n) {
     const double h = time_step_.value();
     // The first half kick and drift, unless the last step's gather pass did it already.
     const DriftMaxima drift =
-        next_drift_ ? *next_drift_ : kick_drift(p_, nl_, pair_loop_, h, cp_.spin_scale);
+        next_drift_ ? *next_drift_ : kick_drift(p_, nl_, pair_loop_, h, law_.params().spin_scale);
     next_drift_.reset();
     pair_loop_.pruned().add_step(std::sqrt(drift.step2));
     const double d = std::sqrt(drift.since_build2);
@@ -386,14 +331,16 @@ double Simulation::rayleigh_dt() const {
 }
 
 NormalForce Simulation::normal_force(double delta, double R_star, bool wall) const {
-  if (cfg_.contact.law == NormalLaw::Hertz) return hertz_normal(delta, R_star, cp_.E_star);
-  return rough_hertz_normal(delta, R_star, cp_.E_star, wall ? cp_.rough_pw : cp_.rough_pp);
+  return with_law(law_, [&](const auto& model) {
+    return wall ? model.wall_law(delta, R_star, std::sqrt(R_star))
+                : model.pair_law(delta, R_star, std::sqrt(R_star));
+  });
 }
 
 double Simulation::stiffness_dt() const {
   if (!nl_valid_) return std::numeric_limits<double>::infinity();
   return stiffness_time(
-      p_, nl_, wc_, walls_, cp_.tangential_ratio,
+      p_, nl_, wc_, walls_, law_.params().tangential_ratio,
       [this](double delta, double R_star, bool wall) { return normal_force(delta, R_star, wall); });
 }
 
@@ -468,8 +415,12 @@ ContactRecord Simulation::pair_record(std::size_t e) const {
   c.delta = p_.radius[i] + p_.radius[j] - dist;
   c.normal = (1.0 / dist) * dx;
   c.F_n = normal_force(c.delta, pair_R_star(p_.radius[i], p_.radius[j]), false).F_n;
-  c.F_t = {history_.ft_x[e], history_.ft_y[e], history_.ft_z[e]};
-  if (!history_.mr_x.empty()) c.M_r = {history_.mr_x[e], history_.mr_y[e], history_.mr_z[e]};
+  const ContactHistory::Vectors& ft = history_.tangential();
+  c.F_t = {ft.x[e], ft.y[e], ft.z[e]};
+  if (history_.pair.size() > 1) {  // the couple's vector: the rolling moment
+    const ContactHistory::Vectors& mr = history_.pair[1];
+    c.M_r = {mr.x[e], mr.y[e], mr.z[e]};
+  }
   return c;
 }
 

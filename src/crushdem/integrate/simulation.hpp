@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/contact/contact_model.hpp"
 #include "crushdem/contact/contact_stress.hpp"
 #include "crushdem/core/part_clock.hpp"
 #include "crushdem/integrate/contact_history.hpp"
@@ -81,7 +81,9 @@ class Simulation {
   const Walls& walls() const { return walls_; }
   const NeighborList& neighbors() const { return nl_; }
   const PrunedList& pruned_neighbors() const { return pair_loop_.pruned(); }
-  const ContactParams& contact_params() const { return cp_; }
+  /// The contact law (contact/contact_model.hpp): its sub-models and their parameters.
+  const ContactLaw& contact_law() const { return law_; }
+  const ContactParams& contact_params() const { return law_.params(); }
   /// The contact history per neighbour entry and the wall contacts (a device copy reads and
   /// writes them between steps).
   ContactHistory& history() { return history_; }
@@ -142,8 +144,7 @@ class Simulation {
   /// another step would sum forces in another order), contact history and last forces, walls,
   /// clock, time-step state, friction and contact-load tracking. A Simulation built from the same
   /// configuration and loaded with this state continues exactly as the saved one would have.
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void state(StateArchive& a);
 
   /// Bytes held by the engine's arrays (particles, neighbour list, contacts).
   std::size_t memory_bytes() const;
@@ -201,14 +202,13 @@ class Simulation {
 
  private:
   ContactRecord pair_record(std::size_t e) const;
-  bool rolling() const { return cp_.mu_r > 0.0; }
   /// drift_next: also the next step's first half kick and drift (into next_drift_).
   void evaluate_forces(double increment_dt, bool kick, bool drift_next = false);
   /// Every wall contact's load (few; in entry order): R* = R, the normal points into the wall.
   void wall_contact_load();
 
   SimulationConfig cfg_;
-  ContactParams cp_;
+  ContactLaw law_;
   ParticleStore p_;
   NeighborList nl_;
   Walls walls_;

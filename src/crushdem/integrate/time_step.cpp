@@ -34,18 +34,8 @@ TimeStep::TimeStep(const TimestepConfig& cfg) : update_interval_(cfg.update_inte
   if (cfg.dt > 0.0) fix(cfg.dt);
 }
 
-void TimeStep::save_state(StateWriter& out) const {
-  out.put(dt_);
-  out.put(fixed_);
-  out.put(computed_at_);
-  out.put(valid_);
-}
-
-void TimeStep::load_state(StateReader& in) {
-  in.get(dt_);
-  in.get(fixed_);
-  in.get(computed_at_);
-  in.get(valid_);
+void TimeStep::state(StateArchive& a) {
+  a(dt_, fixed_, computed_at_, valid_);
 }
 
 double rayleigh_time(const ParticleStore& p, const MaterialConfig& material) {

@@ -9,8 +9,8 @@
 #include <cstdint>
 #include <functional>
 
-#include "crushdem/contact/contact_config.hpp"
 #include "crushdem/contact/hertz.hpp"
+#include "crushdem/contact/material.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
@@ -55,8 +55,7 @@ class TimeStep {
   bool fixed() const { return fixed_; }
   std::uint64_t computed_at() const { return computed_at_; }
   /// The step and its bookkeeping, bit for bit (checkpoints).
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void state(StateArchive& a);
 
  private:
   std::uint64_t update_interval_ = 1000;

@@ -284,35 +284,12 @@ std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, dou
   return order;
 }
 
-void NeighborList::save_state(StateWriter& out) const {
-  out.tag("neighbors");
-  out.put(offsets);
-  out.put(neighbors);
-  out.put(column_offsets);
-  out.put(column_members);
-  out.put(color_offsets);
-  out.put(owner);
-  out.put(skin_);
-  out.put(static_cast<std::uint64_t>(builds_));
-  out.put(x0_);
-  out.put(y0_);
-  out.put(z0_);
-}
-
-void NeighborList::load_state(StateReader& in) {
-  in.tag("neighbors");
-  in.get(offsets);
-  in.get(neighbors);
-  in.get(column_offsets);
-  in.get(column_members);
-  in.get(color_offsets);
-  in.get(owner);
-  in.get(skin_);
-  builds_ = static_cast<std::size_t>(in.value<std::uint64_t>());
-  in.get(x0_);
-  in.get(y0_);
-  in.get(z0_);
-  sum_column_work();  // derived, not stored
+void NeighborList::state(StateArchive& a) {
+  a.section("neighbors");
+  a(offsets, neighbors, column_offsets, column_members, color_offsets, owner, skin_);
+  builds_ = static_cast<std::size_t>(a.value(static_cast<std::uint64_t>(builds_)));
+  a(x0_, y0_, z0_);
+  if (a.loading()) sum_column_work();  // derived, not stored
 }
 
 }  // namespace crushdem

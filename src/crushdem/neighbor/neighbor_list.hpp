@@ -63,8 +63,7 @@ class NeighborList {
 
   /// The list, its columns and the reference positions, bit for bit (checkpoints: a list
   /// rebuilt at another step would order the force sums differently).
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void state(StateArchive& a);
 
   // CSR half list: the partners of i are neighbors[offsets[i] .. offsets[i+1]).
   std::vector<Index> offsets, neighbors;

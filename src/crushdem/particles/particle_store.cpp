@@ -40,21 +40,12 @@ void ParticleStore::for_each_array(Fn&& fn) {
   for (auto& e : extra_) fn(e);
 }
 
-void ParticleStore::save_state(StateWriter& out) const {
-  out.tag("particles");
-  out.put(next_id_);
-  out.put(extra_names_);
-  out.put(extra_init_);
-  const_cast<ParticleStore*>(this)->for_each_array([&](auto& arr) { out.put(arr); });
-}
-
-void ParticleStore::load_state(StateReader& in) {
-  in.tag("particles");
-  in.get(next_id_);
-  in.get(extra_names_);
-  in.get(extra_init_);
-  extra_.assign(extra_names_.size(), {});
-  for_each_array([&](auto& arr) { in.get(arr); });
+void ParticleStore::state(StateArchive& a) {
+  a.section("particles");
+  a(next_id_, extra_names_, extra_init_);
+  if (a.loading()) extra_.assign(extra_names_.size(), {});
+  for_each_array([&](auto& arr) { a(arr); });
+  if (!a.loading()) return;
   for_each_array([&](auto& arr) {
     if (arr.size() != id.size()) {
       throw RuntimeFailure("checkpoint: particle arrays of different lengths");

@@ -71,9 +71,9 @@ class ParticleStore {
   double solid_volume() const;
   /// Grain diameters 2 r, in storage order [m].
   std::vector<double> diameters() const;
-  /// Every array, the extra fields and the id counter, bit for bit (checkpoints).
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  /// Every array, the extra fields and the id counter, bit for bit (checkpoints:
+  /// core/state_io.hpp's save_state() and load_state()).
+  void state(StateArchive& a);
 
   /// Changes a radius keeping the density (mass and inertia follow). Call
   /// Simulation::invalidate() afterwards.

@@ -12,25 +12,19 @@ namespace crushdem {
 
 namespace {
 
-void put_json(StateWriter& out, const JsonObject& o) {
+/// A JSON object as two lists of strings, keys and values.
+void json_state(StateArchive& a, JsonObject& o) {
   std::vector<std::string> keys, values;
   for (const auto& [k, v] : o.fields) {
     keys.push_back(k);
     values.push_back(v);
   }
-  out.put(keys);
-  out.put(values);
-}
-
-JsonObject get_json(StateReader& in) {
-  std::vector<std::string> keys, values;
-  in.get(keys);
-  in.get(values);
-  JsonObject o;
+  a(keys, values);
+  if (!a.loading()) return;
+  o.fields.clear();
   for (std::size_t k = 0; k < keys.size() && k < values.size(); ++k) {
     o.fields.emplace_back(keys[k], values[k]);
   }
-  return o;
 }
 
 /// The version of a checkpoint's format tag, 0 if it is not one crushdem can read.
@@ -43,45 +37,16 @@ int checkpoint_version(const std::string& format) {
 
 }  // namespace
 
-void RunPosition::save(StateWriter& out) const {
-  out.tag("progress");
-  out.put(part);
-  out.put(begun);
-  out.put(to_check);
-  out.put(wall_seconds);
-  out.put(part_seconds);
-  out.put(particle_steps);
-  out.put(has_sample_json);
-  put_json(out, sample_json);
-  out.put(static_cast<std::uint64_t>(stage_results.size()));
-  for (const JsonObject& o : stage_results) put_json(out, o);
-  out.put(warnings);
-  out.put(ref0);
-  out.put(ref);
-  out.put(d50);
-  out.put(has_crusher);
-}
-
-void RunPosition::load(StateReader& in) {
-  in.tag("progress");
-  in.get(part);
-  in.get(begun);
-  in.get(to_check);
-  in.get(wall_seconds);
-  if (in.version() >= 2) {
-    in.get(part_seconds);
-    in.get(particle_steps);
-  }
-  in.get(has_sample_json);
-  sample_json = get_json(in);
-  const auto n = in.value<std::uint64_t>();
-  stage_results.clear();
-  for (std::uint64_t k = 0; k < n; ++k) stage_results.push_back(get_json(in));
-  in.get(warnings);
-  in.get(ref0);
-  in.get(ref);
-  in.get(d50);
-  in.get(has_crusher);
+void RunPosition::state(StateArchive& a) {
+  a.section("progress");
+  a(part, begun, to_check, wall_seconds);
+  a.since(2, part_seconds, particle_steps);
+  a(has_sample_json);
+  json_state(a, sample_json);
+  const auto n = a.value<std::uint64_t>(stage_results.size());
+  if (a.loading()) stage_results.assign(n, {});
+  for (JsonObject& o : stage_results) json_state(a, o);
+  a(warnings, ref0, ref, d50, has_crusher);
 }
 
 std::string checkpoint_tag(int version) {
@@ -94,10 +59,10 @@ std::string checkpoint_bytes(const std::string& config_text, const RunPosition& 
   StateWriter out;
   out.tag(checkpoint_tag(kStateVersion).c_str());
   out.put(config_text);
-  position.save(out);
-  driver.save_state(out);
-  sim.save_state(out);
-  if (crusher) crusher->save_state(out);
+  save_state(position, out);
+  save_state(driver, out);
+  save_state(sim, out);
+  if (crusher) save_state(*crusher, out);
   if (running) running->save_state(out);
   out.put(fnv1a64(out.bytes().data(), out.bytes().size()));
   return out.bytes();

@@ -46,8 +46,7 @@ struct RunPosition {
   double d50 = 0.0;           // of the sample at the start of the test
   bool has_crusher = false;
 
-  void save(StateWriter& out) const;
-  void load(StateReader& in);
+  void state(StateArchive& a);
 };
 
 /// The format tag of version `version`.

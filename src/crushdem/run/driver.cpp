@@ -174,43 +174,32 @@ std::vector<std::string> Driver::file_names() const {
   return names;
 }
 
-void Driver::save_state(StateWriter& out) const {
-  out.tag("files");
-  out.put(static_cast<std::uint64_t>(legacy_snapshots_));
-  out.put(static_cast<std::uint64_t>(snapshots_.size()));
-  for (const Snapshot& snap : snapshots_) {
-    out.put(snap.step);
-    out.put(snap.time);
-  }
-  out.put(static_cast<std::uint64_t>(files_.size()));
-  for (const auto& [name, f] : files_) {
-    out.put(name);
-    out.put(f->size());
-    out.put(f->columns());
-  }
-}
-
-void Driver::load_state(StateReader& in) {
-  in.tag("files");
+void Driver::state(StateArchive& a) {
+  a.section("files");
   // Format 4 and older: a count of legacy .vtk snapshots only.
-  legacy_snapshots_ = static_cast<std::size_t>(in.value<std::uint64_t>());
-  snapshots_.clear();
-  if (in.version() >= 5) {
-    const auto count = in.value<std::uint64_t>();
-    for (std::uint64_t k = 0; k < count; ++k) {
-      Snapshot snap;
-      in.get(snap.step);
-      in.get(snap.time);
-      snapshots_.push_back(snap);
-    }
+  legacy_snapshots_ = static_cast<std::size_t>(a.value<std::uint64_t>(legacy_snapshots_));
+  if (a.loading()) snapshots_.clear();
+  if (a.version() >= 5) {
+    const auto count = a.value<std::uint64_t>(snapshots_.size());
+    if (a.loading()) snapshots_.resize(count);
+    for (Snapshot& snap : snapshots_) a(snap.step, snap.time);
   }
-  const auto n = in.value<std::uint64_t>();
+  // Each result file: its name, its length and its columns.
+  const auto n = a.value<std::uint64_t>(files_.size());
+  if (!a.loading()) {
+    for (auto& [name, f] : files_) {
+      std::string file_name = name;
+      long long size = f->size();
+      std::vector<std::string> columns = f->columns();
+      a(file_name, size, columns);
+    }
+    return;
+  }
   for (std::uint64_t k = 0; k < n; ++k) {
     std::string name;
-    in.get(name);
-    const auto size = in.value<long long>();
+    long long size = 0;
     std::vector<std::string> columns;
-    in.get(columns);
+    a(name, size, columns);
     file(name).resume(size, columns);
   }
 }

@@ -101,8 +101,8 @@ class Driver {
   std::size_t legacy_snapshots() const { return legacy_snapshots_; }
   std::vector<std::string> file_names() const;
 
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  /// The snapshots and each result file's length and columns (checkpoints).
+  void state(StateArchive& a);
 
  private:
   using clock = std::chrono::steady_clock;

@@ -152,7 +152,7 @@ class Run {
       throw ConfigError("crushdem resume: " + (dir_ / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
-    pos_.load(*in_);
+    load_state(pos_, *in_);
     if (branching_) {  // timing.json describes the branch's own work
       pos_.wall_seconds = 0.0;
       pos_.part_seconds = {};
@@ -191,12 +191,12 @@ class Run {
   // it.
   void restore() {
     if (branching_) copy_run_files(from_, dir_);
-    driver_->load_state(*in_);
+    load_state(*driver_, *in_);
     if (branching_) keep_branch_files(from_, dir_, *driver_, branch_k_);
-    sim_->load_state(*in_);
+    load_state(*sim_, *in_);
     if (pos_.has_crusher) {
       make_crusher();
-      crusher_->load_state(*in_);
+      load_state(*crusher_, *in_);
       driver_->attach_crusher(crusher_.get(), true);
     }
     // Timing totals go on from the checkpoint's.

@@ -12,11 +12,10 @@ namespace crushdem {
 
 namespace {
 using Idx = std::ptrdiff_t;
-}  // namespace
 
 template <class Law>
-void wall_forces(const Law& law, const ContactParams& params, double h, const ParticleStore& p,
-                 Walls& walls, WallContacts& wc) {
+void wall_forces_with(const Law& law, const ContactParams& params, double h, const ParticleStore& p,
+                      Walls& walls, WallContacts& wc) {
   const std::size_t M = wc.size();
   const ContactParams cp = params;
   std::array<Vec3, kNumWalls> n_out{};
@@ -158,9 +157,12 @@ void wall_forces(const Law& law, const ContactParams& params, double h, const Pa
   }
 }
 
-template void wall_forces<HertzLaw>(const HertzLaw&, const ContactParams&, double,
-                                    const ParticleStore&, Walls&, WallContacts&);
-template void wall_forces<RoughHertzLaw>(const RoughHertzLaw&, const ContactParams&, double,
-                                         const ParticleStore&, Walls&, WallContacts&);
+}  // namespace
+
+void wall_forces(const ContactLaw& law, double h, const ParticleStore& p, Walls& walls,
+                 WallContacts& wc) {
+  with_law(law,
+           [&](const auto& model) { wall_forces_with(model.wall_law, model.cp, h, p, walls, wc); });
+}
 
 }  // namespace crushdem

@@ -5,18 +5,17 @@
 // evaluate them in vector lanes, write back): bit for bit a one-by-one loop.
 #pragma once
 
-#include "crushdem/contact/contact_config.hpp"
+#include "crushdem/contact/contact_model.hpp"
 #include "crushdem/particles/particle_store.hpp"
 #include "crushdem/walls/walls.hpp"
 
 namespace crushdem {
 
-/// Evaluates every entry of `wc` with `law` (its tangential history advanced by the step h; 0
-/// refreshes the current state), stores each entry's results, and sets each wall's normal
-/// force, force and stiffness in `walls` (summed in entry order: deterministic). Instantiated
-/// for HertzLaw and RoughHertzLaw.
-template <class Law>
-void wall_forces(const Law& law, const ContactParams& cp, double h, const ParticleStore& p,
-                 Walls& walls, WallContacts& wc);
+/// Evaluates every entry of `wc` with the contact law's wall evaluator (its tangential history
+/// advanced by the step h; 0 refreshes the current state), stores each entry's results, and sets
+/// each wall's normal force, force and stiffness in `walls` (summed in entry order:
+/// deterministic).
+void wall_forces(const ContactLaw& law, double h, const ParticleStore& p, Walls& walls,
+                 WallContacts& wc);
 
 }  // namespace crushdem

@@ -157,11 +157,11 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
   wall = std::move(ww);
 }
 
-void Walls::save_state(StateWriter& out) const {
-  out.tag("walls");
-  for (const WallConfig& c : cfg_) {
-    // Written as the struct's bytes (the format since version 1) with its padding zeroed, so
-    // that equal states give equal files (saved stage states are compared as results).
+void Walls::state(StateArchive& a) {
+  a.section("walls");
+  for (WallConfig& c : cfg_) {
+    // The struct's bytes (the format since version 1), written with its padding zeroed so that
+    // equal states give equal files (saved stage states are compared as results).
     WallConfig z;
     std::memset(static_cast<void*>(&z), 0, sizeof z);
     z.mode = c.mode;
@@ -170,33 +170,15 @@ void Walls::save_state(StateWriter& out) const {
     z.target_stress = c.target_stress;
     z.servo_alpha = c.servo_alpha;
     z.max_speed = c.max_speed;
-    out.put(z);
+    a(z);
+    if (a.loading()) c = z;
   }
-  for (const WallState& st : st_) out.put(st);
+  for (WallState& st : st_) a(st);
 }
 
-void Walls::load_state(StateReader& in) {
-  in.tag("walls");
-  for (WallConfig& c : cfg_) in.get(c);
-  for (WallState& st : st_) in.get(st);
-}
-
-void WallContacts::save_state(StateWriter& out) const {
-  out.tag("wall_contacts");
-  out.put(particle);
-  out.put(wall);
-  for (const auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
-    out.put(*a);
-  }
-}
-
-void WallContacts::load_state(StateReader& in) {
-  in.tag("wall_contacts");
-  in.get(particle);
-  in.get(wall);
-  for (auto* a : {&ft_x, &ft_y, &ft_z, &fx, &fy, &fz, &tx, &ty, &tz, &F_n, &k_n, &delta}) {
-    in.get(*a);
-  }
+void WallContacts::state(StateArchive& a) {
+  a.section("wall_contacts");
+  a(particle, wall, ft_x, ft_y, ft_z, fx, fy, fz, tx, ty, tz, F_n, k_n, delta);
 }
 
 }  // namespace crushdem

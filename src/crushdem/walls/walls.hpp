@@ -84,8 +84,7 @@ class Walls {
   double max_displacement_since_build() const;
   void reset_displacements();
   /// Modes, targets, positions, velocities and servo state, bit for bit (checkpoints).
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void state(StateArchive& a);
 
  private:
   std::array<WallConfig, kNumWalls> cfg_{};
@@ -111,8 +110,7 @@ struct WallContacts {
              const std::vector<double>& z, const std::vector<double>& radius, const Walls& walls,
              double skin);
   /// Entry list, history and last results (offsets are the engine's to save, see Simulation).
-  void save_state(StateWriter& out) const;
-  void load_state(StateReader& in);
+  void state(StateArchive& a);
 };
 
 }  // namespace crushdem
