@@ -80,7 +80,7 @@ __global__ void k_contacts(View v, Model model) {
   }
 }
 
-// Blocks below particle_blocks gather; the next kNumWalls blocks make the wall totals (they read
+// Blocks below particle_blocks gather; the next v.bodies blocks make the body totals (they read
 // only the wall entries and write only the walls, which the gather does not read).
 __global__ void k_gather(View v, unsigned particle_blocks) {
   __shared__ WallSum sm[kWallThreads];
@@ -219,7 +219,7 @@ class CudaApi : public Api {
     const int gc = grid(v.entry_capacity + v.wall_entry_capacity, kContactBlock);
     const int gp = grid(v.grain_capacity);
     laws.visit([&](const auto& model) { k_contacts<<<gc, kContactBlock, 0, stream_>>>(v, model); });
-    k_gather<<<gp + kNumWalls, kBlock, 0, stream_>>>(v, static_cast<unsigned>(gp));
+    k_gather<<<gp + static_cast<int>(v.bodies), kBlock, 0, stream_>>>(v, static_cast<unsigned>(gp));
     if (v.fail) {  // no launch without crushing
       k_crushing<<<gp, kBlock, 0, stream_>>>(v);
       k_crushing_halt<<<1, 1, 0, stream_>>>(v);

@@ -37,6 +37,7 @@
 #include "crushdem/fracture/crack_growth.hpp"
 #include "crushdem/integrate/step_rules.hpp"
 #include "crushdem/neighbor/neighbor_list.hpp"
+#include "crushdem/walls/body_geometry.hpp"
 #include "crushdem/walls/wall_geometry.hpp"
 
 namespace crushdem::device {
@@ -48,6 +49,10 @@ constexpr int kContactBlock = 128;    // threads per block of the contact kernel
 constexpr int kWallThreads = kBlock;  // threads per wall for the wall totals (a power of two)
 constexpr int kInspectBlock = 256;    // grains per block of the inspection's first pass
 constexpr int kBatchSteps = 100;      // steps per batch (one CUDA graph launch)
+
+/// Room for bodies (the box's six walls included) in the control block and the view: as many
+/// as a run may hold (walls/walls.hpp).
+constexpr int kMaxDeviceBodies = 16;
 
 /// Why the device stopped before the end of a batch.
 enum Halt : int { kRunning = 0, kRebuild = 1, kFailure = 2 };
@@ -83,11 +88,11 @@ struct Control {
   // The inspection (the controllers' scalars, reduced on demand): sum over grains of
   // |resultant force|, sum of the elastic F_n of the touching grain pairs, and their count.
   double inspect_resultant, inspect_F_n, inspect_pairs;
-  WallDev walls[kNumWalls];
+  WallDev walls[kMaxDeviceBodies];
 };
 
 /// What a device array is counted by.
-enum class Count { Grains, Entries, WallEntries, GrainsPlusOne };
+enum class Count { Grains, Entries, WallEntries, GrainsPlusOne, Bodies };
 /// When a run holds it: always, with the contact load tracked (crushing), with the crushing check.
 enum class When { Always, Load, Crushing };
 
@@ -145,6 +150,9 @@ enum class When { Always, Load, Crushing };
   X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n)                 \
   X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n)                 \
   X(wdelta, double, WallEntries, true, Always, false, s.wall_contacts().delta)            \
+  /* the bodies' shapes and the servo areas they were given */                            \
+  X(shape, BodyShape, Bodies, false, Always, false, s.walls().shapes())                   \
+  X(body_area, double, Bodies, false, Always, false, s.walls().given_areas())             \
   /* the contact load per grain (both ways: the host's forces fill it too) */             \
   X(LS, double, Grains, true, Load, false, s.contact_load().sigma)                        \
   X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max)                      \
@@ -215,8 +223,9 @@ struct View {
   // Room in the buffers (grains, pair entries, wall entries): the kernels' grids cover these,
   // so the counts in the control block may change within them.
   unsigned grain_capacity, entry_capacity, wall_entry_capacity;
+  unsigned bodies;  // the box's six walls and the bodies beyond
   double alpha, skin;
-  WallCfgDev wcfg[kNumWalls];
+  WallCfgDev wcfg[kMaxDeviceBodies];
   ContactParams cp;
 };
 
@@ -241,7 +250,7 @@ CD_HD inline double kick_drift_item(const View& v, Index i) {
 CD_HD inline void finish_drift(const View& v, double m2) {
   Control& c = *v.ctrl;
   double travel = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) {
+  for (int k = 0; k < static_cast<int>(v.bodies); ++k) {
     WallDev& s = c.walls[k];
     s.position += s.velocity * c.h;
     s.displacement += std::fabs(s.velocity * c.h);
@@ -316,7 +325,10 @@ CD_HD inline void wall_item(const View& v, const Model& model, Index e) {
   const Index i = v.wp[e];
   const int k = v.ww[e];
   const WallDev& W = v.ctrl->walls[k];
-  const double dist = wall_gap(k, W.position, v.x[i], v.y[i], v.z[i]);
+  const BodyShape& body = v.shape[k];
+  int part = 0;
+  const SurfacePoint sp = body_surface(body, W.position, Vec3{v.x[i], v.y[i], v.z[i]}, part);
+  const double dist = sp.dist;
   const double delta = v.radius[i] - dist;
   if (delta <= 0.0) {
     v.wftx[e] = v.wfty[e] = v.wftz[e] = 0.0;
@@ -325,10 +337,11 @@ CD_HD inline void wall_item(const View& v, const Model& model, Index e) {
     if (v.wsig) v.wsig[e] = v.wFel[e] = 0.0;
     return;
   }
+  const double R_star = surface_R_star(v.radius[i], sp.kappa_1, sp.kappa_2);
   const WallContact wcon = wall_contact(
-      model.wall_law, wall_outward_normal(k), dist, delta, v.radius[i], v.mass[i],
-      Vec3{v.vx[i], v.vy[i], v.vz[i]}, Vec3{v.wx[i], v.wy[i], v.wz[i]},
-      wall_velocity_vector(k, W.velocity), Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, v.cp, v.ctrl->h);
+      model.wall_law, sp.n, dist, delta, R_star, v.mass[i], Vec3{v.vx[i], v.vy[i], v.vz[i]},
+      Vec3{v.wx[i], v.wy[i], v.wz[i]}, body_surface_velocity(body, W.velocity, sp.radial),
+      Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, body.friction, v.cp, v.ctrl->h);
   const ContactResponse& r = wcon.c;
   v.wftx[e] = r.F_t.x;
   v.wfty[e] = r.F_t.y;
@@ -342,9 +355,9 @@ CD_HD inline void wall_item(const View& v, const Model& model, Index e) {
   v.wFn[e] = wcon.F_n_wall;
   v.wkn[e] = r.k_n;
   v.wdelta[e] = delta;
-  if (v.wsig) {  // as Simulation::wall_contact_load: the elastic force, r' = k R
+  if (v.wsig) {  // as Simulation::wall_contact_load: the elastic force, r' = k R*
     v.wFel[e] = r.F_n;
-    v.wsig[e] = contact_stress(r.F_n, v.load_factor * v.radius[i], delta);
+    v.wsig[e] = contact_stress(r.F_n, v.load_factor * R_star, delta);
   }
 }
 
@@ -371,7 +384,7 @@ CD_HD inline void add_sum(WallSum& a, const WallSum& b) {
   a.k += b.k;
 }
 
-/// Stores wall k's totals and sets its velocity for the next step (Walls::update_velocities).
+/// Stores body k's totals and sets its velocity for the next step (Walls::update_velocities).
 CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum) {
   WallDev* W = v.ctrl->walls;
   WallDev& s = W[k];
@@ -386,11 +399,17 @@ CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum)
   } else if (c.mode == 1) {
     s.velocity = c.velocity;
   } else {
-    const int a1 = (wall_axis(k) + 1) % 3, a2 = (wall_axis(k) + 2) % 3;
-    const double area = (W[2 * a1 + 1].position - W[2 * a1].position) *
-                        (W[2 * a2 + 1].position - W[2 * a2].position);
-    s.velocity = servo_wall_velocity(k, s.normal_force, area, s.stiffness, v.ctrl->h,
-                                     c.target_stress, c.servo_alpha, c.max_speed);
+    double area = 0.0;
+    if (k < kNumWalls) {  // a box wall: the box's cross-section (Walls::area)
+      const int a1 = (wall_axis(k) + 1) % 3, a2 = (wall_axis(k) + 2) % 3;
+      area = (W[2 * a1 + 1].position - W[2 * a1].position) *
+             (W[2 * a2 + 1].position - W[2 * a2].position);
+    } else {
+      area = v.body_area[k] > 0.0 ? v.body_area[k] : body_own_area(v.shape[k], s.position);
+    }
+    const double load = body_load(v.shape[k], s.normal_force, Vec3{s.fx, s.fy, s.fz});
+    s.velocity = servo_velocity(v.shape[k].outward_sign, load, area, s.stiffness, v.ctrl->h,
+                                c.target_stress, c.servo_alpha, c.max_speed);
   }
 }
 
@@ -419,7 +438,11 @@ CD_HD inline void load_item(const View& v, Index j) {
   }
   for (Index e = v.woff[j]; e < v.woff[j + 1]; ++e) {
     if (v.wdelta[e] <= 0.0) continue;
-    take_contact_load(S, Fm, nx, ny, nz, v.wsig[e], v.wFel[e], wall_outward_normal(v.ww[e]));
+    const int k = v.ww[e];
+    int part = 0;
+    const Vec3 n =
+        body_surface(v.shape[k], v.ctrl->walls[k].position, Vec3{v.x[j], v.y[j], v.z[j]}, part).n;
+    take_contact_load(S, Fm, nx, ny, nz, v.wsig[e], v.wFel[e], n);
   }
   v.LS[j] = S;
   v.LF[j] = Fm;

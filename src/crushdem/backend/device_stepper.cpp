@@ -113,7 +113,7 @@ class EmulatedApi : public device::Api {
       for (Index e = 0; e < c.Mw; ++e) device::wall_item(v, model, e);
     });
     std::vector<device::WallSum> part(device::kWallThreads);
-    for (int k = 0; k < kNumWalls; ++k) {
+    for (int k = 0; k < static_cast<int>(v.bodies); ++k) {
       for (int t = 0; t < device::kWallThreads; ++t) {
         part[static_cast<std::size_t>(t)] = device::wall_partial(v, k, t);
       }
@@ -216,7 +216,7 @@ struct DeviceStepper::Impl {
   bool load = false, crushing = false;
   Crusher* crusher = nullptr;
   BreakageSink sink;
-  std::size_t N = 0, M = 0, Mw = 0;
+  std::size_t N = 0, M = 0, Mw = 0, bodies = 0;
   std::uint64_t full_uploads = 0, field_uploads = 0;
   double particle_steps = 0.0;
   static constexpr int kBatch = device::kBatchSteps;
@@ -256,6 +256,7 @@ struct DeviceStepper::Impl {
       case Count::Entries: return M;
       case Count::WallEntries: return Mw;
       case Count::GrainsPlusOne: return N + 1;
+      case Count::Bodies: return bodies;
     }
     return 0;
   }
@@ -367,6 +368,11 @@ struct DeviceStepper::Impl {
     N = p.size();
     M = nl.neighbors.size();
     Mw = wc.size();
+    bodies = static_cast<std::size_t>(sim.walls().size());
+    if (bodies > static_cast<std::size_t>(device::kMaxDeviceBodies)) {
+      throw RuntimeFailure("device: " + std::to_string(bodies) + " bodies; the device step holds " +
+                           std::to_string(device::kMaxDeviceBodies) + " at most");
+    }
     if (sim.history().tangential().x.size() != M || wc.offsets.size() != N + 1) {
       throw RuntimeFailure("device upload: contact history and neighbour list disagree");
     }
@@ -492,7 +498,8 @@ struct DeviceStepper::Impl {
     }
     u.ctrl = static_cast<Control*>(ctrl_buf.p);
     u.inspect_partial = static_cast<device::InspectSum*>(partial.p);
-    std::size_t room[4] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}};
+    std::size_t room[5] = {~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0}, ~std::size_t{0},
+                           ~std::size_t{0}};
     for (const Field& f : fields) {
       std::size_t& r = room[static_cast<int>(f.count)];
       r = std::min(r, f.cap / f.elem);
@@ -502,7 +509,8 @@ struct DeviceStepper::Impl {
     u.wall_entry_capacity = static_cast<unsigned>(room[2]);
     u.alpha = sim.config().damping.local_alpha;
     u.skin = sim.skin();
-    for (int k = 0; k < kNumWalls; ++k) {
+    u.bodies = static_cast<unsigned>(sim.walls().size());
+    for (int k = 0; k < sim.walls().size(); ++k) {
       const WallConfig& w = sim.walls().config(k);
       device::WallCfgDev& d = u.wcfg[k];
       d.mode = w.mode == WallMode::Fixed ? 0 : (w.mode == WallMode::Velocity ? 1 : 2);
@@ -527,7 +535,7 @@ struct DeviceStepper::Impl {
     c.h = sim.current_dt();
     c.hh = 0.5 * c.h;
     c.last_check_time = crusher ? crusher->last_check_time() : 0.0;
-    for (int k = 0; k < kNumWalls; ++k) {
+    for (int k = 0; k < sim.walls().size(); ++k) {
       const WallState& s = sim.walls().state(k);
       c.walls[k] = {s.position, s.velocity, s.normal_force, s.force.x,
                     s.force.y,  s.force.z,  s.stiffness,    s.displacement_since_build};
@@ -542,7 +550,7 @@ struct DeviceStepper::Impl {
 
   /// Puts the device's clock, walls and crushing time into the host copy.
   void control_to_host(Simulation& sim) {
-    for (int k = 0; k < kNumWalls; ++k) {
+    for (int k = 0; k < sim.walls().size(); ++k) {
       const device::WallDev& d = ctrl.walls[k];
       WallState& s = sim.walls().state(k);
       s.position = d.position;

@@ -101,9 +101,11 @@ CD_HD_INLINE PairContact pair_contact(const Law& law, Vec3 dx, double d2, double
   return out;
 }
 
-/// One grain-wall contact, shared by every backend's wall loop. n: the wall's outward normal;
-/// dist: centre-to-plane distance (delta = r - dist > 0); wall_velocity: the wall's velocity
-/// vector. The contact point is dist n from the centre; the wall uses R* = r and m* = m.
+/// One grain-body contact, shared by every backend's wall loop. n: the unit normal from the
+/// grain's centre towards the body (walls/body_geometry.hpp); dist: centre-to-surface distance
+/// (delta = r - dist > 0); R_star: the contact's effective radius (the grain's radius against a
+/// plane, surface_R_star() against a curved surface); m: the grain's mass (m* = m);
+/// wall_velocity: the surface's velocity at the contact; mu: the body's friction.
 struct WallContact {
   ContactResponse c;
   Vec3 torque;            // on the grain
@@ -111,12 +113,12 @@ struct WallContact {
 };
 
 template <class Law>
-CD_HD inline WallContact wall_contact(const Law& law, Vec3 n, double dist, double delta, double r,
-                                      double m, Vec3 v, Vec3 w, Vec3 wall_velocity, Vec3 F_t_old,
-                                      const ContactParams& p, double dt) {
+CD_HD inline WallContact wall_contact(const Law& law, Vec3 n, double dist, double delta,
+                                      double R_star, double m, Vec3 v, Vec3 w, Vec3 wall_velocity,
+                                      Vec3 F_t_old, double mu, const ContactParams& p, double dt) {
   WallContact out;
   const Vec3 v_rel = v + cross(w, dist * n) - wall_velocity;
-  out.c = contact_response(law, delta, r, std::sqrt(r), m, n, v_rel, F_t_old, p.mu_wall, p, dt);
+  out.c = contact_response(law, delta, R_star, std::sqrt(R_star), m, n, v_rel, F_t_old, mu, p, dt);
   out.torque = dist * cross(n, out.c.tangential);
   out.F_n_wall = -dot(out.c.force, n);
   return out;

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/core/types.hpp"
 
 namespace crushdem {
 
@@ -35,8 +36,9 @@ struct Param {
   using Count = std::uint64_t S::*;
   using Flag = bool S::*;
   using Text = std::string S::*;
+  using Triple = Vec3 S::*;  // [x, y, z]: a point or a direction
   std::string_view key;
-  std::variant<Number, Count, Flag, Text, ParamChoice<S>> member;
+  std::variant<Number, Count, Flag, Text, Triple, ParamChoice<S>> member;
   std::string_view unit;  // SI unit, "-" for a pure number, "" where none applies
   std::string_view doc;   // one line: what it is, where it comes from (STUDY / CHOICE ...)
   // Range of a Number (finite always; NaN never passes) or a Count: the check and the
@@ -53,6 +55,11 @@ struct Param {
 
 template <class S>
 using ParamTable = std::vector<Param<S>>;
+
+/// Whether struct S is large enough to hold a Triple (a Vec3) member: only then is a Triple row
+/// read or written (GCC warns about the member access it cannot prove unreachable otherwise).
+template <class S>
+inline constexpr bool kMayHoldTriple = sizeof(S) >= sizeof(Vec3);
 
 /// A member pointer of a base (T Part::*) as one of the derived whole (T S::*).
 template <class S, class T, class Part>
@@ -97,6 +104,17 @@ void validate_params(const S& obj, const ParamTable<S>& table, const std::string
   for (const Param<S>& p : table) {
     if (!p.ok || (p.applies && !p.applies(obj))) continue;
     double v = 0.0;
+    if (std::holds_alternative<typename Param<S>::Triple>(p.member)) {
+      if constexpr (!kMayHoldTriple<S>) continue;
+      const Vec3 t = obj.*std::get<typename Param<S>::Triple>(p.member);
+      if (!std::isfinite(t.x) || !std::isfinite(t.y) || !std::isfinite(t.z)) {
+        throw ConfigError(bad_value(
+            section + "." + std::string(p.key),
+            "[" + show_number(t.x) + ", " + show_number(t.y) + ", " + show_number(t.z) + "]",
+            std::string(p.expected)));
+      }
+      continue;
+    }
     if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
       v = obj.*(*num);
     } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {

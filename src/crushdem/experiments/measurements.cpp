@@ -65,6 +65,16 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   for (int k = 0; k < kNumWalls; ++k) {
     m.emplace_back(std::string("wall_") + wall_name(k) + "_stress_Pa", w.stress(k));
   }
+  // The bodies beyond the box: degree of freedom, the grains' force on it, its stress.
+  for (int k = kNumWalls; k < w.size(); ++k) {
+    const std::string b = "body_" + w.name(k) + "_";
+    const WallState& s = w.state(k);
+    m.emplace_back(b + "position_m", s.position);
+    m.emplace_back(b + "force_x_N", s.force.x);
+    m.emplace_back(b + "force_y_N", s.force.y);
+    m.emplace_back(b + "force_z_N", s.force.z);
+    m.emplace_back(b + "stress_Pa", w.stress(k));
+  }
   const double p_wall = (w.axis_stress(0) + w.axis_stress(1) + w.axis_stress(2)) / 3.0;
   const double q_wall = w.axial_stress() - w.lateral_stress();
   m.emplace_back("mean_stress_Pa", p_wall);

@@ -65,6 +65,7 @@ void SimulationConfig::validate() const {
   for (int k = 0; k < kNumWalls; ++k) {
     walls[static_cast<std::size_t>(k)].validate(std::string("walls.") + wall_name(k));
   }
+  validate_bodies(bodies);
   for (int a = 0; a < 3; ++a) {
     const double lo = walls[static_cast<std::size_t>(2 * a)].position;
     const double hi = walls[static_cast<std::size_t>(2 * a + 1)].position;
@@ -81,7 +82,9 @@ Simulation::Simulation(const SimulationConfig& cfg) : cfg_(cfg) {
   cfg_.validate();
   law_ = ContactLaw(cfg_.material, cfg_.contact);
   history_.declare(law_.pair_history());
-  walls_ = Walls(cfg_.walls);
+  std::vector<Body> bodies;
+  for (const BodyConfig& b : cfg_.bodies) bodies.push_back(b.make(law_.params().mu_wall));
+  walls_ = Walls(cfg_.walls, law_.params().mu_wall, std::move(bodies));
   time_step_ = TimeStep(cfg_.timestep);
   skin_ = cfg_.neighbor.skin;
 }
@@ -213,10 +216,12 @@ void Simulation::wall_contact_load() {
   for (std::size_t e = 0; e < wc_.size(); ++e) {
     if (wc_.delta[e] <= 0.0) continue;
     const std::size_t i = wc_.particle[e];
-    const double F_el = normal_force(wc_.delta[e], p_.radius[i], true).F_n;  // no dashpot
-    const double sig = contact_stress(F_el, load_factor_ * p_.radius[i], wc_.delta[e]);
+    const SurfacePoint s = walls_.surface(wc_.wall[e], {p_.x[i], p_.y[i], p_.z[i]});
+    const double R_star = surface_R_star(p_.radius[i], s.kappa_1, s.kappa_2);
+    const double F_el = normal_force(wc_.delta[e], R_star, true).F_n;  // no dashpot
+    const double sig = contact_stress(F_el, load_factor_ * R_star, wc_.delta[e]);
     take_contact_load(load_.sigma[i], load_.F_n_max[i], load_.nx[i], load_.ny[i], load_.nz[i], sig,
-                      F_el, wall_outward_normal(wc_.wall[e]));
+                      F_el, s.n);
   }
 }
 
@@ -437,7 +442,8 @@ std::vector<ContactRecord> Simulation::contacts() const {
     c.id_j = wc_.wall[e];
     c.is_wall = true;
     c.delta = wc_.delta[e];
-    c.normal = walls_.outward_normal(wc_.wall[e]);
+    const std::size_t i = wc_.particle[e];
+    c.normal = walls_.surface(wc_.wall[e], {p_.x[i], p_.y[i], p_.z[i]}).n;
     c.F_n = wc_.F_n[e];
     c.F_t = {wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]};
     out.push_back(c);
@@ -473,8 +479,9 @@ std::array<double, 9> Simulation::love_weber_stress() const {
     const int a = static_cast<int>(k / 3), b = static_cast<int>(k % 3);
     for (std::size_t e = 0; e < wc_.size(); ++e) {
       if (wc_.delta[e] <= 0.0) continue;
-      const Vec3 n = walls_.outward_normal(wc_.wall[e]);
-      const double dist = p_.radius[wc_.particle[e]] - wc_.delta[e];
+      const std::size_t i = wc_.particle[e];
+      const Vec3 n = walls_.surface(wc_.wall[e], {p_.x[i], p_.y[i], p_.z[i]}).n;
+      const double dist = p_.radius[i] - wc_.delta[e];
       const Vec3 f = wc_.F_n[e] * n - Vec3{wc_.ft_x[e], wc_.ft_y[e], wc_.ft_z[e]};  // on the wall
       const double fa[3] = {f.x, f.y, f.z}, lb[3] = {dist * n.x, dist * n.y, dist * n.z};
       wall += fa[a] * lb[b];

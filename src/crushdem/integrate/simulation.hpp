@@ -28,6 +28,7 @@
 #include "crushdem/neighbor/neighbor_list.hpp"
 #include "crushdem/neighbor/pruned_list.hpp"
 #include "crushdem/particles/particle_store.hpp"
+#include "crushdem/walls/body_config.hpp"
 #include "crushdem/walls/walls.hpp"
 
 namespace crushdem {
@@ -55,7 +56,8 @@ struct SimulationConfig {
   TimestepConfig timestep;
   NeighborConfig neighbor;
   std::array<WallConfig, kNumWalls> walls{};
-  void validate() const;  // throws ConfigError naming the key
+  std::vector<BodyConfig> bodies;  // rigid bodies besides the box ([[body]])
+  void validate() const;           // throws ConfigError naming the key
 };
 
 /// A grain-grain or grain-wall contact as seen from outside (for output and Python).

@@ -70,9 +70,12 @@ double stiffness_time(const ParticleStore& p, const NeighborList& nl, const Wall
   }
   for (std::size_t e = 0; e < wc.size(); ++e) {
     const std::size_t i = wc.particle[e];
-    const int k = wc.wall[e];
-    const double delta = p.radius[i] - wall_gap(k, walls.position(k), p.x[i], p.y[i], p.z[i]);
-    if (delta > 0.0) ksum[i] += kt_ratio * normal(delta, p.radius[i], true).k_n;
+    const SurfacePoint s = walls.surface(wc.wall[e], {p.x[i], p.y[i], p.z[i]});
+    const double delta = p.radius[i] - s.dist;
+    if (delta > 0.0) {
+      ksum[i] +=
+          kt_ratio * normal(delta, surface_R_star(p.radius[i], s.kappa_1, s.kappa_2), true).k_n;
+    }
   }
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < N; ++i) {

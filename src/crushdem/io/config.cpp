@@ -70,6 +70,22 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     }
     walls.finish();
   }
+  for (Section& s : root.table_array("body")) {
+    BodyConfig b;
+    read_params(s, b, body_params());
+    // The motion keys apply as a wall's do: a key the mode does not use is a forgotten `mode`.
+    for (const Param<BodyConfig>& p : body_params()) {
+      const std::string key(p.key);
+      if (p.applies && !p.applies(b) && s.has(key)) {
+        throw ConfigError(bad_value(s.key(key), "given",
+                                    "no '" + key +
+                                        "' for this body (its mode or shape does not "
+                                        "use it)"));
+      }
+    }
+    s.finish();
+    c.bodies.push_back(b);
+  }
   {
     Section s = root.sub("box");
     if (!root.has("box") && !box_required) return;
@@ -110,11 +126,11 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
   // Only the simulation sections are read here; the caller owns the others.
   for (const auto& [k, v] : root) {
     static const std::set<std::string> mine = {"material", "contact", "damping", "timestep",
-                                               "neighbor", "box",     "walls"};
+                                               "neighbor", "box",     "walls",   "body"};
     if (!mine.count(k)) {
       throw ConfigError(r.where(v) + "unknown key '" + k +
                         "' (valid sections: material, contact, damping, timestep, neighbor, "
-                        "box, walls)");
+                        "box, walls, body)");
     }
   }
   c.validate();
@@ -312,6 +328,7 @@ std::vector<std::pair<std::string, std::string>> parameter_reference() {
                  "contact force); relative to the config file |"})},
       {"output", markdown(output_params())},
       {"walls.NAME", markdown(wall_params())},
+      {"body", markdown(body_params())},
       {"particles.generate", markdown(generate_params())},
       {"sample",
        markdown(
@@ -485,6 +502,13 @@ toml::Table to_toml(const SimulationConfig& c) {
     walls[wall_name(k)] = Value::make_table(wt);
   }
   t["walls"] = Value::make_table(walls);
+  if (!c.bodies.empty()) {  // written only when there are any: a box run's file is unchanged
+    std::vector<Value> bodies;
+    for (const BodyConfig& b : c.bodies) {
+      bodies.push_back(Value::make_table(write_params(b, body_params())));
+    }
+    t["body"] = Value::make_array(bodies);
+  }
   return t;
 }
 

@@ -76,13 +76,14 @@ class Section {
       out = v->str;
     }
   }
-  void vec3(const std::string& k, double out[3], bool& present) {
+  void vec3(const std::string& k, double out[3], bool& present,
+            const std::string& expected = "an array of 3 numbers [x, y, z] in m") {
     present = false;
     if (const Value* v = find(k)) {
       if (v->type != Type::Array || v->array.size() != 3 ||
           !std::all_of(v->array.begin(), v->array.end(),
                        [](const Value& x) { return x.is_number(); })) {
-        fail(k, *v, "an array of 3 numbers [x, y, z] in m");
+        fail(k, *v, expected);
       }
       for (int d = 0; d < 3; ++d) out[d] = v->array[static_cast<std::size_t>(d)].as_number();
       present = true;
@@ -158,6 +159,15 @@ void read_params(Section& s, S& obj, const ParamTable<S>& table) {
       std::string v = choice->get(obj);
       s.string(k, v);
       choice->set(obj, v, s.key(k));
+    } else if constexpr (kMayHoldTriple<S>) {
+      double v[3];
+      bool present = false;
+      if (p.expected.empty()) {
+        s.vec3(k, v, present);
+      } else {
+        s.vec3(k, v, present, std::string(p.expected));
+      }
+      if (present) obj.*std::get<typename Param<S>::Triple>(p.member) = Vec3{v[0], v[1], v[2]};
     }
   }
 }
@@ -179,6 +189,10 @@ Table write_params(const S& obj, const ParamTable<S>& table) {
       t[k] = Value::make_string(obj.*(*text));
     } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
       t[k] = Value::make_string(choice->get(obj));
+    } else if constexpr (kMayHoldTriple<S>) {
+      const Vec3 v = obj.*std::get<typename Param<S>::Triple>(p.member);
+      t[k] = Value::make_array(
+          {Value::make_float(v.x), Value::make_float(v.y), Value::make_float(v.z)});
     }
   }
   return t;
@@ -223,6 +237,14 @@ std::string default_text(const Param<S>& p) {
   }
   if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
     return "`\"" + d.*(*text) + "\"`";
+  }
+  // (A struct smaller than a Vec3 has no Triple row; the guard keeps GCC from warning about the
+  // access it cannot prove unreachable.)
+  if constexpr (kMayHoldTriple<S>) {
+    if (const auto* tri = std::get_if<typename Param<S>::Triple>(&p.member)) {
+      const Vec3 v = d.*(*tri);
+      return "[" + doc_number(v.x) + ", " + doc_number(v.y) + ", " + doc_number(v.z) + "]";
+    }
   }
   return "`\"" + std::get<ParamChoice<S>>(p.member).get(d) + "\"`";
 }

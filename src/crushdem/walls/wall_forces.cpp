@@ -18,10 +18,11 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
                       Walls& walls, WallContacts& wc) {
   const std::size_t M = wc.size();
   const ContactParams cp = params;
-  std::array<Vec3, kNumWalls> n_out{};
-  std::array<double, kNumWalls> pos{}, vel{};
-  for (int k = 0; k < kNumWalls; ++k) {
-    n_out[static_cast<std::size_t>(k)] = wall_outward_normal(k);
+  const int bodies = walls.size();
+  std::array<BodyShape, kMaxBodies> shape{};
+  std::array<double, kMaxBodies> pos{}, vel{};
+  for (int k = 0; k < bodies; ++k) {
+    shape[static_cast<std::size_t>(k)] = walls.shape(k);
     pos[static_cast<std::size_t>(k)] = walls.position(k);
     vel[static_cast<std::size_t>(k)] = walls.state(k).velocity;
   }
@@ -35,17 +36,18 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
     const std::size_t first = static_cast<std::size_t>(chunk) * kChunk;
     const std::size_t last = std::min(M, first + kChunk);
     // clang-format off
-    enum : std::size_t { NX, NY, NZ, DIST, DELTA, RAD, MASS, VX, VY, VZ, WX, WY, WZ, UX, UY, UZ,
-                         FTX, FTY, FTZ, FX, FY, FZ, TX, TY, TZ, FNW, KN, kFields };
+    enum : std::size_t { NX, NY, NZ, DIST, DELTA, RSTAR, MASS, VX, VY, VZ, WX, WY, WZ, UX, UY, UZ,
+                         MU, FTX, FTY, FTZ, FX, FY, FZ, TX, TY, TZ, FNW, KN, kFields };
     // clang-format on
     alignas(64) double in[kFields][kChunk];
     std::uint32_t slot_entry[kChunk];
     std::size_t n = 0;
     for (std::size_t e = first; e < last; ++e) {
       const std::size_t i = wc.particle[e];
-      const int k = wc.wall[e];
-      const auto ks = static_cast<std::size_t>(k);
-      const double dist = wall_gap(k, pos[ks], p.x[i], p.y[i], p.z[i]);
+      const auto ks = static_cast<std::size_t>(wc.wall[e]);
+      int part = 0;
+      const SurfacePoint sp = body_surface(shape[ks], pos[ks], {p.x[i], p.y[i], p.z[i]}, part);
+      const double dist = sp.dist;
       const double delta = p.radius[i] - dist;
       if (delta <= 0.0) {
         wc.ft_x[e] = wc.ft_y[e] = wc.ft_z[e] = 0.0;
@@ -53,15 +55,15 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
         wc.F_n[e] = wc.k_n[e] = wc.delta[e] = 0.0;
         continue;
       }
-      const Vec3 nk = n_out[ks];
-      const Vec3 u = wall_velocity_vector(k, vel[ks]);
+      const Vec3 nk = sp.n;
+      const Vec3 u = body_surface_velocity(shape[ks], vel[ks], sp.radial);
       slot_entry[n] = static_cast<std::uint32_t>(e);
       in[NX][n] = nk.x;
       in[NY][n] = nk.y;
       in[NZ][n] = nk.z;
       in[DIST][n] = dist;
       in[DELTA][n] = delta;
-      in[RAD][n] = p.radius[i];
+      in[RSTAR][n] = surface_R_star(p.radius[i], sp.kappa_1, sp.kappa_2);
       in[MASS][n] = p.mass[i];
       in[VX][n] = p.vx[i];
       in[VY][n] = p.vy[i];
@@ -72,6 +74,7 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
       in[UX][n] = u.x;
       in[UY][n] = u.y;
       in[UZ][n] = u.z;
+      in[MU][n] = shape[ks].friction;
       in[FTX][n] = wc.ft_x[e];
       in[FTY][n] = wc.ft_y[e];
       in[FTZ][n] = wc.ft_z[e];
@@ -86,7 +89,7 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
     double* __restrict const wNZ = in[NZ];
     double* __restrict const wDIST = in[DIST];
     double* __restrict const wDELTA = in[DELTA];
-    double* __restrict const wRAD = in[RAD];
+    double* __restrict const wRSTAR = in[RSTAR];
     double* __restrict const wMASS = in[MASS];
     double* __restrict const wVX = in[VX];
     double* __restrict const wVY = in[VY];
@@ -97,6 +100,7 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
     double* __restrict const wUX = in[UX];
     double* __restrict const wUY = in[UY];
     double* __restrict const wUZ = in[UZ];
+    double* __restrict const wMU = in[MU];
     double* __restrict const wFTX = in[FTX];
     double* __restrict const wFTY = in[FTY];
     double* __restrict const wFTZ = in[FTZ];
@@ -111,9 +115,9 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
 #pragma omp simd
     for (std::size_t m = 0; m < n; ++m) {
       const WallContact wcon = wall_contact(
-          law_private, Vec3{wNX[m], wNY[m], wNZ[m]}, wDIST[m], wDELTA[m], wRAD[m], wMASS[m],
+          law_private, Vec3{wNX[m], wNY[m], wNZ[m]}, wDIST[m], wDELTA[m], wRSTAR[m], wMASS[m],
           Vec3{wVX[m], wVY[m], wVZ[m]}, Vec3{wWX[m], wWY[m], wWZ[m]}, Vec3{wUX[m], wUY[m], wUZ[m]},
-          Vec3{wFTX[m], wFTY[m], wFTZ[m]}, cp_private, h);
+          Vec3{wFTX[m], wFTY[m], wFTZ[m]}, wMU[m], cp_private, h);
       wFTX[m] = wcon.c.F_t.x;
       wFTY[m] = wcon.c.F_t.y;
       wFTZ[m] = wcon.c.F_t.z;
@@ -142,8 +146,8 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
       wc.delta[e] = in[DELTA][m];
     }
   }
-  // Wall totals in entry order (deterministic; wall entries are few).
-  for (int k = 0; k < kNumWalls; ++k) {
+  // Body totals in entry order (deterministic; wall entries are few).
+  for (int k = 0; k < bodies; ++k) {
     WallState& s = walls.state(k);
     s.normal_force = 0.0;
     s.force = {};

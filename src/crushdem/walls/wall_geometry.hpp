@@ -49,12 +49,13 @@ CD_HD inline double wall_gap(int k, double wall_position, double cx, double cy, 
   return wall_is_low(k) ? c - wall_position : wall_position - c;
 }
 
-/// The servo law: wall velocity along its coordinate axis for the next step, from the wall's
-/// normal force, its current area, its contacts' summed k_n and the step h; without contacts (or
-/// before the first step) the wall approaches or retreats at full speed.
-CD_HD inline double servo_wall_velocity(int k, double normal_force, double area, double stiffness,
-                                        double h, double target_stress, double servo_alpha,
-                                        double max_speed) {
+/// The servo law: the velocity of a body's degree of freedom for the next step, from its normal
+/// force, its current area, its contacts' summed k_n and the step h; without contacts (or before
+/// the first step) the body approaches or retreats at full speed. outward_sign: +1 where an
+/// increasing coordinate moves the surface away from the grains, -1 where towards them.
+CD_HD inline double servo_velocity(double outward_sign, double normal_force, double area,
+                                   double stiffness, double h, double target_stress,
+                                   double servo_alpha, double max_speed) {
   const double error = normal_force / area - target_stress;
   double v_out;
   if (stiffness > 0.0 && h > 0.0) {
@@ -63,7 +64,15 @@ CD_HD inline double servo_wall_velocity(int k, double normal_force, double area,
     v_out = error > 0.0 ? max_speed : -max_speed;
   }
   v_out = v_out < -max_speed ? -max_speed : (max_speed < v_out ? max_speed : v_out);
-  return wall_outward_sign(k) * v_out;
+  return outward_sign * v_out;
+}
+
+/// The servo law for box wall k: its velocity along its coordinate axis.
+CD_HD inline double servo_wall_velocity(int k, double normal_force, double area, double stiffness,
+                                        double h, double target_stress, double servo_alpha,
+                                        double max_speed) {
+  return servo_velocity(wall_outward_sign(k), normal_force, area, stiffness, h, target_stress,
+                        servo_alpha, max_speed);
 }
 
 }  // namespace crushdem

@@ -84,28 +84,58 @@ void WallConfig::validate(const std::string& prefix) const {
   validate_params(*this, wall_params(), prefix);
 }
 
-Walls::Walls(const std::array<WallConfig, kNumWalls>& cfg) : cfg_(cfg) {
-  for (int k = 0; k < kNumWalls; ++k) {
-    st_[static_cast<std::size_t>(k)].position = cfg_[static_cast<std::size_t>(k)].position;
+Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
+             std::vector<Body> bodies) {
+  if (bodies.size() + kNumWalls > static_cast<std::size_t>(kMaxBodies)) {
+    throw ConfigError(
+        bad_value("body", std::to_string(bodies.size()) + " bodies",
+                  "at most " + std::to_string(kMaxBodies - kNumWalls) + " bodies besides the box"));
   }
+  for (int k = 0; k < kNumWalls; ++k) {
+    cfg_.push_back(box[static_cast<std::size_t>(k)]);
+    BodyShape b;
+    b.part[0].shape = Shape::AxisPlane;
+    b.part[0].wall = k;
+    b.outward_sign = wall_outward_sign(k);
+    b.friction = wall_friction;
+    shape_.push_back(b);
+  }
+  area_.assign(kNumWalls, 0.0);
+  for (Body& body : bodies) {
+    cfg_.push_back(body.motion);
+    shape_.push_back(body.shape);
+    names_.push_back(std::move(body.name));
+    area_.push_back(body.area);
+  }
+  st_.resize(cfg_.size());
+  for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
   update_velocities(0.0);
 }
 
+std::string Walls::name(int k) const {
+  return k < kNumWalls ? wall_name(k) : names_[static_cast<std::size_t>(k - kNumWalls)];
+}
+
 double Walls::area(int k) const {
-  const int a = wall_axis(k);
-  return length((a + 1) % 3) * length((a + 2) % 3);
+  if (k < kNumWalls) {
+    const int a = wall_axis(k);
+    return length((a + 1) % 3) * length((a + 2) % 3);
+  }
+  const double given = area_[static_cast<std::size_t>(k)];
+  return given > 0.0 ? given : body_own_area(shape(k), position(k));
 }
 
 void Walls::update_velocities(double dt) {
-  for (int k = 0; k < kNumWalls; ++k) {
+  for (int k = 0; k < size(); ++k) {
     const WallConfig& c = cfg_[static_cast<std::size_t>(k)];
     WallState& s = st_[static_cast<std::size_t>(k)];
     switch (c.mode) {
       case WallMode::Fixed: s.velocity = 0.0; break;
       case WallMode::Velocity: s.velocity = c.velocity; break;
       case WallMode::Servo:
-        s.velocity = servo_wall_velocity(k, s.normal_force, area(k), s.stiffness, dt,
-                                         c.target_stress, c.servo_alpha, c.max_speed);
+        s.velocity =
+            servo_velocity(shape(k).outward_sign, body_load(shape(k), s.normal_force, s.force),
+                           area(k), s.stiffness, dt, c.target_stress, c.servo_alpha, c.max_speed);
         break;
     }
   }
@@ -144,8 +174,8 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
   std::vector<std::uint8_t> ww;
   offsets.assign(N + 1, 0);
   for (std::size_t i = 0; i < N; ++i) {
-    for (int k = 0; k < kNumWalls; ++k) {
-      if (wall_gap(k, walls.position(k), x[i], y[i], z[i]) - radius[i] < skin) {
+    for (int k = 0; k < walls.size(); ++k) {
+      if (walls.surface(k, {x[i], y[i], z[i]}).dist - radius[i] < skin) {
         wp.push_back(static_cast<std::uint32_t>(i));
         ww.push_back(static_cast<std::uint8_t>(k));
       }

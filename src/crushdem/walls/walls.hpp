@@ -1,13 +1,18 @@
-// Six rigid planar walls forming a box (docs/model.md 1.3, 4.2).
-//
-// Wall k (0..5) is xmin, xmax, ymin, ymax, zmin, zmax: axis k/2, low side when k is even. Each
-// wall is fixed, moves at a prescribed velocity, or is servo-controlled to a target normal
-// stress with the PFC-style gain
+// The rigid bodies that bound the grains (docs/model.md 1.3, 4.2): the six planar walls of the
+// box, then any further bodies of any shape (walls/body_geometry.hpp: planes, disks, cylinders
+// inside and out, cones, a pile of a shaft and a tip). Every body is one degree of freedom q
+// (a box wall's coordinate; a translation or a change of radius for the others) that is fixed,
+// moves at a prescribed velocity, or is servo-controlled to a target normal stress with the
+// PFC-style gain
 //
 //   v_out = g (sigma_measured - sigma_target),  g = alpha A / (sum k_n dt),
 //
-// clamped to a maximum speed (v_out along the wall's outward normal, so a wall carrying too much
-// stress retreats). Wall stress = sum of the normal contact forces / current wall area.
+// clamped to a maximum speed (v_out moves the surface away from the grains, so a body carrying
+// too much stress retreats). Stress = sum of the normal contact forces / the body's area: a box
+// wall's current cross-section of the box, a finite body's own surface, or the area a plane
+// body is given.
+//
+// Box wall k (0..5) is xmin, xmax, ymin, ymax, zmin, zmax: axis k/2, low side when k is even.
 #pragma once
 
 #include <array>
@@ -19,6 +24,7 @@
 #include "crushdem/core/params.hpp"
 #include "crushdem/core/state_io.hpp"
 #include "crushdem/core/types.hpp"
+#include "crushdem/walls/body_geometry.hpp"
 #include "crushdem/walls/wall_geometry.hpp"
 
 namespace crushdem {
@@ -52,52 +58,85 @@ struct WallState {
   double displacement_since_build = 0.0;  // |travel| since the last neighbour build [m]
 };
 
+/// A body beyond the box: its name, its shape and how it moves (WallConfig: q's mode; position
+/// is q at the start, velocity dq/dt), and for a servo on an infinite plane the area its stress
+/// is taken over.
+struct Body {
+  std::string name;
+  BodyShape shape;
+  WallConfig motion;
+  double area = 0.0;  // [m^2]; 0: the shape's own (a disk's, a cylinder's lateral surface)
+};
+
 class Walls {
  public:
   Walls() = default;
-  explicit Walls(const std::array<WallConfig, kNumWalls>& cfg);
+  /// The box's six walls (their friction with the grains: wall_friction), then `bodies`.
+  Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
+        std::vector<Body> bodies = {});
 
+  /// Bodies, the box's six walls first.
+  int size() const { return static_cast<int>(cfg_.size()); }
   const WallConfig& config(int k) const { return cfg_[static_cast<std::size_t>(k)]; }
   WallConfig& config(int k) { return cfg_[static_cast<std::size_t>(k)]; }
   const WallState& state(int k) const { return st_[static_cast<std::size_t>(k)]; }
   WallState& state(int k) { return st_[static_cast<std::size_t>(k)]; }
+  const BodyShape& shape(int k) const { return shape_[static_cast<std::size_t>(k)]; }
+  /// "xmin" ... "zmax" for the box, the configured name beyond.
+  std::string name(int k) const;
+  /// Every body's shape, and the servo area each was given (0: the box's cross-section or the
+  /// shape's own surface): what a device copy holds.
+  const std::vector<BodyShape>& shapes() const { return shape_; }
+  const std::vector<double>& given_areas() const { return area_; }
 
   double position(int k) const { return st_[static_cast<std::size_t>(k)].position; }
   /// Side length of the box along an axis.
   double length(int axis) const { return position(2 * axis + 1) - position(2 * axis); }
   double volume() const { return length(0) * length(1) * length(2); }
-  /// Current area of wall k (the box cross-section normal to its axis).
+  /// Current area of body k: a box wall's cross-section of the box, or the body's own.
   double area(int k) const;
-  /// Compressive normal stress on wall k [Pa].
-  double stress(int k) const { return state(k).normal_force / area(k); }
+  /// Compressive normal stress on body k [Pa]: its load (body_load()) over its area.
+  double stress(int k) const {
+    return body_load(shape(k), state(k).normal_force, state(k).force) / area(k);
+  }
   /// Mean of the two walls of an axis [Pa]; axial is z, lateral the mean of x and y.
   double axis_stress(int axis) const { return 0.5 * (stress(2 * axis) + stress(2 * axis + 1)); }
   double axial_stress() const { return axis_stress(2); }
   double lateral_stress() const { return 0.5 * (axis_stress(0) + axis_stress(1)); }
-  /// Outward unit normal of wall k (from the sample into the wall).
+  /// Outward unit normal of box wall k (from the sample into the wall).
   Vec3 outward_normal(int k) const { return wall_outward_normal(k); }
+  /// Body k's nearest surface to a grain centred at c (walls/body_geometry.hpp).
+  SurfacePoint surface(int k, Vec3 c) const {
+    int part = 0;
+    return body_surface(shape(k), position(k), c, part);
+  }
 
-  /// Sets wall velocities for the next step (fixed, prescribed or servo).
+  /// Sets body velocities for the next step (fixed, prescribed or servo).
   void update_velocities(double dt);
-  /// Moves the walls by their velocities.
+  /// Moves the bodies by their velocities.
   void move(double dt);
   double max_displacement_since_build() const;
   void reset_displacements();
-  /// Modes, targets, positions, velocities and servo state, bit for bit (checkpoints).
+  /// Modes, targets, positions, velocities and servo state, bit for bit (checkpoints; the box
+  /// walls' layout is that of format 1, the bodies beyond follow in the same layout: their
+  /// number and shapes come from the configuration).
   void state(StateArchive& a);
 
  private:
-  std::array<WallConfig, kNumWalls> cfg_{};
-  std::array<WallState, kNumWalls> st_{};
+  std::vector<WallConfig> cfg_;
+  std::vector<WallState> st_;
+  std::vector<BodyShape> shape_;
+  std::vector<std::string> names_;  // of the bodies beyond the box
+  std::vector<double> area_;        // configured servo areas (0: the box's or the shape's)
 };
 
-/// Candidate particle-wall contacts (within the skin at the last build), with tangential
-/// history keyed by (particle id, wall) so it survives rebuilds and compaction (the engine's
+/// Candidate particle-body contacts (within the skin at the last build), with tangential
+/// history keyed by (particle id, body) so it survives rebuilds and compaction (the engine's
 /// ContactHistory carries it over). Entries are sorted by particle: those of particle i are
 /// offsets[i] .. offsets[i + 1] (CSR).
 struct WallContacts {
   std::vector<std::uint32_t> particle;
-  std::vector<std::uint8_t> wall;
+  std::vector<std::uint8_t> wall;  // the body
   std::vector<std::uint32_t> offsets;
   std::vector<double> ft_x, ft_y, ft_z;  // tangential force on the particle [N]
   // Results of the last force evaluation (per entry):
@@ -105,12 +144,15 @@ struct WallContacts {
 
   std::size_t size() const { return particle.size(); }
   void resize(std::size_t n);
-  /// The entries (with zero history) of every grain whose gap to a wall is below r + skin.
+  /// The entries (with zero history) of every grain whose gap to a body is below r + skin.
   void build(const std::vector<double>& x, const std::vector<double>& y,
              const std::vector<double>& z, const std::vector<double>& radius, const Walls& walls,
              double skin);
   /// Entry list, history and last results (offsets are the engine's to save, see Simulation).
   void state(StateArchive& a);
 };
+
+/// The most bodies a run holds (the box's six walls included): entries name them in a byte.
+inline constexpr int kMaxBodies = 16;
 
 }  // namespace crushdem

@@ -1,0 +1,225 @@
+// Rigid bodies of any shape (walls/body_geometry.hpp, walls/body_config.hpp): a grain pressed
+// against a curved surface carries Hertz's force for the surface's curvatures, checked against
+// the exact elliptical solution (Johnson, Contact Mechanics, 1985, 4.2); the shapes' distances
+// and normals; a pile's tip and shaft as one body; servo and prescribed motions; and the
+// configuration's errors naming the key.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/toml.hpp"
+#include "helpers.hpp"
+
+namespace crushdem {
+namespace {
+
+// Hertz's force for a contact with relative curvatures A <= B (the gap between the surfaces is
+// A x^2 + B y^2) at approach delta, from the elliptical solution: the eccentricity e of the
+// contact ellipse solves B/A = ((a/b)^2 E(e) - K(e)) / (K(e) - E(e)), then
+// delta = p0 b K(e) / E*, A = p0 b (K(e) - E(e)) / (E* e^2 a^2) and P = (2/3) pi a b p0.
+double elliptical_hertz_force(double A, double B, double delta, double E_star) {
+  const auto ratio = [](double e) {
+    const double K = std::comp_ellint_1(e), E = std::comp_ellint_2(e);
+    return (E / (1.0 - e * e) - K) / (K - E);
+  };
+  double lo = 1e-9, hi = 1.0 - 1e-15;  // ratio(e) grows from 1 with e
+  for (int k = 0; k < 200; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (ratio(mid) < B / A ? lo : hi) = mid;
+  }
+  const double e = 0.5 * (lo + hi);
+  const double K = std::comp_ellint_1(e), E = std::comp_ellint_2(e);
+  const double a = std::sqrt(delta * (K - E) / (A * K * e * e));
+  const double b = a * std::sqrt(1.0 - e * e);
+  const double p0 = delta * E_star / (b * K);
+  return 2.0 / 3.0 * kPi * a * b * p0;
+}
+
+// A large box of fixed walls around the origin, Hertz contacts without friction or damping,
+// and the given [[body]] tables.
+SimulationConfig body_config(const std::string& bodies) {
+  const std::string text =
+      "[contact]\nlaw = \"hertz\"\n[damping]\nlocal_alpha = 0.0\n"
+      "[box]\nmin = [-0.02, -0.02, -0.02]\nmax = [0.02, 0.02, 0.02]\n" +
+      bodies;
+  return simulation_config_from_toml(toml::parse(text, "bodies.toml"), "bodies.toml");
+}
+
+// The force on one grain of radius r at c (a single contact with a body).
+Vec3 force_on_grain(const SimulationConfig& cfg, Vec3 c, double r) {
+  Simulation sim(cfg);
+  sim.add_particle(c, r);
+  sim.compute_forces();
+  return {sim.resultant_force(0)[0], sim.resultant_force(1)[0], sim.resultant_force(2)[0]};
+}
+
+TEST(Bodies, AGrainInsideACylinderCarriesHertzForceForTheConcaveSurface) {
+  const double Rc = 5e-3, r = 0.1e-3, delta = 2e-7;
+  const SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"chamber\"\nshape = \"cylinder_inside\"\norigin = [0, 0, -0.01]\n"
+      "radius = 5e-3\nlength = 0.02\n");
+  // On the x axis, pressed outwards by delta.
+  const Vec3 F = force_on_grain(cfg, {Rc - r + delta, 0.0, 0.0}, r);
+  const double E_star = cfg.material.E_star();
+  const double R1 = 1.0 / (1.0 / r - 1.0 / Rc), R2 = r;  // around, along the axis
+  const double exact = elliptical_hertz_force(0.5 / R1, 0.5 / R2, delta, E_star);
+  EXPECT_NEAR(-F.x / exact, 1.0, 1e-6);  // towards the axis
+  EXPECT_EQ(F.y, 0.0);
+  EXPECT_EQ(F.z, 0.0);
+  // The curvature matters: a plane at the same overlap carries less.
+  const double plane = 4.0 / 3.0 * E_star * std::sqrt(r) * std::pow(delta, 1.5);
+  EXPECT_GT(-F.x / plane - 1.0, 5e-3);
+}
+
+TEST(Bodies, AGrainOnAConeCarriesHertzForceForTheConvexSurface) {
+  const double alpha = 30.0 * kPi / 180.0, R = 2e-3, r = 0.1e-3, delta = 3e-7;
+  const SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"tip\"\nshape = \"cone\"\norigin = [0, 0, 0]\naxis = [0, 0, 1]\n"
+      "radius = 2e-3\nhalf_angle = 30.0\n");
+  // A grain beside the generator at height t along it: its centre lies r - delta off the
+  // surface along the outward normal.
+  const double t = 2.5e-3;  // along the generator from the apex (slant height 4 mm)
+  const Vec3 surface{t * std::sin(alpha), 0.0, t * std::cos(alpha)};
+  const Vec3 outward{std::cos(alpha), 0.0, -std::sin(alpha)};
+  const Vec3 F = force_on_grain(cfg, surface + (r - delta) * outward, r);
+  const double E_star = cfg.material.E_star();
+  const double local = t * std::sin(alpha);
+  const double R1 = 1.0 / (1.0 / r + std::cos(alpha) / local), R2 = r;
+  EXPECT_NEAR(dot(F, outward) / norm(F), 1.0, 1e-12);  // along the outward normal
+  const double exact = elliptical_hertz_force(0.5 / R2, 0.5 / R1, delta, E_star);
+  EXPECT_NEAR(norm(F) / exact, 1.0, 1e-6);
+  EXPECT_GT(R, t * std::sin(alpha));  // the point lies on the cone's flank
+}
+
+TEST(Bodies, AGrainOutsideACylinderCarriesHertzForceForTheConvexSurface) {
+  const double Rc = 1e-3, r = 0.1e-3, delta = 2e-7;
+  const SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"rod\"\nshape = \"cylinder_outside\"\norigin = [0, 0, -0.01]\n"
+      "radius = 1e-3\nlength = 0.02\n");
+  const Vec3 F = force_on_grain(cfg, {0.0, Rc + r - delta, 0.0}, r);
+  const double E_star = cfg.material.E_star();
+  const double R1 = 1.0 / (1.0 / r + 1.0 / Rc), R2 = r;
+  const double exact = elliptical_hertz_force(0.5 / R2, 0.5 / R1, delta, E_star);
+  EXPECT_NEAR(F.y / exact, 1.0, 1e-6);
+  EXPECT_EQ(F.x, 0.0);
+}
+
+// The ellipse factor against the elliptic integrals over the ratios it is fitted on, and the
+// sphere's limit.
+TEST(Bodies, TheEllipseFactorFollowsHertzsEllipticalSolution) {
+  EXPECT_EQ(hertz_ellipse_factor(1.0, 1.0), 1.0);
+  for (double ratio : {1.001, 1.01, 1.1, 1.5, 2.0, 3.0, 5.0, 8.0, 10.0}) {
+    const double R1 = ratio, R2 = 1.0, delta = 1e-6, E_star = 1e10;
+    const double exact = elliptical_hertz_force(0.5 / R1, 0.5 / R2, delta, E_star);
+    const double R_star = hertz_ellipse_factor(R1, R2) * std::sqrt(R1 * R2);
+    const double fitted = 4.0 / 3.0 * E_star * std::sqrt(R_star) * std::pow(delta, 1.5);
+    EXPECT_NEAR(fitted / exact, 1.0, 1e-7) << "R'/R'' = " << ratio;
+    EXPECT_EQ(hertz_ellipse_factor(R1, R2), hertz_ellipse_factor(R2, R1));
+  }
+}
+
+TEST(Bodies, APileTouchesAGrainOnceAtTheJunctionOfTipAndShaft) {
+  // A pile of radius 1 mm with a 60 degree cone: the tip ends 1.732 mm above its apex. A grain
+  // just outside the junction is nearer one part than the other; the body gives one contact.
+  const SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0, 0, -5e-3]\naxis = [0, 0, 1]\n"
+      "radius = 1e-3\nlength = 8e-3\nhalf_angle = 30.0\n");
+  Simulation sim(cfg);
+  const double r = 0.1e-3, h = 1e-3 / std::tan(kPi / 6.0);
+  sim.add_particle({1e-3 + r - 1e-7, 0.0, -5e-3 + h + 0.02e-3}, r);
+  sim.compute_forces();
+  int touching = 0;
+  for (const ContactRecord& c : sim.contacts()) touching += c.is_wall ? 1 : 0;
+  EXPECT_EQ(touching, 1);
+  // The surface a grain sees: the shaft above the junction, the cone below, the apex beneath.
+  const Walls& w = sim.walls();
+  const int pile = kNumWalls;
+  EXPECT_NEAR(w.surface(pile, {3e-3, 0.0, 0.0}).dist, 2e-3, 1e-15);
+  EXPECT_NEAR(w.surface(pile, {0.0, 0.0, -6e-3}).dist, 1e-3, 1e-15);
+  const SurfacePoint side = w.surface(pile, {2e-3, 0.0, -5e-3 + 0.5 * h});
+  EXPECT_NEAR(side.n.x, -std::cos(kPi / 6.0), 1e-12);
+  EXPECT_NEAR(side.n.z, std::sin(kPi / 6.0), 1e-12);
+}
+
+TEST(Bodies, APrescribedVelocityMovesTheBodyAndAServoHoldsItsStress) {
+  // A disk platen 2 um above a grain resting on the box floor: moved at 1 mm/s along -axis
+  // for 1,000 steps, then servo-controlled to a stress over its area.
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"platen\"\nshape = \"disk\"\norigin = [0, 0, 1.02e-4]\n"
+      "axis = [0, 0, 1]\nradius = 1e-3\nmode = \"velocity\"\nvelocity = 1e-3\n");
+  for (int k = 0; k < kNumWalls; ++k) {
+    cfg.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? -1e-3 : 1e-3;
+  }
+  cfg.walls[4].position = -1e-4;  // the floor under a grain of radius 0.1 mm at the origin
+  cfg.damping.local_alpha = 0.7;
+  Simulation sim(cfg);
+  sim.add_particle({0.0, 0.0, 0.0}, 1e-4);
+  sim.set_dt(1e-8);
+  sim.step(1000);
+  const int platen = kNumWalls;
+  EXPECT_NEAR(sim.walls().position(platen), 1e-3 * 1000 * 1e-8, 1e-15);
+  // Servo to 2 kPa over the disk (pi mm^2: 6.3 mN), reached and held.
+  WallConfig& c = sim.walls().config(platen);
+  c.mode = WallMode::Servo;
+  c.target_stress = 2e3;
+  c.max_speed = 0.01;
+  sim.step(200000);
+  EXPECT_NEAR(sim.walls().stress(platen) / 2e3, 1.0, 1e-3);
+  EXPECT_NEAR(sim.walls().state(platen).force.z / (2e3 * kPi * 1e-6), 1.0, 1e-3);
+}
+
+std::string config_error(const std::string& bodies) {
+  try {
+    body_config(bodies);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Bodies, BadBodiesAreRefusedNamingTheKey) {
+  const std::string zero_angle =
+      config_error("[[body]]\nname = \"tip\"\nshape = \"cone\"\nradius = 1e-3\nhalf_angle = 0.0\n");
+  EXPECT_NE(zero_angle.find("body[0].half_angle"), std::string::npos) << zero_angle;
+  const std::string dilate_plane =
+      config_error("[[body]]\nname = \"p\"\nshape = \"plane\"\nmotion = \"dilate\"\n");
+  EXPECT_NE(dilate_plane.find("body[0].motion"), std::string::npos) << dilate_plane;
+  const std::string servo_plane = config_error(
+      "[[body]]\nname = \"p\"\nshape = \"plane\"\nmode = \"servo\"\ntarget_stress = 1e5\n");
+  EXPECT_NE(servo_plane.find("body[0].area"), std::string::npos) << servo_plane;
+  const std::string no_radius =
+      config_error("[[body]]\nname = \"c\"\nshape = \"cylinder_inside\"\nlength = 1e-3\n");
+  EXPECT_NE(no_radius.find("body[0].radius"), std::string::npos) << no_radius;
+  const std::string twice = config_error("[[body]]\nname = \"a\"\n[[body]]\nname = \"a\"\n");
+  EXPECT_NE(twice.find("body[1].name"), std::string::npos) << twice;
+  const std::string box_name = config_error("[[body]]\nname = \"zmax\"\n");
+  EXPECT_NE(box_name.find("body[0].name"), std::string::npos) << box_name;
+  const std::string no_axis = config_error("[[body]]\nname = \"a\"\naxis = [0, 0, 0]\n");
+  EXPECT_NE(no_axis.find("body[0].axis"), std::string::npos) << no_axis;
+  const std::string short_pile =
+      config_error("[[body]]\nname = \"pile\"\nshape = \"pile\"\nradius = 1e-3\nlength = 1e-3\n");
+  EXPECT_NE(short_pile.find("body[0].length"), std::string::npos) << short_pile;
+  const std::string unused =
+      config_error("[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n");
+  EXPECT_NE(unused.find("body[0].target_stress"), std::string::npos) << unused;
+}
+
+TEST(Bodies, ABoxRunWritesNoBodyKeysAndABodyIsWrittenAndReadBack) {
+  const SimulationConfig none = body_config("");
+  EXPECT_EQ(to_toml(none).count("body"), 0u);
+  const SimulationConfig one = body_config(
+      "[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0, 0, -5e-3]\nradius = 1e-3\n"
+      "length = 8e-3\ntip = \"flat\"\nmode = \"velocity\"\nvelocity = 0.01\n");
+  const std::string text = toml::serialize(to_toml(one));
+  const SimulationConfig again =
+      simulation_config_from_toml(toml::parse(text, "again.toml"), "again.toml");
+  EXPECT_EQ(toml::serialize(to_toml(again)), text);
+  ASSERT_EQ(again.bodies.size(), 1u);
+  EXPECT_EQ(again.bodies[0].tip, PileTip::Flat);
+  EXPECT_EQ(again.bodies[0].velocity, 0.01);
+}
+
+}  // namespace
+}  // namespace crushdem
