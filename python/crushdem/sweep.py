@@ -45,12 +45,15 @@ import subprocess
 import sys
 import time
 import tomllib
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
 from .rundir import read_events, read_summary, read_timing
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 # How long a task waits for the lock of its run directory: a run killed with its worker takes a
 # moment to write its checkpoint and let go.
@@ -334,7 +337,7 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
 
 
 def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str],
-                  errors: Mapping[str, str]):
+                  errors: Mapping[str, str]) -> pd.DataFrame:
     """The pandas DataFrame of the sweep (one row per variant), written to results.csv and
     results.parquet."""
     import pandas as pd
@@ -362,7 +365,7 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
     return df
 
 
-def figure(df, keys: Sequence[str], path: str) -> Optional[str]:
+def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
     """Each summary figure against each varied key (numeric keys only), one panel each."""
     from matplotlib.figure import Figure  # no pyplot: no backend is chosen for the caller
 
@@ -402,7 +405,7 @@ def _raise_stop(signum, _frame):
 
 def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: int = 1,
           scheduler: Optional[str] = None, progress: Optional[bool] = None,
-          log: Callable[[str], None] = print, backend: str = "cpu"):
+          log: Callable[[str], None] = print, backend: str = "cpu") -> pd.DataFrame:
     """Runs (or completes) the sweep of ``path`` into ``out``, every run on ``backend``
     ("cpu", "cuda" or "emulated"); returns the results DataFrame."""
     from . import _core
