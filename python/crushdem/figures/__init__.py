@@ -27,8 +27,8 @@ from typing import Any, Callable, Dict, List, Tuple
 
 from .ageing import figure_relaxation, figure_relaxation_breakage, figure_relaxation_forces
 from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, Run,  # noqa: F401
-                     as_run, label_axes, mark_times, plain_log_ticks, pyplot, stage_color,
-                     time_axis, unique_legend)
+                     as_run, label_axes, mark_times, plain_log_ticks, pyplot, stacked_axes,
+                     stage_color, time_axis, unique_legend)
 from .crushing import figure_breakage, figure_breakage_sizes, figure_grading
 from .laboratory import (figure_inertial_number, figure_oedometer, figure_preparation,
                          figure_q_p_path, figure_strain_stress, figure_triaxial,
@@ -40,7 +40,8 @@ from .time_series import figure_coordination, figure_kinetic_energy, figure_stre
 # The functions of the modules below (FIGURES and the constants of figures.common are
 # importable from here too).
 __all__ = [
-    "as_run", "pyplot", "unique_legend", "label_axes", "plain_log_ticks", "mark_times", "stage_color", "time_axis",
+    "as_run", "pyplot", "stacked_axes", "unique_legend", "label_axes", "plain_log_ticks",
+    "mark_times", "stage_color", "time_axis",
     "figure_stress_time", "figure_coordination", "figure_kinetic_energy",
     "figure_strain_stress", "figure_void_ratio", "figure_triaxial", "figure_q_p_path",
     "oedometer_label", "figure_oedometer", "figure_inertial_number", "figure_preparation",

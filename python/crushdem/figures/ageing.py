@@ -13,7 +13,7 @@ from ..analysis import (DAY_S, PLAUSIBLE_OEDOMETRIC_1DAY, T_REF_S, ageing_groups
                         value_at, vertical_stress, walls_fixed)
 from ..rundir import RunData
 from .common import (AGEING_TIME_LABEL, MARKERS, MPA, Run, as_run, label_axes, mark_times,
-                     pyplot, stage_color, unique_legend)
+                     pyplot, stacked_axes, stage_color, unique_legend)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -42,13 +42,11 @@ def figure_relaxation(run: Run) -> Optional[Figure]:
     sigma_v = vertical_stress(ev)
     if sigma_v is None:
         return None
-    plt = pyplot()
     multi = len(groups) > 1
     with_q = has_values(ev, "deviator_stress_Pa")
     with_ea = has_values(ev, "axial_strain")
     lower = with_q or with_ea
-    fig, axes = plt.subplots(2 if lower else 1, 1, figsize=(7, 7.5 if lower else 4.5),
-                             sharex=True, squeeze=False)
+    fig, axes = stacked_axes(lower, 7.5)
     ax = axes[0, 0]
     band_drawn = False
     any_4s = False

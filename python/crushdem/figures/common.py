@@ -52,6 +52,13 @@ def unique_legend(ax: Axes, *twins: Axes, **kw: Any) -> Optional[Legend]:
     return ax.legend(list(seen.values()), list(seen), **kw)
 
 
+def stacked_axes(two: bool, height_two: float, height_one: float = 4.5) -> Tuple[Any, Any]:
+    """A figure 7 inches wide of one axes, or of two stacked that share x: (figure, the axes as
+    a 2-D array, one column)."""
+    return pyplot().subplots(2 if two else 1, 1, figsize=(7, height_two if two else height_one),
+                             sharex=True, squeeze=False)
+
+
 def label_axes(ax: Axes, x_label: str, y_label: str, title: str, **legend: Any) -> None:
     """Names the axes of ``ax`` and its title and grids it (log decades too); with ``legend``
     keywords, draws :func:`unique_legend` with them."""

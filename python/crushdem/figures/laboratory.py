@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..analysis import WALLS, as_float, has_values, stage_label, stage_rows, vertical_stress
-from .common import (MPA, Run, as_run, label_axes, pyplot, stage_color, time_axis,
-                     unique_legend)
+from .common import (MPA, Run, as_run, label_axes, pyplot, stacked_axes, stage_color,
+                     time_axis, unique_legend)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -35,10 +35,8 @@ def figure_strain_stress(run: Run) -> Optional[Figure]:
             break
     if not curves:
         return None
-    plt = pyplot()
-    with_vol = has_values(d, "volumetric_strain")
-    fig, axes = plt.subplots(2 if with_vol else 1, 1, figsize=(7, 7 if with_vol else 4.5),
-                             sharex=True, squeeze=False)
+    fig, axes = stacked_axes(has_values(d, "volumetric_strain"), 7)
+    with_vol = len(axes) == 2
     ax = axes[0, 0]
     for label, s in curves:
         ax.plot(eps_a, s * MPA, label=label)
@@ -102,10 +100,8 @@ def figure_triaxial(run: Run) -> Optional[Figure]:
                 if info.get("type") == "triaxial" and rows.any()]
     if not triaxial or not has_values(d, "deviator_stress_Pa"):
         return None
-    plt = pyplot()
-    with_vol = has_values(d, "volumetric_strain")
-    fig, axes = plt.subplots(2 if with_vol else 1, 1, figsize=(7, 7.5 if with_vol else 4.5),
-                             sharex=True, squeeze=False)
+    fig, axes = stacked_axes(has_values(d, "volumetric_strain"), 7.5)
+    with_vol = len(axes) == 2
     ax_q = axes[0, 0]
     warnings: List[Tuple[str, str]] = []
     for i, (k, rows, info) in enumerate(triaxial):
@@ -286,13 +282,11 @@ def figure_preparation(run: Run) -> Optional[Figure]:
     d = run.timeseries
     if not has_values(d, "friction"):
         return None
-    plt = pyplot()
     t, t_label = time_axis(d)
     summary = run.summary
     sample = summary.get("sample") if isinstance(summary.get("sample"), dict) else {}
     with_e = has_values(d, "void_ratio")
-    fig, axes = plt.subplots(2 if with_e else 1, 1, figsize=(7, 6.5 if with_e else 4),
-                             sharex=True, squeeze=False)
+    fig, axes = stacked_axes(with_e, 6.5, 4)
     if with_e:
         ax = axes[0, 0]
         ax.plot(t, d["void_ratio"], color="tab:blue", label="void ratio $e$")
