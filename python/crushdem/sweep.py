@@ -521,12 +521,14 @@ def _follow(client, futures, errors, progress, log) -> None:
         bar.close()
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
-    [--scheduler ADDRESS]``."""
-    parser = argparse.ArgumentParser(prog="crushdem sweep", description=__doc__,
+def cluster_parser(prog: str, description: str, file: str,
+                   metavar: str) -> argparse.ArgumentParser:
+    """The command line of a command whose runs are sweep tasks (``crushdem sweep``,
+    ``crushdem calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
+    --workers, --threads-per-run, --scheduler."""
+    parser = argparse.ArgumentParser(prog=prog, description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("sweep", metavar="SWEEP.toml")
+    parser.add_argument(file, metavar=metavar)
     parser.add_argument("--out", required=True, metavar="DIR")
     parser.add_argument("--workers", type=int, default=None, metavar="N",
                         help="local worker processes (default: cores / threads per run)")
@@ -534,6 +536,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://host:port) instead of a local "
                              "cluster")
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
+    [--scheduler ADDRESS]``."""
+    parser = cluster_parser("crushdem sweep", __doc__, "sweep", "SWEEP.toml")
     parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
                         help="what advances every run: cpu (default), cuda (a GPU, in a build "
                              "with CUDA; one worker per GPU) or emulated")
