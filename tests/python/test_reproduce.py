@@ -26,14 +26,9 @@ from _figures import (assert_drawn, assert_png_shows_a_drawing, labelled,  # noq
                       labelled_like, legend_texts, read_csv_with_comments)
 from _source import load  # noqa: E402
 
-rp = load("reproduce")
-runs = load("runs")
-analysis = load("analysis")
-study = load("study")
-sa = load("study_analysis")
-summary = load("study_summary")
-pipeline = load("study_pipeline")
-study_figures = load("figures.study")
+rp, runs, analysis, study, sa, summary, pipeline, study_figures = (load(name) for name in (
+    "reproduce", "runs", "analysis", "study", "study_analysis", "study_summary",
+    "study_pipeline", "figures.study"))
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 MPA = 1e-6
