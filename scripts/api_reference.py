@@ -57,11 +57,18 @@ def import_crushdem(installed: bool):
 
 
 def module_names(package_dir: str) -> List[str]:
+    """The public modules of a package directory, a subpackage followed by its modules
+    ("figures", "figures.ageing", ...)."""
     names = []
     for entry in sorted(os.listdir(package_dir)):
         stem, ext = os.path.splitext(entry)
-        if ext == ".py" and not stem.startswith("_"):
+        if stem.startswith("_"):
+            continue
+        if ext == ".py":
             names.append(stem)
+        elif os.path.isfile(os.path.join(package_dir, entry, "__init__.py")):
+            names.append(entry)
+            names += [f"{entry}.{sub}" for sub in module_names(os.path.join(package_dir, entry))]
     return names
 
 

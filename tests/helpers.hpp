@@ -9,6 +9,7 @@
 #include "box_config.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/integrate/simulation.hpp"
+#include "fixtures.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -18,19 +19,9 @@ namespace crushdem::testing {
 
 /// The smallest whole run configuration: 10 generated grains in a 1 mm box, 20 steps (every
 /// section ends, so a test may append a table such as [contact]).
-inline constexpr const char* kTinyRunToml = R"(
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1e-3, 1e-3, 1e-3]
-[particles.generate]
-count = 10
-diameter_min = 1e-4
-diameter_max = 2e-4
-[run]
-steps = 20
-[output]
-interval = 10
-)";
+inline std::string tiny_run_toml() {
+  return test_data("tiny_run.toml");
+}
 
 /// Adds an n x n x n cubic lattice of spacing a from the origin: each coordinate jittered by
 /// up to jitter a, radius r0 (radius_mean + radius_spread u), velocity components up to speed

@@ -32,47 +32,8 @@ using crushdem::testing::read_file;
 
 // 300 grains squeezed by servo walls, weak enough to break, with crack growth: then a creep
 // stage (servo walls during dynamic phases) with off-DEM ageing jumps.
-const char* kConfig = R"(
-[contact]
-law = "rough"
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1.25e-3, 1.25e-3, 1.25e-3]
-[particles.generate]
-count = 300
-diameter_min = 0.06e-3
-diameter_max = 0.2e-3
-seed = 3
-[crushing]
-sigma_lim0 = 3e8
-d_min = 0.05e-3
-seed = 5
-crack_growth = true
-[[stage]]
-type = "hold"
-axial = "servo"
-axial_stress = 2e6
-lateral = "servo"
-lateral_stress = 2e6
-max_strain_rate = 3000.0
-steps = 25000
-[[stage]]
-type = "age"
-axial = "servo"
-axial_stress = 2e6
-lateral = "servo"
-lateral_stress = 2e6
-duration = 86400.0
-min_cycles = 1500
-n_break = 3
-record_interval = 500
-max_strain_rate = 3000.0
-[output]
-interval = 500
-vtk_interval = 6000
-progress_seconds = 0
-checkpoint_seconds = 0
-)";
+const std::string kConfig =
+    testing::test_data("grains_300.toml") + testing::test_data("creep_300.toml");
 
 // The number after "key": in a JSON text (enough for timing.json); NaN when absent.
 double json_number(const std::string& text, const std::string& key) {
@@ -150,11 +111,11 @@ void expect_saved_simulation_continues_bit_for_bit(const RunConfig& cfg) {
 
 TEST(Checkpoint, ASavedSimulationContinuesBitForBit) {
   expect_saved_simulation_continues_bit_for_bit(
-      config(fs::temp_directory_path() / "crushdem_checkpoint_sim"));
+      config(testing::TempDir("sim").path()));
 }
 
 TEST(Checkpoint, ASavedSimulationWithRollingResistanceContinuesBitForBit) {
-  const RunConfig cfg = config(fs::temp_directory_path() / "crushdem_checkpoint_rolling", 0.2);
+  const RunConfig cfg = config(testing::TempDir("sim").path(), 0.2);
   ASSERT_EQ(cfg.simulation.contact.rolling_friction, 0.2);
   expect_saved_simulation_continues_bit_for_bit(cfg);
   // The rolling history is part of what was carried over: it is in use in such a run.
@@ -174,8 +135,8 @@ TEST(Checkpoint, ASavedSimulationWithRollingResistanceContinuesBitForBit) {
 // A run stopped while it runs (as SIGINT does) and resumed writes the files of an uninterrupted
 // one, byte for byte, on the backend `backend`.
 void expect_stopped_run_resumes_exactly(const std::string& backend) {
-  const fs::path base = fs::temp_directory_path() / ("crushdem_checkpoint_run_" + backend);
-  fs::remove_all(base);
+  const testing::TempDir temp("run");
+  const fs::path& base = temp.path();
   const RunConfig cfg = config(base);
   RunOptions opt;
   opt.progress = false;
@@ -252,7 +213,6 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
   EXPECT_GT(json_number(timing, "ageing_jump"), 0.0);
   EXPECT_NE(timing.find("\"dominant_part\""), std::string::npos);
   EXPECT_NE(timing.find("\"backend\": \"" + backend + "\""), std::string::npos) << timing;
-  fs::remove_all(base);
 }
 
 TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
@@ -287,9 +247,8 @@ TEST(Checkpoint, PartClockChargesEachSecondToOnePart) {
 }
 
 TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
-  const fs::path base = fs::temp_directory_path() / "crushdem_checkpoint_refuse";
-  fs::remove_all(base);
-  fs::create_directories(base);
+  const testing::TempDir temp("runs");
+  const fs::path& base = temp.path();
   RunOptions opt;
   opt.progress = false;
   EXPECT_THROW(resume_directory((base / "nothing").string(), opt), ConfigError);
@@ -305,7 +264,6 @@ TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("finished"), std::string::npos) << e.what();
   }
-  fs::remove_all(base);
 }
 
 }  // namespace

@@ -103,7 +103,7 @@ TEST(Cli, MisuseExitsWithTwoAndNamesTheOption) {
 
 // --- run directories ---------------------------------------------------------------------------
 
-const char* const kTinyRun = testing::kTinyRunToml;
+const std::string kTinyRun = testing::tiny_run_toml();
 
 class RunDirectory : public ::testing::Test {
  protected:
@@ -324,9 +324,8 @@ struct LatticeRun {
   std::string summary;
 };
 LatticeRun run_lattice(const std::string& name, const std::string& sections) {
-  const fs::path dir = fs::temp_directory_path() / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const testing::TempDir temp(name);
+  const fs::path& dir = temp.path();
   std::ofstream(dir / "c.toml") << "[contact]\nlaw = \"hertz\"\n[particles]\nfile = \""
                                 << CRUSHDEM_TEST_DATA_DIR << "/lattice_64.txt\"\n"
                                 << sections << "[output]\nprogress_seconds = 0\n";
@@ -336,7 +335,6 @@ LatticeRun run_lattice(const std::string& name, const std::string& sections) {
   std::stringstream summary;
   summary << in.rdbuf();
   r.summary = summary.str();
-  fs::remove_all(dir);
   return r;
 }
 
@@ -345,7 +343,7 @@ TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
   for (const double dt : {1e-10, 2e-8}) {
     std::ostringstream timestep;
     timestep << "[timestep]\ndt = " << dt << "\n[run]\nsteps = 5\n";
-    const LatticeRun r = run_lattice("crushdem_dt_warning", timestep.str());
+    const LatticeRun r = run_lattice("dt_warning", timestep.str());
     const Outcome& o = r.outcome;
     EXPECT_EQ(o.rc, 0) << o.err;
     if (dt < 1e-9) {
@@ -362,7 +360,7 @@ TEST(RunWarnings, AFixedStepAboveTheAutomaticOneIsWarnedAbout) {
 // A stage whose target is met when it starts (an unloading stage where there is nothing to
 // unload) ends at once, and says so.
 TEST(RunWarnings, AStageWhoseTargetIsMetAtTheStartIsWarnedAbout) {
-  const LatticeRun r = run_lattice("crushdem_target_met",
+  const LatticeRun r = run_lattice("target_met",
                                    "[[stage]]\ntype = \"oedometric\"\nname = \"unload\"\n"
                                    "stress = 1e6\nstrain_rate = -10.0\n");
   const Outcome& o = r.outcome;

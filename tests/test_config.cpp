@@ -6,28 +6,15 @@
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/config.hpp"
+#include "fixtures.hpp"
 
 namespace crushdem {
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kValid = R"(
-[material]
-shear_modulus = 32e9
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1e-3, 1e-3, 1e-3]
-[walls.zmax]
-mode = "servo"
-target_stress = 1e6
-[particles.generate]
-count = 10
-diameter_min = 1e-4
-diameter_max = 2e-4
-[run]
-steps = 10
-)";
+// A valid configuration whose [material] and shear_modulus stand on lines 2 and 3.
+const std::string kValid = testing::test_data("one_servo_wall.toml");
 
 RunConfig parse(const std::string& text) {
   return run_config_from_toml(toml::parse(text, "cfg.toml"), "cfg.toml", ".");
@@ -150,8 +137,8 @@ TEST(Config, SampleVoidRatioAndCountAreChecked) {
 
 // Sample files: the five columns only, ids >= 0, no two grains at one point.
 TEST(Config, ParticleFilesAreChecked) {
-  const auto dir = std::filesystem::temp_directory_path() / "crushdem_bad_particles";
-  std::filesystem::create_directories(dir);
+  const testing::TempDir temp("particles");
+  const std::filesystem::path& dir = temp.path();
   const auto check = [&](const std::string& rows, const std::vector<std::string>& fragments) {
     std::ofstream((dir / "p.txt").string()) << rows;
     const std::string text =
@@ -168,7 +155,6 @@ TEST(Config, ParticleFilesAreChecked) {
   check("1 1e-4 1e-4 1e-4 1e-4 7\n2 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:1", "5 columns"});
   check("1 1e-4 1e-4 1e-4 1e-4\n-1 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:2", "id -1", ">= 0"});
   check("1 5e-4 5e-4 5e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n", {"particles 1 and 2", "same point"});
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
@@ -178,15 +164,14 @@ namespace crushdem {
 namespace {
 
 TEST(Config, GrainsOutsideTheBoxAreFoundByCheck) {
-  const auto dir = std::filesystem::temp_directory_path() / "crushdem_outside_box";
-  std::filesystem::create_directories(dir);
+  const testing::TempDir temp("particles");
+  const std::filesystem::path& dir = temp.path();
   std::ofstream((dir / "p.txt").string()) << "1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 9.8e-4 1e-4\n";
   const std::string text =
       "[box]\nmin = [0, 0, 0]\nmax = [1e-3, 1e-3, 1e-3]\n[particles]\n"
       "file = \"" +
       (dir / "p.txt").string() + "\"\n[run]\nsteps = 10\n";
   expect_error(text, {"particle 2", "not inside the box"});
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

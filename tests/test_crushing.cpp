@@ -253,7 +253,8 @@ TEST(Crushing, GrainsBelowTheComminutionLimitNeverBreak) {
 
 TEST(Pattern, ReadFromFileAndRejectOverlaps) {
   namespace fs = std::filesystem;
-  const fs::path f = fs::temp_directory_path() / "crushdem_pattern_two.txt";
+  const crushdem::testing::TempDir temp("pattern");
+  const fs::path f = temp.path() / "two.txt";
   {
     std::FILE* out = std::fopen(f.string().c_str(), "w");
     std::fprintf(out, "# two halves along the axis\n0.5 0 0 0.5\n0.5 0 0 -0.5\n");
@@ -274,7 +275,6 @@ TEST(Pattern, ReadFromFileAndRejectOverlaps) {
     EXPECT_NE(std::string(e.what()).find("fragments 1 and 2 overlap"), std::string::npos)
         << e.what();
   }
-  fs::remove(f);
 }
 
 TEST(Crushing, LoadedShareCountsCrushableGrainsNearTheirStrength) {

@@ -11,6 +11,7 @@
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/run/runner.hpp"
+#include "fixtures.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -28,44 +29,9 @@ std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-const char* kConfig = R"(
-[contact]
-law = "rough"
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1.25e-3, 1.25e-3, 1.25e-3]
-[walls.xmin]
-mode = "servo"
-target_stress = 5e5
-max_speed = 2.0
-[walls.xmax]
-mode = "servo"
-target_stress = 5e5
-max_speed = 2.0
-[walls.ymin]
-mode = "fixed"
-[walls.ymax]
-mode = "velocity"
-velocity = -0.2
-[walls.zmin]
-mode = "servo"
-target_stress = 5e5
-max_speed = 2.0
-[walls.zmax]
-mode = "servo"
-target_stress = 5e5
-max_speed = 2.0
-[particles.generate]
-count = 300
-diameter_min = 0.06e-3
-diameter_max = 0.2e-3
-seed = 3
-[run]
-steps = 30000
-[output]
-interval = 1000
-vtk_interval = 10000
-)";
+// 300 grains compressed by servo walls and one wall moving in.
+const std::string kConfig =
+    testing::test_data("grains_300.toml") + testing::test_data("compression_300.toml");
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 /// Runs `config` on 1 and 2 threads into base/t1 and base/t2 and compares every file but
@@ -102,14 +68,14 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFiles) {
 #ifndef CRUSHDEM_HAVE_OPENMP
   GTEST_SKIP() << "built without OpenMP";
 #else
-  const fs::path base = fs::temp_directory_path() / "crushdem_determinism";
+  const testing::TempDir temp("threads");
+  const fs::path& base = temp.path();
   EXPECT_GE(compare_thread_counts(kConfig, base), 7u);  // config, timeseries, summary, 2 x 3 vtk
   // The run did something: the grains were compressed into a contact network.
   const std::string summary = slurp(base / "t1" / "summary.json");
   const auto k = summary.find("\"coordination_number\": ");
   ASSERT_NE(k, std::string::npos);
   EXPECT_GT(std::stod(summary.substr(k + 23)), 3.0);
-  fs::remove_all(base);
 #endif
 }
 
@@ -120,11 +86,11 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithCrushing) {
   // Weak grains (sigma_lim0 = 0.3 GPa) so that many break; the smallest fragments are removed.
   const std::string config =
       std::string(kConfig) + "[crushing]\nsigma_lim0 = 3e8\nd_min = 0.05e-3\nseed = 5\n";
-  const fs::path base = fs::temp_directory_path() / "crushdem_determinism_crushing";
+  const testing::TempDir temp("threads");
+  const fs::path& base = temp.path();
   EXPECT_GE(compare_thread_counts(config, base), 9u);  // + breakage.csv, grading.csv
   const std::string log = slurp(base / "t1" / "breakage.csv");
   EXPECT_GE(std::count(log.begin(), log.end(), '\n'), 6);  // header + at least 5 breakages
-  fs::remove_all(base);
 #endif
 }
 
@@ -136,10 +102,10 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithRollingResistance) {
   std::string config(kConfig);
   const std::string law = "law = \"rough\"\n";
   config.replace(config.find(law), law.size(), law + "rolling_friction = 0.3\n");
-  const fs::path base = fs::temp_directory_path() / "crushdem_determinism_rolling";
+  const testing::TempDir temp("threads");
+  const fs::path& base = temp.path();
   EXPECT_GE(compare_thread_counts(config, base), 7u);
   EXPECT_NE(slurp(base / "t1" / "config.toml").find("rolling_friction = 0.3"), std::string::npos);
-  fs::remove_all(base);
 #endif
 }
 

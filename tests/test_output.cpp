@@ -34,9 +34,8 @@ TEST(Output, AFailedWriteStopsWithTheFileNamed) {
 // still see the two touching grains (and their Love-Weber stress), not an empty contact list.
 TEST(Output, TheFirstRowOfACrushingTestMeasuresTheContacts) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / "crushdem_first_row";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const testing::TempDir temp("run");
+  const fs::path& dir = temp.path();
   std::ofstream(dir / "pair.txt") << "1 0.0005 0.0005 0.00041 0.0002\n"
                                      "2 0.0005 0.0005 0.00059 0.0002\n";
   std::ofstream(dir / "run.toml")
@@ -50,7 +49,6 @@ TEST(Output, TheFirstRowOfACrushingTestMeasuresTheContacts) {
   ASSERT_FALSE(rows.at("n_contacts").empty());
   EXPECT_EQ(rows.at("n_contacts").front(), 1.0);
   EXPECT_GT(rows.at("mean_Fn_N").front(), 0.0);
-  fs::remove_all(dir);
 }
 
 }  // namespace

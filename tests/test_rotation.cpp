@@ -118,7 +118,7 @@ TEST(Rotation, FragmentsOfABlockedGrainKeepZeroSpin) {
 
 // --- the configuration key --------------------------------------------------------------------
 
-const std::string kBase = std::string(testing::kTinyRunToml) + "[contact]\n";
+const std::string kBase = testing::tiny_run_toml() + "[contact]\n";
 
 RunConfig parse(const std::string& contact_keys) {
   return run_config_from_toml(toml::parse(kBase + contact_keys, "cfg.toml"), "cfg.toml", ".");

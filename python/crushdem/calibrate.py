@@ -23,7 +23,6 @@ error against the evaluation and ``DIR/calibration.json`` the result.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import csv
 import json
@@ -32,7 +31,8 @@ import os
 import sys
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from .sweep import read_file_and_base, run_variant, set_dotted, summary_figures, variant_name
+from .sweep import (cluster_parser, read_file_and_base, run_variant, set_dotted,
+                    summary_figures, variant_name)
 
 
 class _Converged(Exception):
@@ -213,13 +213,7 @@ def _figure(evaluations: List[Dict[str, Any]], path: str, tol: float) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem calibrate CALIBRATION.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
-    parser = argparse.ArgumentParser(prog="crushdem calibrate", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("calibration", metavar="CALIBRATION.toml")
-    parser.add_argument("--out", required=True, metavar="DIR")
-    parser.add_argument("--workers", type=int, default=None, metavar="N")
-    parser.add_argument("--threads-per-run", type=int, default=1, metavar="T")
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS")
+    parser = cluster_parser("crushdem calibrate", __doc__, "calibration", "CALIBRATION.toml")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:

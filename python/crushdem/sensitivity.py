@@ -38,10 +38,10 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 import numpy as np
 
 from .analysis import as_float
-from .reproduce import triaxial_stage
 from .rundir import read_summary, read_timeseries, read_timing
 from .study import (MATERIAL, SIGMA_3_PA, STUDY_Q_MAX_PA,  # noqa: F401  (re-exported)
                     TABLE1_CONTACT, TABLE1_CRUSHING)
+from .study_analysis import triaxial_stage
 
 # name: (what it changes, [contact] keys, [crushing] keys). One choice per variant, the rest as
 # in "base"; docs/model.md section 5 lists the choices.

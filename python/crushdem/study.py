@@ -1,12 +1,17 @@
-"""The reference study's parameters, written once ("Discrete modelling of stress relaxation in
+"""The reference study's recipes, written once ("Discrete modelling of stress relaxation in
 crushable sands based on fracture theory"; docs/model.md): Table 1 (material, rough contact law,
-grain strength and crack growth), the NE34 grading, crushdem's chosen parameter set, and the
-study's own results that a reproduction is compared with. ``crushdem reproduce``,
-``crushdem sensitivity`` and the tests read them from here."""
+grain strength and crack growth), the NE34 grading, crushdem's chosen parameter set, the study's
+own results that a reproduction is compared with, and the settings of every run of
+``crushdem reproduce`` (:func:`settings`, changed by ``--set``: :func:`apply_overrides`).
+``crushdem reproduce``, ``crushdem sensitivity`` and the tests read them from here.
+
+A settings dict is plain JSON (``DIR/settings.json`` of a reproduction); nothing here runs,
+reads or draws."""
 
 from __future__ import annotations
 
-from typing import Any, Dict, Tuple
+import json
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 # Table 1 of the study (docs/model.md 1-3) with the first reconstruction choices: free rotation
 # (no key: the engine's default) and d0 = d50 (no key). The crushing keys are those of
@@ -44,3 +49,128 @@ PARAMETER_SETS: Dict[str, Tuple[Dict[str, Any], Dict[str, Any], str]] = {
 OEDOMETRIC_STRESS_PA = 7.5e6   # the oedometric relaxation starts at sigma_v = 7.5 MPa
 SIGMA_3_PA = 10e6              # the triaxial shear and relaxation at sigma_3 = 10 MPa
 STUDY_Q_MAX_PA = 22.6e6        # the study's q_max at sigma_3 = 10 MPa (section 3.2)
+
+# The run directories of a reproduction, in the order they run.
+RUNS = ("sample", "oedometric_relaxation", "triaxial_shear", "triaxial_relaxation")
+TESTS = ("oedometric", "triaxial")  # --only: the runs of each besides the sample
+TEST_RUNS = {"oedometric": ("oedometric_relaxation",),
+             "triaxial": ("triaxial_shear", "triaxial_relaxation")}
+
+
+def settings(quick: bool, parameters: str = "crushdem", backend: str = "cpu") -> Dict[str, Any]:
+    """The parameters of every run, study scale or ``--quick``, with the named parameter set
+    ``parameters`` (PARAMETER_SETS), as one JSON-able dict; ``backend`` (what advances the runs:
+    "cpu", "cuda" or "emulated") is recorded when it is not the CPU, since the backends agree
+    only statistically."""
+    if parameters not in PARAMETER_SETS:
+        raise ValueError(f"--parameters {parameters!r}: expected one of "
+                         f"{', '.join(PARAMETER_SETS)}")
+    contact, crushing, _ = PARAMETER_SETS[parameters]
+    s: Dict[str, Any] = {
+        "mode": "quick" if quick else "study",
+        "material": dict(MATERIAL),
+        "contact": dict(contact),
+        "crushing": dict(crushing),
+        "sample": {"side": 4e-3, "void_ratio": 0.65, "seed": 1, "stress": 100e3,
+                   "grading": NE34},
+        "oedometric": {"stress": OEDOMETRIC_STRESS_PA, "strain_rate": 10.0},
+        "triaxial": {"sigma_3": SIGMA_3_PA, "strain_rate": 50.0, "axial_strain": 0.30},
+        "relaxation": {"q_fraction": 0.7},
+        # The study: dynamic phases of at least 150,000 cycles, N_break = 30, one day.
+        "age": {"duration": 86400.0, "min_cycles": 150000, "n_break": 30},
+        "age_stage": {},
+        "record_interval": None,  # phases.csv rows: the C++ default (1000 steps)
+        "output": {"interval": 20000, "progress_seconds": 60},
+    }
+    if parameters != "crushdem":
+        s["parameters"] = parameters
+    if backend != "cpu":
+        s["backend"] = backend
+    if quick:
+        s["sample"] = {"count": 500, "void_ratio": 0.75, "seed": 3, "stress": 100e3,
+                       "grading": NE34}
+        # Faster loading and shearing: the inertial number stays below 1e-3 (about 8.6e-4 and
+        # 7e-4, reported in summary.json); shear to 15 % only (q still rises slowly there).
+        s["oedometric"]["strain_rate"] = 25.0
+        s["triaxial"].update(strain_rate=100.0, axial_strain=0.15)
+        s["age"].update(min_cycles=10000, n_break=3)
+        # A phase must be long enough for the lateral servo to restore sigma_3 after the grains
+        # of a jump break; the quick sample needs a few tenths of a percent of lateral strain.
+        # At the default limit (10 /s) a 10,000-cycle phase (dt about 6.6e-9 s) allows 0.07 %
+        # (the study's 150,000 cycles about 1 %); with 3,000 cycles even 100 /s left the walls at
+        # their limit for the whole phase and sigma_3 16 % low. Hence 10,000 cycles and 100 /s
+        # (inertial number below 4e-4), in the age stage only.
+        s["age_stage"] = {"max_strain_rate": 100.0}
+        s["record_interval"] = 500
+        s["output"] = {"interval": 1000, "progress_seconds": 0}
+    return s
+
+
+# Sections of settings() that --set may change, and whether it may add keys to them (the
+# configuration sections are checked by the engine's reader, which names a bad key).
+SETTABLE = {"material": True, "contact": True, "crushing": True, "age_stage": True,
+            "sample": False, "oedometric": False, "triaxial": False, "relaxation": False,
+            "age": False}
+
+
+def apply_overrides(cfg: Dict[str, Any], overrides: Sequence[str]) -> Dict[str, Any]:
+    """``cfg`` with each "SECTION.KEY=VALUE" of ``overrides`` set; VALUE is read as a TOML value
+    (``0.3``, ``true``, ``"blocked"``), or taken as a string when it is not one."""
+    import tomllib
+
+    for item in overrides:
+        target, sep, text = item.partition("=")
+        section, dot, key = target.strip().partition(".")
+        if not sep or not dot or not key:
+            raise ValueError(f"--set {item!r}: expected SECTION.KEY=VALUE "
+                             "(e.g. contact.rotation=blocked)")
+        if section not in SETTABLE:
+            raise ValueError(f"--set {item!r}: unknown section '{section}' (expected one of "
+                             f"{', '.join(SETTABLE)})")
+        if not SETTABLE[section] and key not in cfg[section]:
+            raise ValueError(f"--set {item!r}: unknown key '{key}' in '{section}' (expected one "
+                             f"of {', '.join(cfg[section])})")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        cfg[section][key] = value
+    return cfg
+
+
+def settings_changes(before: Mapping[str, Any], after: Mapping[str, Any]
+                     ) -> Dict[str, List[Any]]:
+    """The dotted keys whose values differ between two settings dicts: {key: [before, after]}
+    (None where a key is absent), sorted by key."""
+    fa, fb = _flat(before), _flat(after)
+    return {k: [fa.get(k), fb.get(k)] for k in sorted(set(fa) | set(fb))
+            if fa.get(k) != fb.get(k)}
+
+
+def show_setting(v: Any) -> str:
+    """A setting's value as the messages show it: JSON, or "(unset)" for None."""
+    return "(unset)" if v is None else json.dumps(v)
+
+
+def _flat(cfg: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
+    out: Dict[str, Any] = {}
+    for k, v in cfg.items():
+        if isinstance(v, Mapping):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def recipe(cfg: Mapping[str, Any]) -> Dict[str, Any]:
+    """The settings apart from the sample: what a test does to whichever sample it gets."""
+    return {k: v for k, v in cfg.items() if k != "sample"}
+
+
+def sample_recipe(cfg: Mapping[str, Any]) -> Optional[Dict[str, Any]]:
+    """How the settings prepare their own sample, apart from the seed (None for a --sample
+    file, made elsewhere)."""
+    sample = cfg.get("sample") or {}
+    if "file" in sample:
+        return None
+    return {k: v for k, v in sample.items() if k != "seed"}

@@ -45,12 +45,15 @@ import subprocess
 import sys
 import time
 import tomllib
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
 from .rundir import read_events, read_summary, read_timing
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 # How long a task waits for the lock of its run directory: a run killed with its worker takes a
 # moment to write its checkpoint and let go.
@@ -334,7 +337,7 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
 
 
 def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str],
-                  errors: Mapping[str, str]):
+                  errors: Mapping[str, str]) -> pd.DataFrame:
     """The pandas DataFrame of the sweep (one row per variant), written to results.csv and
     results.parquet."""
     import pandas as pd
@@ -362,7 +365,7 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
     return df
 
 
-def figure(df, keys: Sequence[str], path: str) -> Optional[str]:
+def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
     """Each summary figure against each varied key (numeric keys only), one panel each."""
     from matplotlib.figure import Figure  # no pyplot: no backend is chosen for the caller
 
@@ -402,7 +405,7 @@ def _raise_stop(signum, _frame):
 
 def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: int = 1,
           scheduler: Optional[str] = None, progress: Optional[bool] = None,
-          log: Callable[[str], None] = print, backend: str = "cpu"):
+          log: Callable[[str], None] = print, backend: str = "cpu") -> pd.DataFrame:
     """Runs (or completes) the sweep of ``path`` into ``out``, every run on ``backend``
     ("cpu", "cuda" or "emulated"); returns the results DataFrame."""
     from . import _core
@@ -518,12 +521,14 @@ def _follow(client, futures, errors, progress, log) -> None:
         bar.close()
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
-    [--scheduler ADDRESS]``."""
-    parser = argparse.ArgumentParser(prog="crushdem sweep", description=__doc__,
+def cluster_parser(prog: str, description: str, file: str,
+                   metavar: str) -> argparse.ArgumentParser:
+    """The command line of a command whose runs are sweep tasks (``crushdem sweep``,
+    ``crushdem calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
+    --workers, --threads-per-run, --scheduler."""
+    parser = argparse.ArgumentParser(prog=prog, description=description,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("sweep", metavar="SWEEP.toml")
+    parser.add_argument(file, metavar=metavar)
     parser.add_argument("--out", required=True, metavar="DIR")
     parser.add_argument("--workers", type=int, default=None, metavar="N",
                         help="local worker processes (default: cores / threads per run)")
@@ -531,6 +536,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://host:port) instead of a local "
                              "cluster")
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
+    [--scheduler ADDRESS]``."""
+    parser = cluster_parser("crushdem sweep", __doc__, "sweep", "SWEEP.toml")
     parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
                         help="what advances every run: cpu (default), cuda (a GPU, in a build "
                              "with CUDA; one worker per GPU) or emulated")

@@ -1,7 +1,8 @@
 """The Python modules of the checkout, for tests that must follow the source without a rebuild:
-python/crushdem/<name>.py imported as a module of a stand-in package (so that its relative
-imports resolve in the source tree too, without the package __init__ and its compiled _core);
-the installed crushdem module where this file does not sit in a checkout."""
+python/crushdem/<name>.py (or the subpackage python/crushdem/<name>/, or a dotted name such as
+``figures.study``) imported as a module of a stand-in package (so that its relative imports
+resolve in the source tree too, without the package __init__ and its compiled _core); the
+installed crushdem module where this file does not sit in a checkout."""
 
 import importlib
 import os
@@ -14,7 +15,8 @@ _PACKAGE = "crushdem_src_under_test"
 
 
 def load(name):
-    if not os.path.isfile(os.path.join(SOURCE_DIR, f"{name}.py")):
+    path = os.path.join(SOURCE_DIR, *name.split("."))
+    if not (os.path.isfile(path + ".py") or os.path.isfile(os.path.join(path, "__init__.py"))):
         return importlib.import_module(f"crushdem.{name}")
     if _PACKAGE not in sys.modules:
         pkg = types.ModuleType(_PACKAGE)

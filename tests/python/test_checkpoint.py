@@ -1,8 +1,9 @@
 """A run killed with SIGKILL in the middle of a dynamic phase, then resumed with
 ``crushdem resume``, writes the same files as an uninterrupted run (issue 5).
 
-The run is a small creep test: 300 weak grains squeezed to 2 MPa, then off-DEM ageing for a day
-with the walls servo-controlled during every dynamic phase (several phases, grains breaking).
+The run is the small creep test of tests/data (grains_300.toml, creep_300.toml), which
+tests/test_checkpoint.cpp runs too: 300 weak grains squeezed to 2 MPa, then off-DEM ageing for a
+day with the walls servo-controlled during every dynamic phase (several phases, grains breaking).
 """
 
 import csv
@@ -14,49 +15,10 @@ import time
 import tomllib
 
 import pytest
+from _data import data_text
 
-CONFIG = """
-[contact]
-law = "rough"
-[box]
-min = [0.0, 0.0, 0.0]
-max = [1.25e-3, 1.25e-3, 1.25e-3]
-[particles.generate]
-count = 300
-diameter_min = 0.06e-3
-diameter_max = 0.2e-3
-seed = 3
-[crushing]
-sigma_lim0 = 3e8
-d_min = 0.05e-3
-seed = 5
-crack_growth = true
-[[stage]]
-type = "hold"
-axial = "servo"
-axial_stress = 2e6
-lateral = "servo"
-lateral_stress = 2e6
-max_strain_rate = 3000.0
-steps = 25000
-[[stage]]
-type = "age"
-axial = "servo"
-axial_stress = 2e6
-lateral = "servo"
-lateral_stress = 2e6
-max_strain_rate = 3000.0
-duration = 86400.0
-min_cycles = 3000
-n_break = 3
-record_interval = 250
-[output]
-interval = 1000
-progress_seconds = 0
-checkpoint_seconds = 0
-"""
-
-MIN_CYCLES = 3000
+CONFIG = data_text("grains_300.toml", "creep_300.toml")
+MIN_CYCLES = tomllib.loads(CONFIG)["stage"][1]["min_cycles"]  # of each dynamic phase
 
 
 def crushdem(*args, **kw):

@@ -1,4 +1,6 @@
-"""Tests of ``crushdem plot`` (python/crushdem/plot.py) on small synthetic run directories.
+"""Tests of ``crushdem plot`` (python/crushdem/plot.py) on small synthetic run directories: which
+figures a run gets, what each draws (its lines read back from the matplotlib Figure against the
+run's time series, events.csv, grading.csv and summary.json), and that the PNGs show a drawing.
 
 Run with `python -m pytest tests/python` after `pip install .`. The plotting module needs only
 NumPy and Matplotlib, not the compiled ``crushdem._core``: when this file sits in the source tree
@@ -16,6 +18,8 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
+from _figures import (assert_drawn, assert_png_shows_a_drawing, labelled,  # noqa: E402
+                      labelled_like, legend_texts)
 from _source import load  # noqa: E402
 
 plot = load("plot")
@@ -24,6 +28,7 @@ figures = load("figures")
 rundir = load("rundir")
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+MPA = 1e-6
 OLD_FIGURES = {"stress_time.png", "strain_stress.png", "void_ratio.png", "coordination.png",
                "kinetic_energy.png"}
 LAB_FIGURES = {"triaxial.png", "oedometer.png", "inertial_number.png", "preparation.png"}
@@ -137,30 +142,63 @@ def _names(paths):
     return {os.path.basename(p) for p in paths}
 
 
-def _assert_pngs(paths, out_dir):
-    for p in paths:
-        assert os.path.dirname(os.path.abspath(p)) == os.path.abspath(out_dir)
-        assert os.path.getsize(p) > 1000, p
-        with open(p, "rb") as f:
-            assert f.read(8) == b"\x89PNG\r\n\x1a\n", p
+def _plots(run, out=None):
+    """``crushdem plot`` of ``run`` into ``out`` (default: the run directory): the names of the
+    PNGs written there, each checked to show a drawing."""
+    written = plot.make_plots(run, None if out is None else str(out))
+    for p in written:
+        assert os.path.dirname(os.path.abspath(p)) == os.path.abspath(out or run)
+        assert_png_shows_a_drawing(p)
+    return _names(written)
+
+
+def _close(fig):
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def _check_triaxial_figures(run):
+    """triaxial.png: the shear's q [MPa] and volumetric strain change [%] against its axial
+    strain [%], its peak from summary.json; q_p_path.png: each stage's q against p [MPa]."""
+    data = rundir.read_run(run)
+    d, shear = data.timeseries, data.timeseries["stage"] == 1
+    fig = figures.figure_triaxial(data)
+    ax_q, ax_v = fig.axes
+    eps = d["stage_axial_strain"][shear] * 100.0
+    assert_drawn(labelled(ax_q, "stage 1: triaxial, $\\sigma_3$ = 1 MPa"), eps,
+                 d["deviator_stress_Pa"][shear] * MPA)
+    (peak,) = [ln for ln in ax_q.get_lines() if len(ln.get_xdata()) == 1]
+    assert_drawn(peak, [0.021 * 100.0], [0.85e6 * MPA])
+    (note,) = [t.get_text() for t in ax_q.texts]
+    assert "$q_{max}$ = 0.85 MPa at $\\varepsilon_a$ = 2.10 %" in note and "17.2" in note
+    ev = d["volumetric_strain"][shear]
+    assert_drawn(labelled(ax_v, "stage 1: triaxial"), eps, (ev - ev[0]) * 100.0)
+    assert ax_q.get_ylabel().startswith("deviator stress") and "%" in ax_v.get_xlabel()
+    _close(fig)
+    fig = figures.figure_q_p_path(data)
+    (ax,) = fig.axes
+    for k, name in ((0, "isotropic"), (1, "triaxial")):
+        rows = d["stage"] == k
+        assert_drawn(labelled(ax, f"stage {k}: {name}"), d["mean_stress_Pa"][rows] * MPA,
+                     d["deviator_stress_Pa"][rows] * MPA)
+    _close(fig)
 
 
 def test_triaxial_run_writes_lab_figures(tmp_path):
     run = _triaxial_run(tmp_path / "triaxial")
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    names = _names(written)
+    names = _plots(run, tmp_path / "figs")
     assert OLD_FIGURES <= names
     assert {"triaxial.png", "q_p_path.png", "inertial_number.png"} <= names
     assert "oedometer.png" not in names
     assert "preparation.png" not in names
-    _assert_pngs(written, out)
+    _check_triaxial_figures(run)
 
 
 def test_triaxial_without_summary_still_plots(tmp_path):
     # Without summary.json the stage types are unknown: no triaxial.png, but no failure either.
     run = _triaxial_run(tmp_path / "triaxial", with_summary=False)
-    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    names = _plots(run, tmp_path / "figs")
     assert OLD_FIGURES <= names
     assert {"q_p_path.png", "inertial_number.png"} <= names
     assert "triaxial.png" not in names
@@ -170,7 +208,7 @@ def test_stopped_run_takes_its_stage_types_from_config_toml(tmp_path):
     # A run stopped with a checkpoint (or still going) has no summary.json, only config.toml.
     run = _oedometer_run(tmp_path / "stopped")
     os.remove(os.path.join(run, "summary.json"))
-    assert "oedometer.png" not in _names(plot.make_plots(run, str(tmp_path / "none")))
+    assert "oedometer.png" not in _plots(run, tmp_path / "none")
     with open(os.path.join(run, "config.toml"), "w") as f:
         f.write('[[stage]]\ntype = "oedometric"\nname = "loading"\nstress = 2e6\n'
                 '[[stage]]\ntype = "oedometric"\nname = "unloading"\nstress = 1e6\n'
@@ -178,18 +216,26 @@ def test_stopped_run_takes_its_stage_types_from_config_toml(tmp_path):
     assert plot.stages_from_config(run) == [{"type": "oedometric", "name": "loading"},
                                             {"type": "oedometric", "name": "unloading"},
                                             {"type": "hold", "name": "hold"}]
-    written = plot.make_plots(run, str(tmp_path / "figs"))
-    assert "oedometer.png" in _names(written)
-    _assert_pngs(written, str(tmp_path / "figs"))
+    assert "oedometer.png" in _plots(run, tmp_path / "figs")
 
 
 def test_oedometer_run_writes_oedometer_figure(tmp_path):
     run = _oedometer_run(tmp_path / "oedometer")
-    written = plot.make_plots(run)  # default: into the run directory
-    names = _names(written)
+    names = _plots(run)  # default: into the run directory
     assert {"oedometer.png", "void_ratio.png", "q_p_path.png", "inertial_number.png"} <= names
     assert "triaxial.png" not in names
-    _assert_pngs(written, run)
+    # e against sigma_v [MPa] of the two oedometric stages, each with its direction and K0; the
+    # hold stage is no oedometric stage.
+    d = rundir.read_run(run).timeseries
+    fig = figures.figure_oedometer(run)
+    (ax,) = fig.axes
+    assert ax.get_xscale() == "log" and len(ax.get_lines()) == 2
+    for k, label in ((0, "stage 0: oedometric, loading, $K_0$ = 0.600"),
+                     (1, "stage 1: oedometric, unloading, $K_0$ = 0.850")):
+        rows = d["stage"] == k
+        assert_drawn(labelled(ax, label), d["wall_zmax_stress_Pa"][rows] * MPA,
+                     d["void_ratio"][rows])
+    _close(fig)
 
 
 def test_preparation_run_writes_preparation_figure(tmp_path):
@@ -201,28 +247,50 @@ def test_preparation_run_writes_preparation_figure(tmp_path):
     summary = {"sample": {"grains": 100, "void_ratio": 0.91, "void_ratio_target": 0.9,
                           "preparation_friction": 0.18, "warning": ""}}
     run = _write_run(tmp_path / "sample", rows, summary)
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    names = _names(written)
+    names = _plots(run, tmp_path / "figs")
     assert "preparation.png" in names
     assert "triaxial.png" not in names and "oedometer.png" not in names
-    _assert_pngs(written, out)
+    # The void ratio with its target and the prepared value; the friction in steps, with the
+    # preparation friction.
+    d = rundir.read_run(run).timeseries
+    fig = figures.figure_preparation(run)
+    ax_e, ax_mu = fig.axes
+    assert_drawn(labelled(ax_e, "void ratio $e$"), d["time_s"], d["void_ratio"])
+    assert list(labelled(ax_e, "target $e$ = 0.9").get_ydata()) == [0.9, 0.9]
+    assert_drawn(labelled(ax_e, "prepared $e$ = 0.91"), [d["time_s"][-1]], [0.91])
+    mu = labelled(ax_mu, "grain friction $\\mu$")
+    assert_drawn(mu, d["time_s"], d["friction"])
+    assert mu.get_drawstyle() == "steps-post"
+    assert list(labelled(ax_mu, "preparation friction = 0.18").get_ydata()) == [0.18, 0.18]
+    _close(fig)
 
 
 def test_plain_run_keeps_old_figures(tmp_path):
     run = _plain_run(tmp_path / "plain")
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    names = _names(written)
+    names = _plots(run, tmp_path / "figs")
     assert OLD_FIGURES <= names
     assert not names & LAB_FIGURES
-    _assert_pngs(written, out)
+    # Each wall's stress and the mean stress [MPa] against time; e against p on a log axis.
+    d = rundir.read_run(run).timeseries
+    fig = figures.figure_stress_time(run)
+    (ax,) = fig.axes
+    for w in WALLS:
+        assert_drawn(labelled(ax, w), d["time_s"], d[f"wall_{w}_stress_Pa"] * MPA)
+    assert_drawn(labelled(ax, "mean $p$"), d["time_s"], d["mean_stress_Pa"] * MPA)
+    assert ax.get_xlabel() == "time $t$ [s]" and "[MPa]" in ax.get_ylabel()
+    _close(fig)
+    fig = figures.figure_void_ratio(run)
+    (ax,) = fig.axes
+    (line,) = ax.get_lines()
+    assert_drawn(line, d["mean_stress_Pa"] * MPA, d["void_ratio"])
+    assert ax.get_xscale() == "log"
+    _close(fig)
 
 
 def test_plain_run_without_summary(tmp_path):
     run = _plain_run(tmp_path / "plain")
     os.remove(os.path.join(run, "summary.json"))
-    assert OLD_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
+    assert OLD_FIGURES <= _plots(run, tmp_path / "figs")
 
 
 def _crushing_run(path, breakages=True):
@@ -283,18 +351,42 @@ def _crushing_run(path, breakages=True):
 
 def test_crushing_run_writes_crushing_figures(tmp_path):
     run = _crushing_run(tmp_path / "crushing")
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    names = _names(written)
+    names = _plots(run, tmp_path / "figs")
     assert CRUSHING_FIGURES <= names
     assert {"triaxial.png", "void_ratio.png"} <= names
-    _assert_pngs(written, out)
+    data = rundir.read_run(run)
+    d, (sieves, passing) = data.timeseries, data.grading
+    # grading.png: the initial and final curves [%] against d [mm], each with B_r, and d_c.
+    fig = figures.figure_grading(data)
+    (ax,) = fig.axes
+    assert_drawn(labelled(ax, "initial, $B_r$ = 0.000"), sieves * 1e3, passing[0] * 100.0)
+    final = labelled_like(ax, "final")
+    assert_drawn(final, sieves * 1e3, passing[-1] * 100.0)
+    assert final.get_label().endswith(f"$B_r$ = {d['relative_breakage_Br'][-1]:.3f}")
+    assert "$d_c$ = 0.33 mm" in legend_texts(ax)
+    _close(fig)
+    # breakage.png: the cumulative breakages by cause and the particles against axial strain.
+    fig = figures.figure_breakage(data)
+    ax_top, ax_bottom = fig.axes[:2]
+    eps = d["axial_strain"] * 100.0
+    assert_drawn(labelled(ax_top, "breakages: instant failure"), eps, d["breakages_instant"])
+    assert_drawn(labelled(ax_top, "breakages: crack"), eps, d["breakages_crack"])
+    assert_drawn(labelled(ax_bottom, "relative breakage $B_r$"), eps, d["relative_breakage_Br"])
+    _close(fig)
+    # breakage_sizes.png: every broken grain counted once, by cause.
+    fig = figures.figure_breakage_sizes(data)
+    (ax,) = fig.axes
+    counts = {c: sum(1 for _, cause in data.breakage if cause == c) for c in ("instant", "crack")}
+    assert sum(p.get_height() for p in ax.patches) == len(data.breakage) > 10
+    assert legend_texts(ax)[:2] == [f"instant ({counts['instant']})", f"crack ({counts['crack']})"]
+    assert ax.get_title().endswith(f"({len(data.breakage)})")
+    _close(fig)
 
 
 def test_crushing_run_without_breakages_has_no_size_histogram(tmp_path):
     # breakage.csv with its header only: grading and breakage curves, but no histogram.
     run = _crushing_run(tmp_path / "crushing", breakages=False)
-    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    names = _plots(run, tmp_path / "figs")
     assert {"grading.png", "breakage.png"} <= names
     assert "breakage_sizes.png" not in names
 
@@ -307,9 +399,7 @@ def test_crushing_grading_with_mismatched_rows(tmp_path):
         lines = f.readlines()
     with open(path, "w") as f:
         f.writelines(lines[:-3])
-    written = plot.make_plots(run, str(tmp_path / "figs"))
-    assert "grading.png" in _names(written)
-    _assert_pngs(written, tmp_path / "figs")
+    assert "grading.png" in _plots(run, tmp_path / "figs")
 
 
 def test_crushing_reads_grading_and_breakage(tmp_path):
@@ -326,7 +416,7 @@ def test_crushing_reads_grading_and_breakage(tmp_path):
 def test_run_without_crushing_has_no_crushing_figures(tmp_path):
     for run in (_plain_run(tmp_path / "plain"), _triaxial_run(tmp_path / "triaxial"),
                 _oedometer_run(tmp_path / "oedometer")):
-        names = _names(plot.make_plots(run, str(tmp_path / "figs" / os.path.basename(run))))
+        names = _plots(run, tmp_path / "figs" / os.path.basename(run))
         assert names and not names & CRUSHING_FIGURES
 
 
@@ -398,31 +488,54 @@ def _ageing_run(path, creep=False, events=True):
 
 def test_ageing_run_writes_relaxation_figures(tmp_path):
     run = _ageing_run(tmp_path / "relaxation")
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    names = _names(written)
+    names = _plots(run, tmp_path / "figs")
     assert AGEING_FIGURES <= names
     assert "oedometer.png" in names
-    _assert_pngs(written, out)
+    # relaxation.png: every wall fixed, so sigma_v / sigma_v(4 s) at the phases after t = 0,
+    # with its value at one day and the plausible band there.
+    ev = rundir.read_events(run)
+    t, later = ev["ageing_time_s"], ev["ageing_time_s"] > 0
+    s4, _ = analysis.value_at(t, ev["wall_zmax_stress_Pa"], 4.0)
+    fig = figures.figure_relaxation(run)
+    ax = fig.axes[0]
+    curve = labelled_like(ax, f"$\\sigma_v$(4 s) = {s4 * MPA:.2f} MPa, 1 day: ")
+    assert_drawn(curve, t[later], ev["wall_zmax_stress_Pa"][later] / s4)
+    assert any("plausible at 1 day: 0.70-0.97" in text for text in legend_texts(ax))
+    assert ax.get_ylabel() == "$\\sigma_v(t) / \\sigma_v$(4 s) [-]"
+    _close(fig)
+    # relaxation_forces.png: the force statistics of events.csv at the same phases.
+    fig = figures.figure_relaxation_forces(run)
+    (ax,) = fig.axes
+    for col, label in (("std_Fn_N", "std. dev. normal force $F_n$"),
+                       ("mean_Ft_N", "mean tangential force $F_t$")):
+        assert_drawn(labelled(ax, label), t[later], ev[col][later])
+    _close(fig)
 
 
 def test_creep_run_writes_relaxation_figures(tmp_path):
     run = _ageing_run(tmp_path / "creep", creep=True)
-    out = tmp_path / "figs"
-    written = plot.make_plots(run, str(out))
-    assert AGEING_FIGURES <= _names(written)
-    _assert_pngs(written, out)
+    assert AGEING_FIGURES <= _plots(run, tmp_path / "figs")
+    # relaxation_breakage.png: the cumulative breakages by cause and the particles per phase.
+    ev = rundir.read_events(run)
+    later = ev["ageing_time_s"] > 0
+    fig = figures.figure_relaxation_breakage(run)
+    ax, ax_n = fig.axes
+    assert_drawn(labelled(ax, "breakages: crack"), ev["ageing_time_s"][later],
+                 ev["breakages_crack"][later])
+    assert_drawn(labelled(ax_n, "particles"), ev["ageing_time_s"][later],
+                 ev["n_particles"][later])
+    _close(fig)
 
 
 def test_ageing_figures_need_events_csv(tmp_path):
     # The same run without events.csv: no ageing figure, the others still drawn.
     run = _ageing_run(tmp_path / "relaxation", events=False)
-    names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+    names = _plots(run, tmp_path / "figs")
     assert names and not names & AGEING_FIGURES
     assert "oedometer.png" in names
     for run in (_plain_run(tmp_path / "plain"), _triaxial_run(tmp_path / "triaxial"),
                 _crushing_run(tmp_path / "crushing")):
-        names = _names(plot.make_plots(run, str(tmp_path / "figs" / os.path.basename(run))))
+        names = _plots(run, tmp_path / "figs" / os.path.basename(run))
         assert names and not names & AGEING_FIGURES
 
 
@@ -436,7 +549,7 @@ def test_ageing_events_with_only_the_first_phase_or_header(tmp_path):
     for keep in (lines[:2], lines[:1], []):
         with open(path, "w") as f:
             f.writelines(keep)
-        names = _names(plot.make_plots(run, str(tmp_path / "figs")))
+        names = _plots(run, tmp_path / "figs")
         assert "oedometer.png" in names and not names & AGEING_FIGURES
 
 
@@ -471,7 +584,7 @@ def test_relaxation_with_every_wall_fixed_is_told_from_creep(tmp_path):
         (_, idx, _), = analysis.ageing_groups(ev, plot.read_summary(run))
         assert analysis.walls_fixed(ev, idx) is (not creep)
         assert not analysis.walls_fixed(ev, idx[:1])  # one phase says nothing
-        assert AGEING_FIGURES <= _names(plot.make_plots(run, str(tmp_path / "figs")))
+        assert AGEING_FIGURES <= _plots(run, tmp_path / "figs")
 
 
 # --- the figure functions ------------------------------------------------------------------------
@@ -505,8 +618,7 @@ def test_figure_functions_return_figures_without_switching_the_backend(tmp_path)
                 drawn[name] = fig
         assert {"stress_time.png", "triaxial.png", "coordination.png"} <= set(drawn)
         assert isinstance(plot.figure_stress_time(run), Figure)  # a path works too
-        written = plot.make_plots(run, str(tmp_path / "figs"))
-        assert _names(written) == set(drawn)
+        assert _plots(run, tmp_path / "figs") == set(drawn)
         assert matplotlib.get_backend() == "svg"
         plt.close("all")
     finally:

@@ -1,10 +1,13 @@
-"""Tests of ``crushdem reproduce`` (python/crushdem/reproduce.py).
+"""Tests of ``crushdem reproduce``: its recipes (python/crushdem/study.py), the analysis of its
+runs (study_analysis.py, study_summary.py), its figures (figures/study.py), its pipeline
+(study_pipeline.py) and the command (reproduce.py).
 
 The figure and CSV code is tested on synthetic events.csv / phases.csv files with known answers
-(the 4 s normalisation, the log-t fit); it needs only NumPy and Matplotlib, and is loaded from
-python/crushdem when this file sits in the source tree (so the tests follow the checkout without
-a rebuild), otherwise from the installed package. One end-to-end ``crushdem reproduce --quick``
-runs the real pipeline (about two minutes on one core).
+(the 4 s normalisation, the log-t fit), and each figure against the CSV written beside it; it
+needs only NumPy and Matplotlib, and is loaded from python/crushdem when this file sits in the
+source tree (so the tests follow the checkout without a rebuild), otherwise from the installed
+package. One end-to-end ``crushdem reproduce --quick`` runs the real pipeline (about two minutes
+on one core).
 """
 
 import csv
@@ -19,12 +22,16 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
+from _figures import (assert_drawn, assert_png_shows_a_drawing, labelled,  # noqa: E402
+                      labelled_like, legend_texts, read_csv_with_comments)
 from _source import load  # noqa: E402
 
-rp = load("reproduce")
-runs = load("runs")
+rp, runs, analysis, study, sa, summary, pipeline, study_figures = (load(name) for name in (
+    "reproduce", "runs", "analysis", "study", "study_analysis", "study_summary",
+    "study_pipeline", "figures.study"))
 
 WALLS = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
+MPA = 1e-6
 
 
 def _write(path, rows):
@@ -78,26 +85,37 @@ def _triaxial_run(tmp_path):
     return str(d)
 
 
-def _read_csv(path):
-    with open(path) as f:
-        lines = f.read().splitlines()
-    comments = [ln for ln in lines if ln.startswith("#")]
-    body = [ln for ln in lines if not ln.startswith("#")]
-    return comments, list(csv.DictReader(body))
+def _written(out, name, data, fig):
+    """Writes the figure and its CSV as ``crushdem reproduce`` does; returns the CSV read back
+    (its # lines, its rows)."""
+    png = pipeline.write_figure(str(out), name, data, fig)
+    assert png == os.path.join(str(out), name + ".png")
+    assert_png_shows_a_drawing(png)
+    return read_csv_with_comments(os.path.join(str(out), name + ".csv"))
+
+
+def _column(rows, name, keep=None):
+    return np.array([float(r[name]) if r[name] else math.nan for r in rows
+                     if keep is None or keep(r)])
+
+
+def _later(r):
+    """A phase after t = 0: on the log axis."""
+    return float(r["ageing_time_s"]) > 0
 
 
 def test_value_at_interpolates_in_log_t_or_linear_t_before_the_first_phase():
     t = np.array([0.0, 1.0, 10.0, 100.0])
     y = np.array([9.0, 5.0, 4.0, 3.0])
-    v, how = rp.value_at(t, y, 4.0)
+    v, how = analysis.value_at(t, y, 4.0)
     assert v == pytest.approx(5.0 - math.log10(4.0))
     assert "log t" in how
-    assert rp.value_at(t, y, 10.0) == (4.0, "exact")
+    assert analysis.value_at(t, y, 10.0) == (4.0, "exact")
     # The first phase after t = 0 is later than 4 s: linear in t from the t = 0 phase.
-    v, how = rp.value_at(np.array([0.0, 100.0, 1000.0]), np.array([8.0, 6.0, 5.0]), 4.0)
+    v, how = analysis.value_at(np.array([0.0, 100.0, 1000.0]), np.array([8.0, 6.0, 5.0]), 4.0)
     assert v == pytest.approx(8.0 + 0.04 * (6.0 - 8.0))
     assert "linear in t" in how
-    v, how = rp.value_at(t, y, 1000.0)
+    v, how = analysis.value_at(t, y, 1000.0)
     assert math.isnan(v) and "beyond" in how
 
 
@@ -110,33 +128,33 @@ def test_compare_relaxation_reads_both_curves_at_common_log_times():
     t_b = np.array([0.0, 0.02, 3.0, 700.0, 5e4, 86400.0])
     y_a = np.concatenate([[7.0], line(t_a[1:])])
     y_b = np.concatenate([[7.0], line(t_b[1:])])
-    same = rp.compare_relaxation(t_a, y_a, t_b, y_b)
+    same = analysis.compare_relaxation(t_a, y_a, t_b, y_b)
     assert same["max_abs_difference"] == pytest.approx(0.0, abs=1e-12)
     assert same["t_from_s"] == 0.1 and same["t_to_s"] == 86400.0
     # Normalised by the t = 0 value: a curve 0.02 lower (of 7) everywhere after t = 0.
-    lower = rp.compare_relaxation(t_a, y_a, t_b, y_b - np.array([0.0] + [0.14] * 5))
+    lower = analysis.compare_relaxation(t_a, y_a, t_b, y_b - np.array([0.0] + [0.14] * 5))
     assert lower["max_abs_difference"] == pytest.approx(0.02)
     assert lower["end_a"] - lower["end_b"] == pytest.approx(0.02)
     # A kink between the phases of the other run shows up where it is.
     y_kink = y_b.copy()
     y_kink[3] -= 0.35  # t = 700 s: 0.05 of sigma(0)
-    kink = rp.compare_relaxation(t_a, y_a, t_b, y_kink)
+    kink = analysis.compare_relaxation(t_a, y_a, t_b, y_kink)
     assert kink["max_abs_difference"] == pytest.approx(0.05, rel=0.02)
     assert 300.0 < kink["at_t_s"] < 1500.0
     with pytest.raises(ValueError, match="t = 0"):
-        rp.compare_relaxation(t_a[1:], y_a[1:], t_b, y_b)
+        analysis.compare_relaxation(t_a[1:], y_a[1:], t_b, y_b)
 
 
 def test_fit_log_t_slope_and_r2():
     t = np.array([0.0, 1.0, 10.0, 100.0, 1000.0])
     q = np.array([99.0, 10.0, 8.0, 6.0, 4.0])  # the t = 0 point is left out of the fit
-    fit = rp.fit_log_t(t, q)
+    fit = analysis.fit_log_t(t, q)
     assert fit["slope"] == pytest.approx(-2.0)
     assert fit["intercept"] == pytest.approx(10.0)
     assert fit["r2"] == pytest.approx(1.0)
     assert fit["points"] == 4
     noisy = np.array([0.0, 10.0, 8.5, 5.5, 4.0])
-    fit = rp.fit_log_t(t, noisy)
+    fit = analysis.fit_log_t(t, noisy)
     x, y = np.log10(t[1:]), noisy[1:]
     b, a = np.polyfit(x, y, 1)
     r2 = 1.0 - np.sum((y - a - b * x) ** 2) / np.sum((y - y.mean()) ** 2)
@@ -144,16 +162,16 @@ def test_fit_log_t_slope_and_r2():
     assert fit["r2"] < 1.0
 
 
-def test_figure_oedometric_normalises_at_4_s(tmp_path):
+def test_oedometric_relaxation_normalises_at_4_s(tmp_path):
     run = _oedometric_run(tmp_path)
-    written = []
-    res = rp.figure_oedometric(run, str(tmp_path), written)
+    data = sa.oedometric_relaxation(run)
+    res = data.numbers
     s4 = _sigma_v(4.0)
     assert res["sigma_v_4s_Pa"] == pytest.approx(s4)
     assert res["sigma_v_ratio_1h"] == pytest.approx(_sigma_v(3600.0) / s4)
     assert res["sigma_v_ratio_1day"] == pytest.approx(_sigma_v(86400.0) / s4)
-    assert os.path.isfile(tmp_path / "fig1_oedometric_relaxation.png")
-    comments, rows = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    fig = study_figures.figure_oedometric_relaxation(run)
+    comments, rows = _written(tmp_path, "fig1_oedometric_relaxation", data, fig)
     assert any("sigma_v(4 s)" in c and "log t" in c for c in comments)
     assert len(rows) == len(T_AGE)
     for r, t in zip(rows, T_AGE):
@@ -166,32 +184,64 @@ def test_figure_oedometric_normalises_at_4_s(tmp_path):
     assert rows[0]["sigma_v_ratio_fit"] == ""  # t = 0 is off the log axis
     assert float(rows[4]["sigma_v_ratio_fit"]) == pytest.approx(_sigma_v(T_AGE[4]) / s4)
     assert any("R^2 = " in c for c in comments)
+    # The figure draws the CSV's phases after t = 0, the fit with its slope, sigma_v(4 s) at 1.
+    (ax,) = fig.axes
+    assert ax.get_xscale() == "log" and "ageing time" in ax.get_xlabel()
+    assert "4" in ax.get_ylabel() and "sigma_v" in ax.get_ylabel()
+    assert_drawn(labelled(ax, "dynamic phases (end)"), _column(rows, "ageing_time_s", _later),
+                 _column(rows, "sigma_v_ratio", _later))
+    fit = labelled_like(ax, "fit: ")
+    assert f"{res['ratio_slope_per_log10_t']:+.3g} per log cycle" in fit.get_label()
+    assert "$R^2$ = 1.000" in fit.get_label()
+    y_fit = np.asarray(fit.get_ydata())
+    assert y_fit[0] == pytest.approx(_sigma_v(0.5) / s4) and y_fit[-1] == pytest.approx(
+        _sigma_v(86400.0) / s4)
+    assert_drawn(labelled_like(ax, "$\\sigma_v$(4 s) = 6.82 MPa"), [4.0], [1.0])
+    assert f"{7.5:.3g} MPa" in ax.get_title()
 
 
-def test_figure_oedometric_does_not_judge_a_line_through_two_phases(tmp_path):
+def test_a_line_through_two_phases_is_not_judged(tmp_path):
     # Fewer than N_break grains fail after the first jump: one more phase, at one day.
     run = _oedometric_run(tmp_path, times=[0.0, 18.0, 86400.0])
-    res = rp.figure_oedometric(run, str(tmp_path), [])
+    data = sa.oedometric_relaxation(run)
+    res = data.numbers
     assert res["fit_points"] == 2 and math.isnan(res["r2"])
     assert math.isfinite(res["ratio_slope_per_log10_t"])
-    comments, _ = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    comments, _ = _written(tmp_path, "fig1_oedometric_relaxation", data,
+                           study_figures.figure_oedometric_relaxation(run))
     assert any("not judged: 2 phase(s) with t > 0" in c for c in comments)
     assert "(2 phases)" in rp.format_table({"oedometric_relaxation": res})
+    fig = study_figures.figure_oedometric_relaxation(run)
+    assert "$R^2$ = n/a (2 points)" in labelled_like(fig.axes[0], "fit: ").get_label()
 
 
-def test_figure_oedometric_first_phase_after_4_s(tmp_path):
+def test_sigma_v_at_4_s_before_the_first_phase_after_t_0(tmp_path):
     run = _oedometric_run(tmp_path, times=[0.0, 50.0, 3000.0, 86400.0])
-    res = rp.figure_oedometric(run, str(tmp_path), [])
+    data = sa.oedometric_relaxation(run)
     expect = 7.5e6 + 4.0 / 50.0 * (_sigma_v(50.0) - 7.5e6)
-    assert res["sigma_v_4s_Pa"] == pytest.approx(expect)
-    assert "linear in t" in res["sigma_v_4s_method"]
-    comments, _ = _read_csv(str(tmp_path / "fig1_oedometric_relaxation.csv"))
+    assert data.numbers["sigma_v_4s_Pa"] == pytest.approx(expect)
+    assert "linear in t" in data.numbers["sigma_v_4s_method"]
+    comments, _ = _written(tmp_path, "fig1_oedometric_relaxation", data,
+                           study_figures.figure_oedometric_relaxation(run))
     assert any("linear in t" in c for c in comments)
 
 
-def test_figure_triaxial_fit(tmp_path):
+def test_a_run_without_events_has_no_relaxation_figure(tmp_path):
+    empty = str(tmp_path / "nothing")
+    os.makedirs(empty)
+    with pytest.raises(ValueError, match="no events.csv with ageing_time_s"):
+        sa.oedometric_relaxation(empty)
+    with pytest.raises(ValueError, match="no events.csv with ageing_time_s and deviator"):
+        sa.triaxial_relaxation(empty)
+    assert study_figures.figure_oedometric_relaxation(empty) is None
+    assert study_figures.figure_triaxial_relaxation(empty) is None
+    assert study_figures.figure_force_statistics([("x", empty)]) is None
+
+
+def test_triaxial_relaxation_fit(tmp_path):
     run = _triaxial_run(tmp_path)
-    res = rp.figure_triaxial(run, str(tmp_path), [], q_max=7.5e6)
+    data = sa.triaxial_relaxation(run, q_max=7.5e6)
+    res = data.numbers
     assert res["slope_Pa_per_log10_t"] == pytest.approx(-0.25e6)
     assert res["r2"] == pytest.approx(1.0)
     assert res["fit_points"] == len(T_AGE) - 1
@@ -203,25 +253,49 @@ def test_figure_triaxial_fit(tmp_path):
     assert res["q_ratio_1day"] == pytest.approx(_q(86400.0) / 5.2e6)
     assert res["q_ratio_1day_method"] == "exact"
     assert res["q_min_Pa"] == pytest.approx(_q(86400.0))
-    comments, rows = _read_csv(str(tmp_path / "fig3_triaxial_relaxation.csv"))
+    fig = study_figures.figure_triaxial_relaxation(run, q_max=7.5e6)
+    comments, rows = _written(tmp_path, "fig3_triaxial_relaxation", data, fig)
     assert float(rows[-1]["q_over_q_start"]) == pytest.approx(_q(86400.0) / 5.2e6)
+    assert float(rows[-1]["q_over_q_max"]) == pytest.approx(_q(86400.0) / 7.5e6)
     assert any("R^2" in c for c in comments)
     assert rows[0]["q_fit_Pa"] == ""  # no fit value at t = 0
     assert float(rows[3]["q_fit_Pa"]) == pytest.approx(_q(T_AGE[3]))
     assert float(rows[1]["lateral_stress_Pa"]) == pytest.approx(10e6)
-    assert os.path.isfile(tmp_path / "fig3_triaxial_relaxation.png")
+    # The figure: q [MPa] of the CSV's phases after t = 0, q(t = 0) as a level, the fit's slope
+    # in MPa per log cycle, q_max in the title.
+    (ax,) = fig.axes
+    assert ax.get_xscale() == "log" and ax.get_ylabel() == "deviator stress $q$ [MPa]"
+    assert_drawn(labelled(ax, "dynamic phases (end)"), _column(rows, "ageing_time_s", _later),
+                 _column(rows, "deviator_stress_Pa", _later) * MPA)
+    level = labelled(ax, "q at t = 0: 5.2 MPa")
+    assert list(level.get_ydata()) == [5.2e6 * MPA] * 2
+    assert "-0.25 MPa per log cycle" in labelled_like(ax, "fit: ").get_label()
+    assert "$q_{max}$ = 7.5 MPa" in ax.get_title()
 
 
-def test_figure_forces(tmp_path):
+def test_force_statistics(tmp_path):
     tri, oed = _triaxial_run(tmp_path), _oedometric_run(tmp_path)
-    res = rp.figure_forces([("triaxial relaxation", tri), ("oedometric relaxation", oed)],
-                           str(tmp_path), [])
+    relaxations = [("triaxial relaxation", tri), ("oedometric relaxation", oed)]
+    data = sa.force_statistics(relaxations)
+    res = data.numbers
     assert res["triaxial relaxation"]["std_Fn_N_first"] == pytest.approx(0.3)
     assert res["oedometric relaxation"]["std_Ft_N_last"] == pytest.approx(0.03 - 0.007)
-    _, rows = _read_csv(str(tmp_path / "fig4_force_statistics.csv"))
+    fig = study_figures.figure_force_statistics(relaxations)
+    _, rows = _written(tmp_path, "fig4_force_statistics", data, fig)
     assert len(rows) == 2 * len(T_AGE)
     assert {r["test"] for r in rows} == {"triaxial relaxation", "oedometric relaxation"}
-    assert os.path.isfile(tmp_path / "fig4_force_statistics.png")
+    # Each panel: one curve per test, the CSV's phases after t = 0, the t = 0 value in the
+    # legend.
+    ax_n, ax_t = fig.axes
+    for ax, col in ((ax_n, "std_Fn_N"), (ax_t, "std_Ft_N")):
+        assert len(legend_texts(ax)) == 2
+        for label, _ in relaxations:
+            def of_test(r, label=label):
+                return r["test"] == label and _later(r)
+            first = next(float(r[col]) for r in rows if r["test"] == label)
+            assert_drawn(labelled(ax, f"{label} (t = 0: {first:.3g} N)"),
+                         _column(rows, "ageing_time_s", of_test), _column(rows, col, of_test))
+    assert "|F_n|" in ax_n.get_ylabel() and "|F_t|" in ax_t.get_ylabel()
 
 
 def _phases(run, n_phases, cycles=3000, interval=250):
@@ -239,24 +313,34 @@ def _phases(run, n_phases, cycles=3000, interval=250):
     _write(os.path.join(run, "phases.csv"), rows)
 
 
-def test_figure_dynamic_phase(tmp_path):
+def test_dynamic_phase(tmp_path):
     run = _triaxial_run(tmp_path)
-    res = rp.figure_dynamic_phase(run, str(tmp_path), [])
+    res = sa.dynamic_phase(run).numbers
     assert "skipped" in res and "phases.csv" in res["skipped"]  # missing: skipped, no crash
-    assert not os.path.exists(tmp_path / "fig2_dynamic_phase4.png")
+    assert study_figures.figure_dynamic_phase(run) is None
     _phases(run, 3)
-    res = rp.figure_dynamic_phase(run, str(tmp_path), [])
+    res = sa.dynamic_phase(run).numbers
     assert "skipped" in res and "3 phase" in res["skipped"]
+    assert study_figures.figure_dynamic_phase(run) is None
     _phases(run, 6)
-    written = []
-    res = rp.figure_dynamic_phase(run, str(tmp_path), written)
+    data = sa.dynamic_phase(run)
+    res = data.numbers
     assert res["phase"] == 4 and res["ageing_time_s"] == pytest.approx(30.0)
     assert res["max_abs_confining_fluctuation"] == pytest.approx(0.03)
     assert res["volumetric_strain_end"] == pytest.approx(3e-5)
-    assert os.path.isfile(tmp_path / "fig2_dynamic_phase4.png")
-    _, rows = _read_csv(str(tmp_path / "fig2_dynamic_phase4.csv"))
+    fig = study_figures.figure_dynamic_phase(run)
+    _, rows = _written(tmp_path, "fig2_dynamic_phase4", data, fig)
     assert [int(r["cycle"]) for r in rows] == list(range(0, 3001, 250))
     assert float(rows[0]["confining_fluctuation"]) == pytest.approx(0.03)
+    # (a) the fluctuation and (b) the volumetric strain, in %, at the CSV's cycles.
+    ax_a, ax_b = fig.axes
+    cycles = _column(rows, "cycle")
+    (fluct,) = [ln for ln in ax_a.get_lines() if len(ln.get_xdata()) > 2]
+    assert_drawn(fluct, cycles, _column(rows, "confining_fluctuation") * 100.0)
+    (vol,) = [ln for ln in ax_b.get_lines() if len(ln.get_xdata()) > 2]
+    assert_drawn(vol, cycles, _column(rows, "volumetric_strain_phase") * 100.0)
+    assert "dynamic phase 4" in ax_a.get_title() and "30 s" in ax_a.get_title()
+    assert ax_b.get_xlabel() == "cycles within the dynamic phase"
 
 
 def test_run_step_skips_finished_runs_and_resumes_interrupted_ones(tmp_path):
@@ -350,13 +434,13 @@ def _reproduce_dir(out, seed, q_plateau, q_peak, q_ratio_1day=None, rotation="bl
 
 def test_shear_plateau_averages_the_shear_from_a_third_of_its_strain(tmp_path):
     d = _reproduce_dir(tmp_path / "a", 1, q_plateau=19e6, q_peak=21e6)
-    p = rp.shear_plateau(os.path.join(d, "triaxial_shear"))
+    p = sa.shear_plateau(os.path.join(d, "triaxial_shear"))
     assert p["plateau_rows"] == 200
     assert p["q_plateau_Pa"] == pytest.approx(19e6, rel=1e-12)
     assert p["q_plateau_std_Pa"] == pytest.approx(0.5e6, rel=1e-12)
     assert p["plateau_axial_strain"] == pytest.approx([0.2995 / 3, 0.2995])
     # A run without rows of a triaxial stage has no plateau.
-    assert math.isnan(rp.shear_plateau(str(tmp_path))["q_plateau_Pa"])
+    assert math.isnan(sa.shear_plateau(str(tmp_path))["q_plateau_Pa"])
 
 
 def test_summarize_samples_gives_mean_spread_and_the_gap_to_the_study(tmp_path):
@@ -364,7 +448,7 @@ def test_summarize_samples_gives_mean_spread_and_the_gap_to_the_study(tmp_path):
             _reproduce_dir(tmp_path / "s2", 2, 20e6, 22e6, q_ratio_1day=0.4,
                            sigma_v_ratio_1day=0.95),
             _reproduce_dir(tmp_path / "s3", 3, 21e6, 23e6, sigma_v_ratio_1day=0.93)]
-    res = rp.summarize_samples(dirs)
+    res = summary.summarize_samples(dirs)
     q = res["stats"]["q_max_Pa"]
     assert q["n"] == 3 and q["mean"] == pytest.approx(22e6)
     assert q["std"] == pytest.approx(1e6) and q["sem"] == pytest.approx(1e6 / math.sqrt(3))
@@ -392,10 +476,10 @@ def test_summarize_samples_refuses_unfinished_shears_and_other_recipes(tmp_path)
     a = _reproduce_dir(tmp_path / "a", 1, 19e6, 21e6)
     os.makedirs(tmp_path / "empty")
     with pytest.raises(ValueError, match="no finished triaxial shear"):
-        rp.summarize_samples([a, str(tmp_path / "empty")])
+        summary.summarize_samples([a, str(tmp_path / "empty")])
     free = _reproduce_dir(tmp_path / "free", 2, 9e6, 10e6, rotation="free")
     with pytest.raises(ValueError, match="other settings"):
-        rp.summarize_samples([a, free])
+        summary.summarize_samples([a, free])
     assert rp.main(["--summarize", a, free]) == 2
 
 
@@ -407,14 +491,14 @@ def test_against_pairs_two_recipes_by_sample_and_averages_the_differences(tmp_pa
     # Run with --sample on b2's prepared file.
     v2 = _reproduce_dir(tmp_path / "v2", None, 20.0e6, 21.6e6, d0=1.07e-3,
                         sample_file=tmp_path / "b2" / "sample" / "sample.txt")
-    res = rp.compare_recipes([v2], [b1, b2])
+    res = summary.compare_recipes([v2], [b1, b2])
     assert res["changed"] == {"crushing.d0": [None, 1.07e-3]}
     assert [p["base_dir"] for p in res["pairs"]] == [b2]
     assert res["pairs"][0]["delta_q_max_Pa"] == pytest.approx(0.2e6)
     # One run on b1's file, whichever order the base directories come in.
     v1 = _reproduce_dir(tmp_path / "v1", None, 19.9e6, 21.3e6, d0=1.07e-3,
                         sample_file=tmp_path / "b1" / "sample" / "sample.txt")
-    res = rp.compare_recipes([v1, v2], [b2, b1])
+    res = summary.compare_recipes([v1, v2], [b2, b1])
     assert [p["base_dir"] for p in res["pairs"]] == [b1, b2]
     d = res["stats"]["delta_q_max_Pa"]
     assert d["n"] == 2 and d["mean"] == pytest.approx(0.25e6)
@@ -426,13 +510,13 @@ def test_against_pairs_two_recipes_by_sample_and_averages_the_differences(tmp_pa
     # By seed: a variant that prepared its own sample of seed 2 (the same packing) pairs with
     # b2, beside one on b1's file.
     own = _reproduce_dir(tmp_path / "own2", 2, 20.1e6, 21.9e6, d0=1.07e-3)
-    res = rp.compare_recipes([v1, own], [b1, b2])
+    res = summary.compare_recipes([v1, own], [b1, b2])
     assert [p["base_dir"] for p in res["pairs"]] == [b1, b2]
     assert res["pairs"][1]["delta_q_max_Pa"] == pytest.approx(0.5e6)
     # Another sample recipe: a seed is another packing, so only files pair.
     other = _reproduce_dir(tmp_path / "other2", 2, 20.1e6, 21.9e6, d0=1.07e-3, void_ratio=0.7)
     with pytest.raises(ValueError, match="no directory of --against ran on its sample"):
-        rp.compare_recipes([other], [b1, b2])
+        summary.compare_recipes([other], [b1, b2])
     # The command writes comparison.json and comparison.md.
     out = tmp_path / "cmp"
     assert rp.main(["--summarize", v1, v2, "--against", b1, b2, "--out", str(out)]) == 0
@@ -446,15 +530,15 @@ def test_against_refuses_unpaired_samples_and_identical_recipes(tmp_path, capsys
     b2 = _reproduce_dir(tmp_path / "b2", 2, 19.9e6, 21.4e6)
     v3 = _reproduce_dir(tmp_path / "v3", 3, 20.0e6, 21.6e6, d0=1.07e-3)
     with pytest.raises(ValueError, match="no directory of --against ran on its sample"):
-        rp.compare_recipes([v3], [b1, b2])
+        summary.compare_recipes([v3], [b1, b2])
     with pytest.raises(ValueError, match="same settings"):
-        rp.compare_recipes([b1], [b2])
+        summary.compare_recipes([b1], [b2])
     twin = _reproduce_dir(tmp_path / "twin", 1, 19.0e6, 21.0e6)
     with pytest.raises(ValueError, match="both ran on"):
-        rp.compare_recipes([v3], [b1, twin])
+        summary.compare_recipes([v3], [b1, twin])
     loose = _reproduce_dir(tmp_path / "loose", 5, 19.0e6, 21.0e6, void_ratio=0.7)
     with pytest.raises(ValueError, match="prepares its sample otherwise"):
-        rp.summarize_samples([b1, loose])
+        summary.summarize_samples([b1, loose])
     assert rp.main(["--summarize", v3, "--against", b1, b2]) == 2
     assert "v3" in capsys.readouterr().err
     with pytest.raises(SystemExit):
@@ -499,17 +583,17 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     res = calls[1]
     assert "oedometric_relaxation: running" not in res.stdout
     assert "q_max" in res.stdout
-    for run in rp.RUNS:
+    for run in study.RUNS:
         assert os.path.isfile(out / run / "summary.json"), run
-    phases_written = os.path.isfile(out / "triaxial_relaxation" / "phases.csv")
-    figures = ["fig1_oedometric_relaxation", "fig3_triaxial_relaxation", "fig4_force_statistics"]
-    if phases_written:
-        figures.append("fig2_dynamic_phase4")
-    else:
-        assert not os.path.exists(out / "fig2_dynamic_phase4.png")
+    # The quick settings record phases.csv every 500 steps, and the triaxial relaxation has
+    # more than four dynamic phases: all four figures, each with its CSV.
+    assert os.path.isfile(out / "triaxial_relaxation" / "phases.csv")
+    figures = ["fig1_oedometric_relaxation", "fig2_dynamic_phase4", "fig3_triaxial_relaxation",
+               "fig4_force_statistics"]
+    csv_rows = {}
     for name in figures:
-        assert os.path.getsize(out / f"{name}.png") > 1000, name
-        assert os.path.getsize(out / f"{name}.csv") > 100, name
+        assert_png_shows_a_drawing(str(out / f"{name}.png"))
+        csv_rows[name] = read_csv_with_comments(str(out / f"{name}.csv"))[1]
     with open(out / "reproduce.json") as f:
         rj = json.load(f)
     oe, tri = rj["oedometric_relaxation"], rj["triaxial_relaxation"]
@@ -530,15 +614,27 @@ def test_reproduce_quick_end_to_end(quick_cpu):
         assert r["dynamic_phases"] >= 2 and r["grains_end"] > 0 and _finite(r["wall_s"])
         # The ageing broke grains by crack growth (the point of an age stage).
         assert r["breakages_crack"] > 0 and r["threads"] == 1
-    if phases_written:
-        assert "skipped" not in rj["dynamic_phase"], rj["dynamic_phase"]
-        assert _finite(rj["dynamic_phase"]["max_abs_confining_fluctuation"])
+    assert rj["figures"] == [f"{name}.png" for name in figures]
+    # One CSV row per dynamic phase; Figure 2: phase 4 from cycle 0 to min_cycles, one row per
+    # record_interval.
+    phases = {name: rj["runs"][name]["dynamic_phases"]
+              for name in ("oedometric_relaxation", "triaxial_relaxation")}
+    assert len(csv_rows["fig1_oedometric_relaxation"]) == phases["oedometric_relaxation"]
+    assert len(csv_rows["fig3_triaxial_relaxation"]) == phases["triaxial_relaxation"] >= 4
+    assert len(csv_rows["fig4_force_statistics"]) == sum(phases.values())
+    quick = study.settings(quick=True)
+    assert [int(r["cycle"]) for r in csv_rows["fig2_dynamic_phase4"]] == list(
+        range(0, quick["age"]["min_cycles"] + 1, quick["record_interval"]))
+    dyn = rj["dynamic_phase"]
+    assert dyn["phase"] == 4 and dyn["cycles"] == quick["age"]["min_cycles"]
+    assert _finite(dyn["max_abs_confining_fluctuation"]) and _finite(dyn["volumetric_strain_end"])
+    assert tri["q_max_Pa"] == rj["runs"]["triaxial_shear"]["q_max_Pa"]
     # A second call finds every run finished: nothing is run again.
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
                           str(out), "--threads", "1"], capture_output=True, text=True,
                          timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
-    assert res.stdout.count("not run again") == len(rp.RUNS), res.stdout
+    assert res.stdout.count("not run again") == len(study.RUNS), res.stdout
     with open(out / "reproduce.json") as f:
         again = json.load(f)
     assert again["triaxial_relaxation"]["q_max_Pa"] == rj["triaxial_relaxation"]["q_max_Pa"]
@@ -567,9 +663,9 @@ def test_the_triaxial_relaxation_branches_from_the_shear_with_the_same_results(q
         stop_q = json.load(f)["triaxial_relaxation"]["stop_q_Pa"]
     unbranched = tmp_path / "unbranched"
     record = {}
-    installed = pytest.importorskip("crushdem.reproduce")  # runs need the compiled engine
+    installed = pytest.importorskip("crushdem.study_pipeline")  # runs need the compiled engine
     installed.run_triaxial_relaxation(cfg, str(unbranched), str(out / "sample" / "sample.txt"),
-                               stop_q, lambda _msg: None, record)
+                                      stop_q, lambda _msg: None, record)
     with open(unbranched / "summary.json") as f:
         assert "branched_from" not in json.load(f)
     for name in ("timeseries.csv", "events.csv", "breakage.csv", "phases.csv"):
@@ -594,13 +690,13 @@ def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
         cpu = json.load(f)
     with open(out / "reproduce.json") as f:
         emu = json.load(f)
-    for run in rp.RUNS[1:]:
+    for run in study.RUNS[1:]:
         with open(out / run / "timing.json") as f:
             assert json.load(f)["backend"] == "emulated", run
         assert emu["runs"][run]["grains_end"] > 0
     with open(out / "settings.json") as f:
         assert json.load(f)["backend"] == "emulated"
-    tol = rp.BACKEND_TOLERANCE
+    tol = analysis.BACKEND_TOLERANCE
     oc, oe = cpu["oedometric_relaxation"], emu["oedometric_relaxation"]
     assert oe["sigma_v_4s_Pa"] == pytest.approx(oc["sigma_v_4s_Pa"],
                                                 rel=tol["sigma_v_4s_relative"])
@@ -620,30 +716,30 @@ def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
 
 
 def test_set_overrides_change_settings_and_name_what_is_wrong():
-    cfg = rp.apply_overrides(rp.settings(quick=True),
-                                    ["contact.rotation=blocked", "crushing.r_prime=\"2R_star\"",
-                                     "age.n_break=5", "contact.rolling_friction=0"])
+    cfg = study.apply_overrides(study.settings(quick=True),
+                                ["contact.rotation=blocked", "crushing.r_prime=\"2R_star\"",
+                                 "age.n_break=5", "contact.rolling_friction=0"])
     assert cfg["contact"]["rotation"] == "blocked"  # a bare word is a string
     assert cfg["crushing"]["r_prime"] == "2R_star"
     assert cfg["age"]["n_break"] == 5 and isinstance(cfg["age"]["n_break"], int)
     assert cfg["contact"]["rolling_friction"] == 0
     with pytest.raises(ValueError, match="expected SECTION.KEY=VALUE"):
-        rp.apply_overrides(rp.settings(quick=True), ["rotation=blocked"])
+        study.apply_overrides(study.settings(quick=True), ["rotation=blocked"])
     with pytest.raises(ValueError, match="unknown section 'walls'"):
-        rp.apply_overrides(rp.settings(quick=True), ["walls.x=1"])
+        study.apply_overrides(study.settings(quick=True), ["walls.x=1"])
     with pytest.raises(ValueError, match="unknown key 'cycles' in 'age'"):
-        rp.apply_overrides(rp.settings(quick=True), ["age.cycles=1"])
+        study.apply_overrides(study.settings(quick=True), ["age.cycles=1"])
     # another sample of the same recipe: its seed, and nothing the recipe lacks
-    assert rp.apply_overrides(rp.settings(quick=False), ["sample.seed=2"])["sample"]["seed"] == 2
+    assert study.apply_overrides(study.settings(quick=False), ["sample.seed=2"])["sample"]["seed"] == 2
     with pytest.raises(ValueError, match="unknown key 'seeds' in 'sample'"):
-        rp.apply_overrides(rp.settings(quick=False), ["sample.seeds=2"])
+        study.apply_overrides(study.settings(quick=False), ["sample.seeds=2"])
 
 
 def test_sample_settings_and_a_sample_file_exclude_each_other(tmp_path):
     sample = tmp_path / "sample.txt"
     sample.write_text("")
     with pytest.raises(ValueError, match="--set sample.seed=2: the sample is read from --sample"):
-        rp.reproduce(str(tmp_path / "out"), quick=True, sample=str(sample),
+        pipeline.reproduce(str(tmp_path / "out"), quick=True, sample=str(sample),
                      overrides=["sample.seed=2"], log=lambda m: None)
     assert not (tmp_path / "out").exists()
 
@@ -652,24 +748,24 @@ def test_a_directory_of_other_settings_is_refused_naming_what_differs(tmp_path):
     out = tmp_path / "out"
     os.makedirs(out)
     with open(out / "settings.json", "w") as f:
-        json.dump(rp.settings(quick=True, parameters="blocked_d0_1mm"), f)
+        json.dump(study.settings(quick=True, parameters="blocked_d0_1mm"), f)
     with pytest.raises(ValueError, match="other settings") as err:
-        rp.reproduce(str(out), quick=True, log=lambda m: None)
+        pipeline.reproduce(str(out), quick=True, log=lambda m: None)
     msg = str(err.value)
     assert "crushing.d0 = 0.001 there, 0.00107 in this call" in msg
     assert 'parameters = "blocked_d0_1mm" there, (unset) in this call' in msg
     assert "mode" not in msg  # only what differs
     # The same settings again: accepted up to the run (here: the check only).
-    assert rp.apply_overrides(rp.settings(quick=True), ["crushing.d0=1e-3"])["crushing"] == \
-        rp.settings(quick=True, parameters="blocked_d0_1mm")["crushing"]
+    assert study.apply_overrides(study.settings(quick=True), ["crushing.d0=1e-3"])["crushing"] == \
+        study.settings(quick=True, parameters="blocked_d0_1mm")["crushing"]
 
 
 def test_parameter_sets_are_table1_plus_the_decision_study_choice():
-    chosen = rp.settings(quick=False)
-    table1 = rp.settings(quick=False, parameters="table1")
+    chosen = study.settings(quick=False)
+    table1 = study.settings(quick=False, parameters="table1")
     assert chosen["contact"]["rotation"] == "blocked" and chosen["crushing"]["d0"] == 1.07e-3
     # The set before d0 = 1.07 mm, kept by name: only d0 differs.
-    before = rp.settings(quick=False, parameters="blocked_d0_1mm")
+    before = study.settings(quick=False, parameters="blocked_d0_1mm")
     assert before["crushing"] == {**chosen["crushing"], "d0": 1e-3}
     assert before["contact"] == chosen["contact"]
     # The earlier defaults: the engine's free rotation and d0 = d50 (no key), recorded by name.
@@ -680,7 +776,7 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
         rest = {k: v for k, v in chosen[section].items() if k not in ("rotation", "d0")}
         assert rest == table1[section]
     with pytest.raises(ValueError, match="expected one of crushdem, blocked_d0_1mm, table1"):
-        rp.settings(quick=True, parameters="pfc")
+        study.settings(quick=True, parameters="pfc")
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",
                           "--parameters", "pfc"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--parameters" in res.stderr
@@ -688,7 +784,7 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
 
 def test_only_names_what_is_wrong(tmp_path):
     with pytest.raises(ValueError, match="expected one or more of oedometric, triaxial"):
-        rp.reproduce(str(tmp_path / "x"), quick=True, tests=["shear"])
+        pipeline.reproduce(str(tmp_path / "x"), quick=True, tests=["shear"])
 
 
 def test_a_run_another_process_writes_is_neither_resumed_nor_removed(tmp_path):

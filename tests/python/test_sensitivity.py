@@ -11,6 +11,11 @@ import pytest
 from crushdem import _core, sensitivity
 
 
+def _markdown(out):
+    with open(os.path.join(out, "qmax_sensitivity.md")) as f:
+        return f.read()
+
+
 def test_each_variant_changes_one_choice_only():
     base = sensitivity.settings()
     assert base["crushing"]["crack_growth"] is False
@@ -78,7 +83,7 @@ def test_table_reads_finished_runs_and_names_the_closest(tmp_path):
         got = list(csv.DictReader(f))
     assert [r["variant"] for r in got] == names
     assert float(got[2]["q_max_MPa"]) == pytest.approx(19.0)
-    md = open(os.path.join(out, "qmax_sensitivity.md")).read()
+    md = _markdown(out)
     assert "Closest to the study: rolling_0.3 (19.00 MPa" in md
     assert "| d0_2mm | (not finished)" in md
 
@@ -98,6 +103,14 @@ def test_a_combination_makes_every_change_of_its_parts():
         sensitivity.variant_settings(base, "d0_2mm+d0_2mm")
 
 
+def test_rotation_variants_cannot_be_combined_with_each_other():
+    base = sensitivity.settings()
+    s = sensitivity.variant_settings(base, "no_crushing+blocked")
+    assert s["contact"]["rotation"] == "blocked" and s["crushing"]["enabled"] is False
+    with pytest.raises(ValueError, match="set contact.rotation differently"):
+        sensitivity.variant_settings(base, "blocked+rolling_0.3")
+
+
 def test_the_table_lists_every_variant_run_in_the_directory(tmp_path):
     out = str(tmp_path)
     _fake_run(os.path.join(out, "base"), 8.5e6, breakages=100)
@@ -107,8 +120,7 @@ def test_the_table_lists_every_variant_run_in_the_directory(tmp_path):
     rows = sensitivity.table(out, ["f_uniform"], 10e6)
     assert [r["variant"] for r in rows] == ["base", "rolling_0.3+d0_2mm", "f_uniform"]
     assert rows[1]["q_max_MPa"] == pytest.approx(13.0)
-    assert "Closest to the study: rolling_0.3+d0_2mm (13.00 MPa" in open(
-        os.path.join(out, "qmax_sensitivity.md")).read()
+    assert "Closest to the study: rolling_0.3+d0_2mm (13.00 MPa" in _markdown(out)
 
 
 def test_a_directory_is_not_shared_between_samples(tmp_path):
@@ -145,17 +157,9 @@ def test_the_table_reads_the_shear_end_deleted_volume_and_loaded_share(tmp_path)
     assert row["eps_v_shear"] == pytest.approx(-0.006)
     assert row["removed_volume_share"] == pytest.approx(2.5e-12 / solids)
     assert row["loaded_share_072_isotropic"] == pytest.approx(0.031)
-    md = open(os.path.join(out, "qmax_sensitivity.md")).read()
+    md = _markdown(out)
     assert "| 18.00 | -0.60 % | 7 |" in md
     assert "| 3.10 % |" in md
-
-
-def test_rotation_variants_cannot_be_combined_with_each_other():
-    base = sensitivity.settings()
-    s = sensitivity.variant_settings(base, "no_crushing+blocked")
-    assert s["contact"]["rotation"] == "blocked" and s["crushing"]["enabled"] is False
-    with pytest.raises(ValueError, match="set contact.rotation differently"):
-        sensitivity.variant_settings(base, "blocked+rolling_0.3")
 
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")

@@ -24,51 +24,55 @@ REPRODUCE = os.environ.get("CRUSHDEM_VALIDATION_REPRODUCE")
 pytestmark = pytest.mark.skipif(not DIR, reason="opt-in: set CRUSHDEM_VALIDATION_DIR")
 
 
-def _sample(rp):
+def _sample(pipeline):
     given = os.environ.get("CRUSHDEM_VALIDATION_SAMPLE")
     if given:
         return os.path.abspath(given)
     if REPRODUCE:
         return os.path.join(os.path.abspath(REPRODUCE), "sample", "sample.txt")
-    return rp.run_sample(rp.settings(quick=False), os.path.join(DIR, "sample"), print, {})
+    from crushdem.study import settings
+
+    return pipeline.run_sample(settings(quick=False), os.path.join(DIR, "sample"), print, {})
 
 
-def _reproduce_settings(rp):
+def _reproduce_settings():
     """The settings of the reproduce directory (its own parameter set), or reproduce's."""
     if REPRODUCE:
         with open(os.path.join(REPRODUCE, "settings.json")) as f:
             cfg = json.load(f)
         assert cfg["mode"] == "study", f"{REPRODUCE}: a --quick reproduce"
         return cfg
-    return rp.settings(quick=False)
+    from crushdem.study import settings
+
+    return settings(quick=False)
 
 
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
     from crushdem import lab
-    from crushdem import reproduce as rp
-    from crushdem.analysis import age_rows, vertical_stress
+    from crushdem import study_pipeline as pipeline
+    from crushdem.analysis import N_BREAK_TOLERANCE, age_rows, compare_relaxation, vertical_stress
     from crushdem.rundir import read_events
     from crushdem.runs import run_step
 
     os.makedirs(DIR, exist_ok=True)
-    sample = _sample(rp)
-    cfg = _reproduce_settings(rp)
+    sample = _sample(pipeline)
+    cfg = _reproduce_settings()
     runs = {30: os.path.join(REPRODUCE, "oedometric_relaxation") if REPRODUCE
             else os.path.join(DIR, "oedometric_relaxation_nbreak30"),
             10: os.path.join(DIR, "oedometric_relaxation_nbreak10")}
     cfg30 = json.loads(json.dumps(cfg))
     cfg30["age"]["n_break"] = 30
-    rp.run_oedometric_relaxation(cfg30, runs[30], sample, print, {}, name="n_break 30")
+    pipeline.run_oedometric_relaxation(cfg30, runs[30], sample, print, {}, name="n_break 30")
     # N_break = 10: the same loading, so a branch of the N_break = 30 run at its ageing.
     oe = cfg["oedometric"]
     age = dict(cfg["age"], n_break=10)
     run_step("n_break 10", runs[10],
              lambda: lab.oedometric_relaxation(
                  runs[10], sample, stress=oe["stress"], strain_rate=oe["strain_rate"],
-                 crushing=dict(cfg["crushing"]), age_stage=rp.age_stage_keys(cfg), **age,
+                 crushing=dict(cfg["crushing"]), age_stage=pipeline.age_stage_keys(cfg), **age,
                  material=cfg["material"], contact=cfg["contact"], output=cfg["output"],
                  branch_from=runs[30]),
-             print, {}, rp.resumer(rp.backend_of(cfg)))
+             print, {}, pipeline.resumer(pipeline.backend_of(cfg)))
     curves = {}
     for n_break, out in runs.items():
         ev = read_events(out)
@@ -76,7 +80,7 @@ def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
         curves[n_break] = (ev["ageing_time_s"][idx], vertical_stress(ev)[idx])
     # Identical up to the first jump: the same state at t = 0.
     assert curves[10][1][0] == curves[30][1][0]
-    cmp = rp.compare_relaxation(*curves[10], *curves[30])
+    cmp = compare_relaxation(*curves[10], *curves[30])
     print(f"N_break 10 against 30: {cmp}")
     assert cmp["t_to_s"] == pytest.approx(86400.0)
-    assert cmp["max_abs_difference"] <= rp.N_BREAK_TOLERANCE, cmp
+    assert cmp["max_abs_difference"] <= N_BREAK_TOLERANCE, cmp
