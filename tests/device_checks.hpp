@@ -437,6 +437,86 @@ inline std::vector<Check> inspection(const ApiFactory& api) {
 }
 
 /// Every check on the device `api` makes.
+/// h) Bodies beyond the box: grains in a chamber whose cylinder is servo-controlled by its radius,
+/// a pile with a conical tip driven into them at a prescribed velocity, and a platen servo-
+/// controlled from above. The device follows the CPU, as the dense sample does (positions and
+/// the bodies' degrees of freedom to 1e-6 of the mean radius), rebuilds when the CPU does, and
+/// repeats itself bit for bit.
+inline std::vector<Check> bodies(const ApiFactory& api) {
+  const double L = 1.25e-3, c = 0.5 * L;
+  SimulationConfig cfg = box_config(-L, 2.0 * L, NormalLaw::Rough);
+  cfg.damping.local_alpha = 0.7;
+  cfg.contact.wall_friction = 0.2;
+  BodyConfig chamber;
+  chamber.name = "chamber";
+  chamber.kind = BodyKind::CylinderInside;
+  chamber.origin = {c, c, -L};
+  chamber.radius = 0.52 * L;
+  chamber.length = 3.0 * L;
+  chamber.motion = BodyMotion::Dilate;
+  chamber.mode = WallMode::Servo;
+  chamber.target_stress = 2e5;
+  chamber.max_speed = 10.0;
+  BodyConfig pile;
+  pile.name = "pile";
+  pile.kind = BodyKind::Pile;
+  pile.origin = {c, c, 0.64 * L};
+  pile.radius = 0.12e-3;
+  pile.length = 2.0 * L;
+  pile.friction = 0.3;
+  pile.mode = WallMode::Velocity;
+  pile.velocity = 10.0;
+  BodyConfig platen;
+  platen.name = "platen";
+  platen.kind = BodyKind::Disk;
+  platen.origin = {c, c, 0.62 * L};
+  platen.radius = 0.6 * L;
+  platen.mode = WallMode::Servo;
+  platen.target_stress = 2e5;
+  platen.max_speed = 10.0;
+  cfg.bodies = {chamber, pile, platen};
+  Simulation sample(cfg);
+  RandomStream rng(5, 0xB0D);
+  std::vector<double> radii(100);
+  for (double& r : radii) r = 0.5 * rng.uniform(0.1e-3, 0.15e-3);
+  const double lo = 0.2 * L, hi = 0.8 * L;
+  for (const PlacedSphere& p :
+       random_sequential_addition(radii, {lo, hi, lo, hi, 0.0, 0.6 * L}, 4)) {
+    sample.add_particle(p.position, p.radius);
+  }
+  sample.set_dt(0.5 * sample.automatic_dt());
+  const std::uint64_t steps = 4000;
+  Simulation cpu = sample, d1 = sample, d2 = sample;
+  const std::size_t builds0 = sample.neighbors().builds();
+  cpu.step(steps);
+  run_device(d1, steps, api);
+  run_device(d2, steps, api);
+  const double r = mean_radius(sample);
+  const double dev = max_position_difference(cpu, d1) / r;
+  double dbody = 0.0;
+  for (int k = 0; k < cpu.walls().size(); ++k) {
+    dbody = std::max(dbody, std::fabs(cpu.walls().position(k) - d1.walls().position(k)) / r);
+  }
+  int touching = 0;
+  for (const ContactRecord& rec : cpu.contacts()) touching += rec.is_wall && rec.id_j >= kNumWalls;
+  const std::size_t bc = cpu.neighbors().builds() - builds0, bd = d1.neighbors().builds() - builds0;
+  const int ch = kNumWalls, pl = kNumWalls + 1;
+  bool same = identical(d1, d2);
+  for (int k = kNumWalls; k < d1.walls().size(); ++k) {
+    same = same && d1.walls().state(k).position == d2.walls().state(k).position;
+  }
+  return {{dev < 1e-6 && dbody < 1e-6 && touching > 10 && cpu.walls().position(pl) > 0.0 &&
+               cpu.walls().position(ch) < 0.0,
+           "bodies: the device follows the CPU",
+           fmt("max |dx|/r_mean = %.3g, bodies %.3g (tolerance 1e-6); %.0f grain-body contacts; "
+               "the chamber's radius changed by %.3g r_mean",
+               dev, dbody, touching, cpu.walls().position(ch) / r)},
+          {bc == bd && bd >= 1, "bodies: the same neighbour rebuilds",
+           fmt("CPU %.0f, device %.0f rebuilds", static_cast<double>(bc), static_cast<double>(bd))},
+          {same, "bodies: two device runs are bit-identical",
+           "positions, velocities, forces, walls, bodies and clock"}};
+}
+
 inline std::vector<Check> all(const ApiFactory& api) {
   std::vector<Check> out;
   const auto add = [&](std::vector<Check> c) { out.insert(out.end(), c.begin(), c.end()); };
@@ -457,6 +537,7 @@ inline std::vector<Check> all(const ApiFactory& api) {
   add(crushing(fixed, api));
   add(nan_rule(fixed, api));
   add(inspection(api));
+  add(bodies(api));
   return out;
 }
 

@@ -39,6 +39,10 @@ TEST(DeviceStep, HistoryGoesThroughRebuilds) {
   expect_all(device_checks::rebuild_history(kEmulated, 0.2));
 }
 
+TEST(DeviceStep, BodiesOfAnyShapeFollowTheCpu) {
+  expect_all(device_checks::bodies(kEmulated));
+}
+
 TEST(DeviceStep, DenseSampleAgreesWithTheCpuAndRepeats) {
   expect_all(
       device_checks::compare_runs("fixed step", fixed_step_sample(), 2000, kEmulated, false));
