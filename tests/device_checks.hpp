@@ -437,16 +437,17 @@ inline std::vector<Check> inspection(const ApiFactory& api) {
 }
 
 /// Every check on the device `api` makes.
-/// h) Bodies beyond the box: grains in a chamber whose cylinder is servo-controlled by its radius,
-/// a pile with a conical tip driven into them at a prescribed velocity, and a platen servo-
-/// controlled from above. The device follows the CPU, as the dense sample does (positions and
-/// the bodies' degrees of freedom to 1e-6 of the mean radius), rebuilds when the CPU does, and
-/// repeats itself bit for bit.
+/// h) Bodies beyond the box and gravity: grains in a chamber whose cylinder is servo-controlled
+/// by its radius, a pile with a conical tip driven into them at a prescribed velocity, and a
+/// platen servo-controlled from above. The device follows the CPU, as the dense sample does
+/// (positions and the bodies' degrees of freedom to 1e-6 of the mean radius), rebuilds when the CPU
+/// does, and repeats itself bit for bit.
 inline std::vector<Check> bodies(const ApiFactory& api) {
   const double L = 1.25e-3, c = 0.5 * L;
   SimulationConfig cfg = box_config(-L, 2.0 * L, NormalLaw::Rough);
   cfg.damping.local_alpha = 0.7;
   cfg.contact.wall_friction = 0.2;
+  cfg.gravity.g = {0.0, 0.0, -9.81e3};  // strong enough to matter in 4,000 steps
   BodyConfig chamber;
   chamber.name = "chamber";
   chamber.kind = BodyKind::CylinderInside;

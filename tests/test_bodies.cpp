@@ -223,3 +223,37 @@ TEST(Bodies, ABoxRunWritesNoBodyKeysAndABodyIsWrittenAndReadBack) {
 
 }  // namespace
 }  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+// Gravity: a grain falls as z0 + g t^2 / 2 (velocity Verlet is exact for a constant force), and
+// one at rest on the floor presses on it with its weight.
+TEST(Gravity, AGrainFallsFreelyAndRestsOnTheFloorWithItsWeight) {
+  SimulationConfig cfg = testing::box_config(-1e-3, 1e-3);
+  cfg.gravity.g = {0.0, 0.0, -9.81};
+  Simulation fall(cfg);
+  const double r = 0.1e-3, z0 = 0.5e-3;
+  fall.add_particle({0.0, 0.0, z0}, r);
+  fall.set_dt(1e-6);
+  fall.step(300);  // 0.3 ms: falls 0.44 um, far from the floor
+  const double t = fall.time();
+  EXPECT_NEAR(fall.particles().z[0], z0 - 0.5 * 9.81 * t * t, 1e-15);
+  EXPECT_NEAR(fall.particles().vz[0], -9.81 * t, 1e-12);
+  EXPECT_EQ(fall.particles().x[0], 0.0);
+
+  cfg.damping.local_alpha = 0.7;
+  Simulation rest(cfg);
+  rest.add_particle({0.0, 0.0, -1e-3 + r}, r);
+  rest.set_dt(2e-8);
+  rest.step(300000);
+  const double weight = rest.particles().mass[0] * 9.81;
+  EXPECT_NEAR(rest.walls().state(4).normal_force / weight, 1.0, 1e-6);
+  EXPECT_NEAR(rest.resultant_force(2)[0] / weight, 0.0, 1e-6);  // in equilibrium
+  // Written to config.toml only when on.
+  EXPECT_EQ(to_toml(testing::box_config(-1e-3, 1e-3)).count("gravity"), 0u);
+  EXPECT_EQ(to_toml(cfg).count("gravity"), 1u);
+}
+
+}  // namespace
+}  // namespace crushdem

@@ -225,6 +225,8 @@ struct View {
   unsigned grain_capacity, entry_capacity, wall_entry_capacity;
   unsigned bodies;  // the box's six walls and the bodies beyond
   double alpha, skin;
+  Vec3 gravity;  // the weight's acceleration; zero: none (integrate/integrator.hpp)
+  bool has_gravity;
   WallCfgDev wcfg[kMaxDeviceBodies];
   ContactParams cp;
 };
@@ -471,6 +473,7 @@ CD_HD inline void gather_item(const View& v, Index j) {
     F += Vec3{v.wfx[e], v.wfy[e], v.wfz[e]};
     T += Vec3{v.wtx[e], v.wty[e], v.wtz[e]};
   }
+  if (v.has_gravity) F += v.mass[j] * v.gravity;  // after the contacts, as the CPU adds it
   if (v.LS) load_item(v, j);
   v.fux[j] = F.x;
   v.fuy[j] = F.y;

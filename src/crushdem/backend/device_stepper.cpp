@@ -509,6 +509,8 @@ struct DeviceStepper::Impl {
     u.wall_entry_capacity = static_cast<unsigned>(room[2]);
     u.alpha = sim.config().damping.local_alpha;
     u.skin = sim.skin();
+    u.gravity = sim.config().gravity.g;
+    u.has_gravity = sim.config().gravity.on();
     u.bodies = static_cast<unsigned>(sim.walls().size());
     for (int k = 0; k < sim.walls().size(); ++k) {
       const WallConfig& w = sim.walls().config(k);

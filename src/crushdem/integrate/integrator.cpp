@@ -94,7 +94,7 @@ struct KickDrift {
 template <bool kDamp, bool kKick, bool kDrift>
 DriftMaxima gather_grains(ParticleStore& p, const NeighborList& nl, CpuPairLoop& loop,
                           const WallContacts& wc, double h, double spin_scale, double alpha,
-                          std::vector<double>& fu_x, std::vector<double>& fu_y,
+                          Vec3 gravity, std::vector<double>& fu_x, std::vector<double>& fu_y,
                           std::vector<double>& fu_z) {
   static_assert(kKick || !kDrift, "the next step's kick follows this one's");
   const std::size_t N = p.size();
@@ -119,6 +119,7 @@ DriftMaxima gather_grains(ParticleStore& p, const NeighborList& nl, CpuPairLoop&
   double* const pty = p.ty.data();
   double* const ptz = p.tz.data();
   const std::uint32_t* const wall_first = wc.offsets.data();
+  const bool has_gravity = gravity.x != 0.0 || gravity.y != 0.0 || gravity.z != 0.0;
   double m2 = 0.0, step2 = 0.0;
 #pragma omp parallel reduction(max : m2, step2) if (worth_threading(N))
   {
@@ -137,6 +138,16 @@ DriftMaxima gather_grains(ParticleStore& p, const NeighborList& nl, CpuPairLoop&
       sum[3] += wc.tx[e];
       sum[4] += wc.ty[e];
       sum[5] += wc.tz[e];
+    }
+    // The weight after the contacts (as the device adds it); without gravity not at all, so
+    // that no zero changes its sign.
+    if (has_gravity) {
+      for (std::size_t j = share.first; j < share.last; ++j) {
+        double* const sum = PF + 8 * j;
+        sum[0] += p.mass[j] * gravity.x;
+        sum[1] += p.mass[j] * gravity.y;
+        sum[2] += p.mass[j] * gravity.z;
+      }
     }
 #pragma omp simd reduction(max : m2, step2)
     for (std::size_t j = share.first; j < share.last; ++j) {
@@ -184,7 +195,7 @@ DriftMaxima kick_drift(ParticleStore& p, const NeighborList& nl, CpuPairLoop& lo
 
 DriftMaxima gather_and_damp(ParticleStore& p, const NeighborList& nl, CpuPairLoop& loop,
                             const WallContacts& wc, double h, double spin_scale, double alpha,
-                            bool kick, bool drift_next, std::vector<double>& fu_x,
+                            Vec3 gravity, bool kick, bool drift_next, std::vector<double>& fu_x,
                             std::vector<double>& fu_y, std::vector<double>& fu_z) {
   const std::size_t N = p.size();
   fu_x.resize(N);
@@ -195,8 +206,8 @@ DriftMaxima gather_and_damp(ParticleStore& p, const NeighborList& nl, CpuPairLoo
   // The pass with the template flags given as std::bool_constant tags.
   const auto gather = [&](auto damp_on, auto kick_on, auto drift_on) {
     return gather_grains<decltype(damp_on)::value, decltype(kick_on)::value,
-                         decltype(drift_on)::value>(p, nl, loop, wc, h, spin_scale, alpha, fu_x,
-                                                    fu_y, fu_z);
+                         decltype(drift_on)::value>(p, nl, loop, wc, h, spin_scale, alpha, gravity,
+                                                    fu_x, fu_y, fu_z);
   };
   const std::true_type yes;
   const std::false_type no;

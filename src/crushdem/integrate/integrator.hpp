@@ -6,10 +6,10 @@
 //                      displacement maxima (since the last neighbour build: the rebuild rule;
 //                      in this step, from the position the last pair loop saw: the pruned
 //                      list's);
-//   gather_and_damp()  each grain's wall contacts added to its pair sums, its undamped
-//                      resultant kept, local damping, the second half kick, and (drift_next)
-//                      the next step's kick and drift in the same pass, on values still in
-//                      registers.
+//   gather_and_damp()  each grain's wall contacts (and its weight, with gravity) added to its
+//                      pair sums, its undamped resultant kept, local damping, the second half kick,
+//                      and (drift_next) the next step's kick and drift in the same pass, on values
+//                      still in registers.
 //
 // Both run in vector lanes (`omp simd`): each element gets the same operations as a scalar loop
 // and max() is exact, so lanes and threads change no bit.
@@ -35,12 +35,13 @@ DriftMaxima kick_drift(ParticleStore& p, const NeighborList& nl, CpuPairLoop& lo
                        double spin_scale);
 
 /// Moves the pair loop's sums and the wall contacts' forces to the store (undamped resultant
-/// into fu_*; damped force and torque into fx ... tz), zeroing the sums; with kick the second
-/// half kick; with drift_next also the next step's first half kick and drift (returns its
-/// maxima; otherwise zeros).
+/// into fu_*; damped force and torque into fx ... tz), zeroing the sums; a non-zero `gravity`
+/// adds each grain's weight m g after its contacts; with kick the second half kick; with
+/// drift_next also the next step's first half kick and drift (returns its maxima; otherwise
+/// zeros).
 DriftMaxima gather_and_damp(ParticleStore& p, const NeighborList& nl, CpuPairLoop& loop,
                             const WallContacts& wc, double h, double spin_scale, double alpha,
-                            bool kick, bool drift_next, std::vector<double>& fu_x,
+                            Vec3 gravity, bool kick, bool drift_next, std::vector<double>& fu_x,
                             std::vector<double>& fu_y, std::vector<double>& fu_z);
 
 }  // namespace crushdem

@@ -56,8 +56,25 @@ const ParamTable<NeighborConfig>& neighbor_params() {
   return table;
 }
 
+void GravityConfig::validate() const {
+  validate_params(*this, gravity_params(), "gravity");
+}
+
+const ParamTable<GravityConfig>& gravity_params() {
+  using G = GravityConfig;
+  static const ParamTable<G> table = {
+      {"g", &G::g, "m/s^2",
+       "gravitational acceleration, a weight m g on every grain (not in the study, whose tests "
+       "are at stresses where it is negligible; a chamber or a pile under gravity: [0, 0, "
+       "-9.81])",
+       nullptr, "an array of 3 finite numbers [x, y, z] in m/s^2"},
+  };
+  return table;
+}
+
 void SimulationConfig::validate() const {
   material.validate();
+  gravity.validate();
   contact.validate();
   damping.validate();
   timestep.validate();
@@ -204,9 +221,9 @@ void Simulation::evaluate_forces(double increment_dt, bool kick, bool drift_next
   pair_loop_.evaluate(law_, increment_dt, p_, nl_, prune, history_, load, load_factor_);
   wall_forces(law_, increment_dt, p_, walls_, wc_);
   if (load) wall_contact_load();
-  const DriftMaxima next =
-      gather_and_damp(p_, nl_, pair_loop_, wc_, time_step_.value(), law_.params().spin_scale,
-                      cfg_.damping.local_alpha, kick, drift_next, fu_x_, fu_y_, fu_z_);
+  const DriftMaxima next = gather_and_damp(p_, nl_, pair_loop_, wc_, time_step_.value(),
+                                           law_.params().spin_scale, cfg_.damping.local_alpha,
+                                           cfg_.gravity.g, kick, drift_next, fu_x_, fu_y_, fu_z_);
   if (drift_next) next_drift_ = next;
   forces_valid_ = true;
   inspection_ = {};  // a device's reduction is of the state before

@@ -45,9 +45,18 @@ struct NeighborConfig {
   void validate() const;
 };
 
-/// The keys of [damping] and [neighbor] (core/params.hpp); [timestep]: time_step.hpp.
+/// A uniform body force on every grain, its weight m g (none by default: the study's tests
+/// are at stresses where the grains' weight is negligible).
+struct GravityConfig {
+  Vec3 g;  // [m/s^2], e.g. [0, 0, -9.81]
+  bool on() const { return g.x != 0.0 || g.y != 0.0 || g.z != 0.0; }
+  void validate() const;
+};
+
+/// The keys of [damping], [neighbor] and [gravity] (core/params.hpp); [timestep]: time_step.hpp.
 const ParamTable<DampingConfig>& damping_params();
 const ParamTable<NeighborConfig>& neighbor_params();
+const ParamTable<GravityConfig>& gravity_params();
 
 struct SimulationConfig {
   MaterialConfig material;
@@ -55,6 +64,7 @@ struct SimulationConfig {
   DampingConfig damping;
   TimestepConfig timestep;
   NeighborConfig neighbor;
+  GravityConfig gravity;
   std::array<WallConfig, kNumWalls> walls{};
   std::vector<BodyConfig> bodies;  // rigid bodies besides the box ([[body]])
   void validate() const;           // throws ConfigError naming the key

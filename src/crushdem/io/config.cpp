@@ -52,6 +52,11 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     s.finish();
   }
   {
+    Section s = root.sub("gravity");
+    read_params(s, c.gravity, gravity_params());
+    s.finish();
+  }
+  {
     Section walls = root.sub("walls");
     for (int k = 0; k < kNumWalls; ++k) {
       Section s = walls.sub(wall_name(k));
@@ -125,12 +130,13 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
   read_simulation(r, c);
   // Only the simulation sections are read here; the caller owns the others.
   for (const auto& [k, v] : root) {
-    static const std::set<std::string> mine = {"material", "contact", "damping", "timestep",
-                                               "neighbor", "box",     "walls",   "body"};
+    static const std::set<std::string> mine = {"material", "contact",  "damping",
+                                               "timestep", "neighbor", "box",
+                                               "walls",    "body",     "gravity"};
     if (!mine.count(k)) {
       throw ConfigError(r.where(v) + "unknown key '" + k +
                         "' (valid sections: material, contact, damping, timestep, neighbor, "
-                        "box, walls, body)");
+                        "box, walls, body, gravity)");
     }
   }
   c.validate();
@@ -321,6 +327,7 @@ std::vector<std::pair<std::string, std::string>> parameter_reference() {
       {"damping", markdown(damping_params())},
       {"timestep", markdown(timestep_params())},
       {"neighbor", markdown(neighbor_params())},
+      {"gravity", markdown(gravity_params())},
       {"crushing",
        markdown(crushing_params(),
                 {"| `pattern` | (the 14 fragments) | | file of `radius_fraction x y z` rows "
@@ -486,6 +493,8 @@ toml::Table to_toml(const SimulationConfig& c) {
   t["damping"] = Value::make_table(write_params(c.damping, damping_params()));
   t["timestep"] = Value::make_table(write_params(c.timestep, timestep_params()));
   t["neighbor"] = Value::make_table(write_params(c.neighbor, neighbor_params()));
+  // Written only when on: a run without gravity keeps the configuration text it had.
+  if (c.gravity.on()) t["gravity"] = Value::make_table(write_params(c.gravity, gravity_params()));
   Table box;
   std::vector<Value> lo, hi;
   for (int a = 0; a < 3; ++a) {
