@@ -1,5 +1,4 @@
 // The isotropic stage: all six walls servo-controlled to `stress`, until equilibrium.
-
 #include "crushdem/experiments/stages.hpp"
 
 namespace crushdem {
