@@ -364,7 +364,8 @@ class Simulation:
 
 def parameter_reference() -> Dict[str, str]:
     """The configuration keys that have a parameter table in the engine: {section: Markdown
-    table of key, default, unit and meaning}, as in docs/configuration.md."""
+    table of key, default, unit and meaning}, as in docs/configuration.md ("stage": each stage
+    kind's heading and table)."""
     return dict(_core.parameter_reference())
 
 

@@ -5,19 +5,25 @@ Each function writes a run directory (``timeseries.csv``, ``summary.json``, ``co
 ``vtk/``) and returns a :class:`Result`. ``sample`` is either the path of a prepared sample file
 (``sample.txt`` from :func:`prepare_sample`) or a dict of ``[sample]`` keys, in which case the
 sample is prepared first in the same run. ``material``, ``contact``, ``damping``, ``timestep``,
-``neighbor`` and ``output`` are the sections of docs/configuration.md; ``stage`` keyword
-arguments (``tolerance``, ``unbalanced``, ``max_strain_rate``, ``check_interval``,
-``max_steps``) are passed to every stage. SI units throughout. ``backend`` chooses what
-advances the run: ``"cpu"`` (default), ``"cuda"`` (a GPU, in a build with CUDA) or
-``"emulated"`` (the GPU's step run on the host: its results without a GPU); every laboratory
-function, sample preparation and resuming take it.
+``neighbor`` and ``output`` are the sections of docs/configuration.md; ``stage`` is a dict of
+keys passed to every stage (the keys every kind has, listed below). SI units throughout.
+``backend`` chooses what advances the run: ``"cpu"`` (default), ``"cuda"`` (a GPU, in a build
+with CUDA) or ``"emulated"`` (the GPU's step run on the host: its results without a GPU); every
+laboratory function, sample preparation and resuming take it.
+
+The keyword arguments that are keys of a stage (``stress``, ``n_break``, ...) take their type,
+default and meaning from the engine's parameter tables (``crushdem.parameter_reference()``),
+as the configuration reader does; each function lists them in its docstring.
 """
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
-from typing import Any, Dict, List, Mapping, Optional, Union
+import textwrap
+import types
+from typing import Any, Callable, Dict, List, Mapping, Optional, Union
 
 import numpy as np
 
@@ -91,6 +97,73 @@ def resume(out: Union[str, os.PathLike], *, progress: bool = False,
     return Result(os.fspath(out))
 
 
+# ----------------------------------------------------------------------------------------------
+# The keys of the engine's tables: type, default and meaning of every keyword argument that is a
+# configuration key.
+
+_TABLES: Dict[str, Dict[str, Dict[str, Any]]] = {
+    section: {row["key"]: row for row in rows}
+    for section, rows in _core.parameter_tables().items()}
+_KINDS: Dict[str, Dict[str, Any]] = {k["name"]: k for k in _core.stage_kinds()}
+# The keys every stage kind has: what the ``stage`` dict of every function may hold.
+_COMMON_KEYS = [key for key in _TABLES["stage." + next(iter(_KINDS))]
+                if all(key in _TABLES["stage." + kind] for kind in _KINDS)]
+
+# The functions' own choices where a stage's table has no default (the key is required in a
+# [[stage]]) or another one (strain_rate = 0 servo-controls an oedometric stage): the study's
+# loading at 10 /s, shear at 50 /s to 30 % axial strain, one day of ageing.
+_LOADING_RATE = 10.0
+_SHEAR_RATE = 50.0
+_SHEAR_STRAIN = 0.30
+_AGEING_TIME = 86400.0
+
+_TABLE = object()  # a _Key's default: the table's
+_KW = inspect.Parameter.KEYWORD_ONLY
+
+
+def _unit(row: Mapping[str, Any]) -> str:
+    return f" [{row['unit']}]" if row["unit"] not in ("", "-") else ""
+
+
+class _Key:
+    """A keyword argument that is the key ``key`` of the table ``section`` ("sample",
+    "stage.KIND"): its type, default and meaning come from the table; ``default`` is the
+    function's own where it has one, ``required`` makes it required where the table has a
+    default."""
+
+    def __init__(self, section: str, key: str, default: Any = _TABLE,
+                 required: bool = False) -> None:
+        self.section, self.key, self.row = section, key, _TABLES[section][key]
+        self.own_default, self.required = default, required
+
+    @property
+    def default(self) -> Any:
+        if self.required or (self.own_default is _TABLE and self.row["required"]):
+            return inspect.Parameter.empty
+        return self.row["default"] if self.own_default is _TABLE else self.own_default
+
+    def parameter(self) -> inspect.Parameter:
+        return inspect.Parameter(self.key, _KW, default=self.default,
+                                 annotation=self.row["type"])
+
+    def doc(self) -> str:
+        row, where = self.row, self.section.replace("stage.", "") + (
+            " stage" if self.section.startswith("stage.") else "")
+        if self.default is inspect.Parameter.empty:
+            default = "required"
+        elif self.own_default is _TABLE or row["required"]:
+            default = f"default {self.default!r}"
+        else:
+            default = f"default {self.default!r}; the table's {row['default']!r}"
+        choices = f"; one of {row['choices']}" if row["choices"] else ""
+        return f"* ``{self.key}``{_unit(row)} ({where}, {default}): {row['doc']}{choices}"
+
+
+def _keys_doc(keys: List[_Key]) -> str:
+    return ("Keys from the engine's tables (docs/configuration.md), SI units:\n\n" +
+            "\n".join(k.doc() for k in keys))
+
+
 def _base(sample: SampleSpec, sections: Mapping[str, Any]) -> Dict[str, Any]:
     cfg: Dict[str, Any] = {k: dict(v) for k, v in sections.items() if v is not None}
     if isinstance(sample, Mapping):
@@ -100,18 +173,92 @@ def _base(sample: SampleSpec, sections: Mapping[str, Any]) -> Dict[str, Any]:
     return cfg
 
 
-def _stage(kind: str, name: str, common: Mapping[str, Any], **keys: Any) -> Dict[str, Any]:
+def _stage(a: types.SimpleNamespace, kind: str, name: str,
+           extra: Optional[Mapping[str, Any]] = None, **keys: Any) -> Dict[str, Any]:
+    """A [[stage]] of ``kind``: ``keys`` (None: not given), then the function's ``stage`` keys
+    for every stage and ``extra`` for this one."""
     st = {"type": kind, "name": name}
     st.update({k: v for k, v in keys.items() if v is not None})
-    st.update(common)
+    st.update(a.stage or {})
+    st.update(extra or {})
     return st
 
 
+_OUT = inspect.Parameter("out", inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                         annotation="Union[str, os.PathLike]")
+_SAMPLE = inspect.Parameter("sample", inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                            annotation="SampleSpec")
+_RUN_OPTIONS = [inspect.Parameter("progress", _KW, default=False, annotation="bool"),
+                inspect.Parameter("overwrite", _KW, default=False, annotation="bool"),
+                inspect.Parameter("backend", _KW, default="cpu", annotation="str")]
+_STAGE = inspect.Parameter("stage", _KW, default=None,
+                           annotation="Optional[Mapping[str, Any]]")
+_AGE_STAGE = inspect.Parameter("age_stage", _KW, default=None,
+                               annotation="Optional[Mapping[str, Any]]")
+_BRANCH_FROM = inspect.Parameter("branch_from", _KW, default=None,
+                                 annotation="Union[str, os.PathLike, None]")
+_SECTIONS = inspect.Parameter("sections", inspect.Parameter.VAR_KEYWORD, annotation="Any")
+
+
+def _laboratory_test(*params: Union[_Key, inspect.Parameter], age_stage: bool = False,
+                     branch_stage: Optional[str] = None
+                     ) -> Callable[[Callable[[types.SimpleNamespace], List[Dict[str, Any]]]],
+                                   Callable[..., "Result"]]:
+    """A laboratory function from ``build(a)``, which returns its stages for the arguments
+    ``a``: ``out`` and ``sample``, then ``params`` (keys of the stage tables, or the function's
+    own), the run options, ``stage`` (keys for every stage), ``age_stage`` (keys for the age
+    stage), ``branch_from`` (a run whose state at the start of the stage named
+    ``branch_stage`` this one starts from) and the configuration sections. Crack growth is
+    turned on when a stage needs it. The function's docstring is build's, then the keys."""
+    def make(build: Callable[[types.SimpleNamespace], List[Dict[str, Any]]]
+             ) -> Callable[..., Result]:
+        keys = [p for p in params if isinstance(p, _Key)]
+        parameters = [_OUT, _SAMPLE,
+                      *[p.parameter() if isinstance(p, _Key) else p for p in params],
+                      *_RUN_OPTIONS, _STAGE]
+        parameters += [_AGE_STAGE] if age_stage else []
+        parameters += [_BRANCH_FROM] if branch_stage else []
+        signature = inspect.Signature(parameters + [_SECTIONS], return_annotation="Result")
+
+        def laboratory_test(*args: Any, **kwargs: Any) -> Result:
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            a = types.SimpleNamespace(**bound.arguments)
+            stages = build(a)
+            sections = dict(a.sections)
+            if any(_KINDS[st["type"]]["needs_crack_growth"] for st in stages):
+                crushing = dict(sections.get("crushing") or {})
+                crushing.setdefault("crack_growth", True)
+                sections["crushing"] = crushing
+            cfg = _base(a.sample, sections)
+            cfg["stage"] = stages
+            branch_from = getattr(a, "branch_from", None)
+            return run(cfg, a.out, progress=a.progress, overwrite=a.overwrite,
+                       backend=a.backend, branch_from=branch_from,
+                       branch_stage=None if branch_from is None else branch_stage)
+
+        laboratory_test.__name__ = laboratory_test.__qualname__ = build.__name__
+        laboratory_test.__module__ = build.__module__
+        laboratory_test.__signature__ = signature  # type: ignore[attr-defined]
+        laboratory_test.__doc__ = inspect.cleandoc(build.__doc__ or "") + "\n\n" + \
+            _keys_doc(keys)
+        return laboratory_test
+    return make
+
+
+# ----------------------------------------------------------------------------------------------
+# The laboratory functions.
+
+_SAMPLE_KEYS = [_Key("sample", "void_ratio"), _Key("sample", "seed"), _Key("sample", "stress")]
+
+
 def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None,
-                   count: Optional[int] = None, void_ratio: float = 0.65,
-                   grading: Optional[Mapping[str, Any]] = None, seed: int = 1,
-                   stress: float = 100e3, progress: bool = False, overwrite: bool = False,
-                   backend: str = "cpu",
+                   count: Optional[int] = None,
+                   void_ratio: float = _SAMPLE_KEYS[0].default,
+                   grading: Optional[Mapping[str, Any]] = None,
+                   seed: int = _SAMPLE_KEYS[1].default,
+                   stress: float = _SAMPLE_KEYS[2].default, progress: bool = False,
+                   overwrite: bool = False, backend: str = "cpu",
                    material: Optional[Mapping[str, Any]] = None,
                    contact: Optional[Mapping[str, Any]] = None,
                    output: Optional[Mapping[str, Any]] = None, **sample_keys: Any) -> Result:
@@ -130,73 +277,69 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
     return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 
-def isotropic_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-                   progress: bool = False, overwrite: bool = False, backend: str = "cpu",
-                   stage: Optional[Mapping[str, Any]] = None,
-                   **sections: Any) -> Result:
+prepare_sample.__doc__ = inspect.cleandoc(prepare_sample.__doc__ or "") + "\n\n" + \
+    _keys_doc(_SAMPLE_KEYS)
+
+
+@_laboratory_test(_Key("stage.isotropic", "stress"))
+def isotropic_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """All six walls servo-controlled to ``stress`` until equilibrium."""
-    cfg = _base(sample, sections)
-    cfg["stage"] = [_stage("isotropic", "isotropic", stage or {}, stress=stress)]
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
+    return [_stage(a, "isotropic", "isotropic", stress=a.stress)]
 
 
-def oedometric_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-                    strain_rate: float = 10.0, hold_steps: int = 0,
-                    unload_to: Optional[float] = None, progress: bool = False,
-                    overwrite: bool = False, backend: str = "cpu",
-                    stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
+@_laboratory_test(_Key("stage.oedometric", "stress"),
+                  _Key("stage.oedometric", "strain_rate", _LOADING_RATE),
+                  inspect.Parameter("hold_steps", _KW, default=0, annotation="int"),
+                  inspect.Parameter("unload_to", _KW, default=None, annotation="Optional[float]"))
+def oedometric_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Lateral walls fixed; the top loads at ``strain_rate`` to the vertical ``stress``, holds
     for ``hold_steps`` (walls fixed) and unloads to ``unload_to`` when given."""
-    common = stage or {}
-    cfg = _base(sample, sections)
-    stages = [_stage("oedometric", "loading", common, stress=stress, strain_rate=strain_rate)]
-    if hold_steps > 0:
-        stages.append(_stage("hold", "hold", common, steps=hold_steps))
-    if unload_to is not None:
-        stages.append(_stage("oedometric", "unloading", common, stress=unload_to,
-                             strain_rate=-abs(strain_rate)))
-    cfg["stage"] = stages
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
+    stages = [_stage(a, "oedometric", "loading", stress=a.stress, strain_rate=a.strain_rate)]
+    if a.hold_steps > 0:
+        stages.append(_stage(a, "hold", "hold", steps=a.hold_steps))
+    if a.unload_to is not None:
+        stages.append(_stage(a, "oedometric", "unloading", stress=a.unload_to,
+                             strain_rate=-abs(a.strain_rate)))
+    return stages
 
 
-def triaxial_test(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
-                  strain_rate: float = 50.0, axial_strain: float = 0.30,
-                  stop_q: Optional[float] = None, hold_steps: int = 0,
-                  consolidate: bool = True, progress: bool = False, overwrite: bool = False,
-                  backend: str = "cpu",
-                  stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
+@_laboratory_test(_Key("stage.triaxial", "sigma_3"),
+                  _Key("stage.triaxial", "strain_rate", _SHEAR_RATE),
+                  _Key("stage.triaxial", "axial_strain", _SHEAR_STRAIN),
+                  _Key("stage.triaxial", "stop_q"),
+                  inspect.Parameter("hold_steps", _KW, default=0, annotation="int"),
+                  inspect.Parameter("consolidate", _KW, default=True, annotation="bool"))
+def triaxial_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Drained triaxial shear: isotropic compression to ``sigma_3`` (unless ``consolidate`` is
     False), then axial compression at ``strain_rate`` with the lateral walls servo-controlled at
     ``sigma_3``, to ``axial_strain`` or until q reaches ``stop_q``; then, if ``hold_steps``, the
     axial strain is held (axial walls fixed, lateral servo kept)."""
-    common = stage or {}
-    cfg = _base(sample, sections)
     stages = []
-    if consolidate:
-        stages.append(_stage("isotropic", "isotropic", common, stress=sigma_3))
-    stages.append(_stage("triaxial", "shear", common, sigma_3=sigma_3, strain_rate=strain_rate,
-                         axial_strain=axial_strain, stop_q=stop_q))
-    if hold_steps > 0:
-        stages.append(_stage("hold", "hold", common, steps=hold_steps, axial="fixed",
-                             lateral="servo", lateral_stress=sigma_3))
-    cfg["stage"] = stages
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
+    if a.consolidate:
+        stages.append(_stage(a, "isotropic", "isotropic", stress=a.sigma_3))
+    stages.append(_stage(a, "triaxial", "shear", sigma_3=a.sigma_3, strain_rate=a.strain_rate,
+                         axial_strain=a.axial_strain, stop_q=a.stop_q))
+    if a.hold_steps > 0:
+        stages.append(_stage(a, "hold", "hold", steps=a.hold_steps, axial="fixed",
+                             lateral="servo", lateral_stress=a.sigma_3))
+    return stages
 
 
-def _crushing_with_cracks(sections: Dict[str, Any]) -> None:
-    crushing = dict(sections.get("crushing") or {})
-    crushing.setdefault("crack_growth", True)
-    sections["crushing"] = crushing
+# The keys of the age stage in the ageing functions.
+_AGEING_KEYS = [_Key("stage.age", "min_cycles"), _Key("stage.age", "n_break")]
 
 
-def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-                          duration: float = 86400.0, strain_rate: float = 10.0,
-                          min_cycles: int = 150000, n_break: int = 30,
-                          progress: bool = False, overwrite: bool = False, backend: str = "cpu",
-                          stage: Optional[Mapping[str, Any]] = None,
-                          age_stage: Optional[Mapping[str, Any]] = None,
-                          branch_from: Union[str, os.PathLike, None] = None,
-                          **sections: Any) -> Result:
+def _age(a: types.SimpleNamespace, name: str, **keys: Any) -> Dict[str, Any]:
+    """The age stage of an ageing function: its keys, then ``stage`` and ``age_stage``."""
+    return _stage(a, "age", name, a.age_stage, duration=a.duration, min_cycles=a.min_cycles,
+                  n_break=a.n_break, **keys)
+
+
+@_laboratory_test(_Key("stage.oedometric", "stress"),
+                  _Key("stage.age", "duration", _AGEING_TIME),
+                  _Key("stage.oedometric", "strain_rate", _LOADING_RATE), *_AGEING_KEYS,
+                  age_stage=True, branch_stage="relaxation")
+def oedometric_relaxation(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Oedometric stress relaxation (study section 3.1): load to the vertical ``stress`` with
     crushing on, fix the walls, age for ``duration`` seconds of ageing time with the on-off
     scheme. ``crushing`` keys pass through (crack growth is turned on). ``age_stage``: keys for
@@ -204,48 +347,29 @@ def oedometric_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, s
     ``branch_from``: an oedometric relaxation with the same loading whose state at the start of
     its ageing this run starts from (another ``n_break`` or ``min_cycles`` without loading
     again)."""
-    common = stage or {}
-    _crushing_with_cracks(sections)
-    cfg = _base(sample, sections)
-    cfg["stage"] = [
-        _stage("oedometric", "loading", common, stress=stress, strain_rate=strain_rate),
-        _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
-               min_cycles=min_cycles, n_break=n_break),
-    ]
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend,
-               branch_from=branch_from,
-               branch_stage=None if branch_from is None else "relaxation")
+    return [_stage(a, "oedometric", "loading", stress=a.stress, strain_rate=a.strain_rate),
+            _age(a, "relaxation")]
 
 
-def creep_test(out: Union[str, os.PathLike], sample: SampleSpec, *, stress: float,
-               duration: float = 86400.0, strain_rate: float = 10.0, min_cycles: int = 150000,
-               n_break: int = 30, progress: bool = False, overwrite: bool = False,
-               backend: str = "cpu",
-               stage: Optional[Mapping[str, Any]] = None,
-               age_stage: Optional[Mapping[str, Any]] = None, **sections: Any) -> Result:
+@_laboratory_test(_Key("stage.oedometric", "stress"),
+                  _Key("stage.age", "duration", _AGEING_TIME),
+                  _Key("stage.oedometric", "strain_rate", _LOADING_RATE), *_AGEING_KEYS,
+                  age_stage=True)
+def creep_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Oedometric creep: load to the vertical ``stress``, then hold it by servo control of the
     top wall during every dynamic phase while the sample ages; the axial strain against ageing
     time is the creep curve (``events.csv``). ``age_stage``: keys for the age stage only."""
-    common = stage or {}
-    _crushing_with_cracks(sections)
-    cfg = _base(sample, sections)
-    cfg["stage"] = [
-        _stage("oedometric", "loading", common, stress=stress, strain_rate=strain_rate),
-        _stage("age", "creep", {**common, **(age_stage or {})}, duration=duration,
-               min_cycles=min_cycles, n_break=n_break, axial="servo", axial_stress=stress),
-    ]
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
+    return [_stage(a, "oedometric", "loading", stress=a.stress, strain_rate=a.strain_rate),
+            _age(a, "creep", axial="servo", axial_stress=a.stress)]
 
 
-def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sigma_3: float,
-                        stop_q: float, duration: float = 86400.0, strain_rate: float = 50.0,
-                        axial_strain: float = 0.30, min_cycles: int = 150000,
-                        n_break: int = 30, progress: bool = False, overwrite: bool = False,
-                        backend: str = "cpu",
-                        stage: Optional[Mapping[str, Any]] = None,
-                        age_stage: Optional[Mapping[str, Any]] = None,
-                        branch_from: Union[str, os.PathLike, None] = None,
-                        **sections: Any) -> Result:
+@_laboratory_test(_Key("stage.triaxial", "sigma_3"),
+                  _Key("stage.triaxial", "stop_q", required=True),
+                  _Key("stage.age", "duration", _AGEING_TIME),
+                  _Key("stage.triaxial", "strain_rate", _SHEAR_RATE),
+                  _Key("stage.triaxial", "axial_strain", _SHEAR_STRAIN), *_AGEING_KEYS,
+                  age_stage=True, branch_stage="shear")
+def triaxial_relaxation(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Triaxial stress relaxation (study section 3.2): isotropic compression to ``sigma_3``,
     shear until q reaches ``stop_q`` (e.g. 0.7 q_max), then hold the axial strain with the
     lateral walls servo-controlled at ``sigma_3`` during dynamic phases, and age.
@@ -254,16 +378,12 @@ def triaxial_relaxation(out: Union[str, os.PathLike], sample: SampleSpec, *, sig
     ``triaxial_test`` (or relaxation) with the same grains, settings and isotropic compression
     whose state at the start of its shear this run starts from, instead of compressing again;
     the results are those of the unbranched run."""
-    common = stage or {}
-    _crushing_with_cracks(sections)
-    cfg = _base(sample, sections)
-    cfg["stage"] = [
-        _stage("isotropic", "isotropic", common, stress=sigma_3),
-        _stage("triaxial", "shear", common, sigma_3=sigma_3, strain_rate=strain_rate,
-               axial_strain=axial_strain, stop_q=stop_q),
-        _stage("age", "relaxation", {**common, **(age_stage or {})}, duration=duration,
-               min_cycles=min_cycles, n_break=n_break, axial="fixed", lateral="servo",
-               lateral_stress=sigma_3),
-    ]
-    return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend,
-               branch_from=branch_from, branch_stage=None if branch_from is None else "shear")
+    return [_stage(a, "isotropic", "isotropic", stress=a.sigma_3),
+            _stage(a, "triaxial", "shear", sigma_3=a.sigma_3, strain_rate=a.strain_rate,
+                   axial_strain=a.axial_strain, stop_q=a.stop_q),
+            _age(a, "relaxation", axial="fixed", lateral="servo", lateral_stress=a.sigma_3)]
+
+
+__doc__ = (__doc__ or "") + "\n" + textwrap.fill(
+    "Keys every stage kind has (the ``stage`` dict): " +
+    ", ".join(f"``{k}``" for k in _COMMON_KEYS) + ".", width=96) + "\n"

@@ -6,6 +6,7 @@
 // Particle state is returned as NumPy copies (float64, ids uint64).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/array.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
@@ -21,6 +22,7 @@
 #include <initializer_list>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "crushdem/backend/stepper.hpp"
@@ -233,6 +235,25 @@ nb::dict summary_dict(const RunSummary& s) {
   return d;
 }
 
+/// A parameter table's rows as dicts (the keyword arguments of crushdem.lab come from them).
+nb::list rows_list(const std::vector<param_io::ParamRow>& rows) {
+  nb::list out;
+  for (const param_io::ParamRow& r : rows) {
+    nb::dict d;
+    d["key"] = r.key;
+    d["type"] = r.type;
+    d["default"] = std::visit([](const auto& v) { return nb::cast(v); }, r.default_value);
+    d["required"] = r.default_doc == "-";
+    d["default_doc"] = r.default_doc;
+    d["unit"] = r.unit;
+    d["doc"] = r.doc;
+    d["choices"] = r.choices;
+    d["expected"] = r.expected;
+    out.append(d);
+  }
+  return out;
+}
+
 /// sim.step(n) in chunks of about 0.1 s of wall-clock time, so that Ctrl-C (the Python signal
 /// handlers, run with the GIL) is seen within a second and a progress callback can be called;
 /// n steps in chunks give the bits of one step(n) call (tests/test_step_fusion.cpp).
@@ -301,7 +322,37 @@ NB_MODULE(_core, m) {
 
   m.def("parameter_reference", &parameter_reference,
         "The configuration keys with a parameter table, as (section, Markdown table) pairs: "
-        "key, default, unit and meaning of each (the tables of docs/configuration.md).");
+        "key, default, unit and meaning of each (the tables of docs/configuration.md; for "
+        "\"stage\", each kind's heading and table).");
+  m.def(
+      "parameter_tables",
+      [] {
+        nb::dict out;
+        for (const auto& [section, rows] : parameter_tables())
+          out[section.c_str()] = rows_list(rows);
+        return out;
+      },
+      "The rows of every parameter table, {section: [row]}; a stage kind's section is "
+      "\"stage.KIND\". A row is a dict: key, type (\"float\", \"int\", \"bool\" or \"str\"), "
+      "default (the value in a default configuration), required (no default: the key must be "
+      "given where it applies), default_doc (what the docs show instead of the value), unit, doc, "
+      "choices (a choice's values), expected (the range, when checked).");
+  m.def(
+      "stage_kinds",
+      [] {
+        nb::list out;
+        for (const StageKind* k : stage_kinds()) {
+          nb::dict d;
+          d["name"] = std::string(k->name);
+          d["description"] = std::string(k->description);
+          d["needs_crack_growth"] = k->needs_crack_growth;
+          out.append(d);
+        }
+        return out;
+      },
+      "The kinds of [[stage]], in order, as dicts: name (the `type`), description, "
+      "needs_crack_growth (needs [crushing] with crack_growth = true). Their keys: "
+      "parameter_tables()[\"stage.\" + name].");
   m.def(
       "set_threads",
       [](int n) {

@@ -4,31 +4,29 @@
 #include <cmath>
 #include <cstdio>
 
-#include "crushdem/ageing/ageing_jump.hpp"
 #include "crushdem/core/error.hpp"
-#include "crushdem/fracture/crushing.hpp"
 
 namespace crushdem {
 
-// --- kinds and their keys ----------------------------------------------------------------------
+// --- kinds and the rows they share -------------------------------------------------------------
 
-const char* to_string(StageKind k) {
-  switch (k) {
-    case StageKind::Isotropic: return "isotropic";
-    case StageKind::Oedometric: return "oedometric";
-    case StageKind::Triaxial: return "triaxial";
-    case StageKind::Hold: return "hold";
-    case StageKind::Age: return "age";
+const StageKind& stage_kind(const std::string& name, const std::string& key) {
+  for (const StageKind* k : stage_kinds()) {
+    if (k->name == name) return *k;
   }
-  return "?";
+  throw ConfigError(bad_value(key, "\"" + name + "\"", stage_kind_names()));
 }
 
-StageKind parse_stage_kind(const std::string& s, const std::string& key) {
-  for (const StageKind k : kStageKinds) {
-    if (s == to_string(k)) return k;
+std::string stage_kind_names() {
+  const auto& kinds = stage_kinds();
+  std::string s;
+  for (std::size_t i = 0; i < kinds.size(); ++i) {
+    if (i > 0) s += i + 1 == kinds.size() ? " or " : ", ";
+    s += '"';
+    s += kinds[i]->name;
+    s += '"';
   }
-  throw ConfigError(bad_value(key, "\"" + s + "\"",
-                              "\"isotropic\", \"oedometric\", \"triaxial\", \"hold\" or \"age\""));
+  return s;
 }
 
 namespace {
@@ -51,11 +49,8 @@ bool positive(double v) {
 bool at_least_one(double v) {
   return v >= 1.0;
 }
-bool non_negative(double v) {
-  return v >= 0.0;
-}
 
-// Rows that several kinds share.
+// The rows every kind has.
 const Row kServoTolerance{"tolerance",
                           &StageConfig::tolerance,
                           "-",
@@ -74,7 +69,7 @@ const Row kMaxStrainRate{
     "1/s",
     "servo speed limit as a strain rate: each servo wall moves at most max_strain_rate x L / 2; "
     "0 = 10 /s, and for triaxial lateral walls at least 2 strain_rate",
-    non_negative,
+    [](double v) { return v >= 0.0; },
     "a servo strain-rate limit in 1/s (0 = automatic)"};
 const Row kCheckInterval{"check_interval",
                          &StageConfig::check_interval,
@@ -104,20 +99,22 @@ const Row kAxialStress{"axial_stress",
                        &StageConfig::axial_stress,
                        "Pa",
                        "servo target of the top wall (with axial = \"servo\")",
-                       nullptr,
-                       {},
+                       positive,
+                       "a positive stress in Pa",
                        "-",
                        [](const StageConfig& c) { return c.axial == WallControl::Servo; }};
 const Row kLateralStress{"lateral_stress",
                          &StageConfig::lateral_stress,
                          "Pa",
                          "servo target of the lateral walls (with lateral = \"servo\")",
-                         nullptr,
-                         {},
+                         positive,
+                         "a positive stress in Pa",
                          "-",
                          [](const StageConfig& c) { return c.lateral == WallControl::Servo; }};
 
-ParamTable<StageConfig> with_common(std::initializer_list<Row> own) {
+}  // namespace
+
+ParamTable<StageConfig> stage_table(std::initializer_list<Param<StageConfig>> own) {
   ParamTable<StageConfig> t(own);
   for (const Row& r : {kServoTolerance, kUnbalanced, kMaxStrainRate, kCheckInterval, kMaxSteps}) {
     t.push_back(r);
@@ -125,114 +122,56 @@ ParamTable<StageConfig> with_common(std::initializer_list<Row> own) {
   return t;
 }
 
-}  // namespace
-
-const ParamTable<StageConfig>& stage_params(StageKind kind) {
-  static const ParamTable<StageConfig> isotropic = with_common({
-      {"stress", &StageConfig::stress, "Pa", "target stress of all six servo walls", positive,
-       "a positive stress in Pa", "-"},
-  });
-  static const ParamTable<StageConfig> oedometric = with_common({
-      {"stress", &StageConfig::stress, "Pa", "target vertical stress", positive,
-       "a positive target vertical stress in Pa", "-"},
-      {"strain_rate", &StageConfig::strain_rate, "1/s",
-       "axial strain rate: > 0 loads until sigma_v >= stress, < 0 unloads until sigma_v <= "
-       "stress, 0 servo-controls the top to stress until equilibrium",
-       [](double v) { return std::abs(v) < 1e4; },
-       "an axial strain rate in 1/s (> 0 loading, < 0 unloading, 0 servo)"},
-  });
-  static const ParamTable<StageConfig> triaxial = with_common({
-      {"sigma_3", &StageConfig::sigma_3, "Pa",
-       "confining stress held by the four lateral servo walls", positive,
-       "a positive confining stress in Pa", "-"},
-      {"strain_rate", &StageConfig::strain_rate, "1/s",
-       "axial strain rate (compression); both axial walls move", positive,
-       "a positive axial strain rate in 1/s", "-"},
-      {"axial_strain", &StageConfig::axial_strain, "-",
-       "the stage ends at this axial strain (from its start)",
-       [](double v) { return v > 0.0 && v < 0.9; }, "a final axial strain in (0, 0.9)", "-"},
-      {"stop_q", &StageConfig::stop_q, "Pa",
-       "> 0: the stage ends when q reaches it (then a hold keeps the axial strain)", non_negative,
-       "a deviator stress in Pa to stop at (0 = not used)"},
-  });
-  static const ParamTable<StageConfig> hold = with_common({
-      kAxial,
-      kLateral,
-      kAxialStress,
-      kLateralStress,
-      {"steps",
-       &StageConfig::steps,
-       "",
-       "length of the hold in steps (or give duration)",
-       nullptr,
-       {},
-       "-",
-       [](const StageConfig& c) { return c.steps > 0; }},
-      {"duration", &StageConfig::duration, "s", "length of the hold in DEM time (or give steps)",
-       non_negative, "a time in s", "-", [](const StageConfig& c) { return c.duration > 0.0; }},
-  });
-  static const ParamTable<StageConfig> age = with_common({
-      kAxial,
-      kLateral,
-      kAxialStress,
-      kLateralStress,
-      {"duration", &StageConfig::duration, "s",
-       "target ageing time (the relaxation clock; DEM time is reported apart)", positive,
-       "a positive ageing time in s (the relaxation clock)", "-"},
-      {"min_cycles", &StageConfig::min_cycles, "", "steps of each dynamic phase (STUDY)",
-       at_least_one, "> 0 steps"},
-      {"n_break", &StageConfig::n_break, "",
-       "grains brought to failure by each ageing jump (STUDY)", at_least_one, "> 0 grains"},
-      {"record_interval", &StageConfig::record_interval, "",
-       "steps between rows of phases.csv within each dynamic phase (the study's Figure 2)",
-       at_least_one, "> 0 steps"},
-  });
-  switch (kind) {
-    case StageKind::Isotropic: return isotropic;
-    case StageKind::Oedometric: return oedometric;
-    case StageKind::Triaxial: return triaxial;
-    case StageKind::Hold: return hold;
-    case StageKind::Age: return age;
-  }
-  return isotropic;
+ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<StageConfig>> own) {
+  ParamTable<StageConfig> t = {kAxial, kLateral, kAxialStress, kLateralStress};
+  t.insert(t.end(), own.begin(), own.end());
+  for (const Row& r : stage_table({})) t.push_back(r);
+  return t;
 }
 
 void StageConfig::validate(const std::string& prefix) const {
-  validate_params(*this, stage_params(kind), prefix);
-  auto key = [&](const char* k) { return prefix + "." + k; };
-  if (kind == StageKind::Hold || kind == StageKind::Age) {
-    if (axial == WallControl::Servo) {
-      require_value(axial_stress > 0.0 && std::isfinite(axial_stress), key("axial_stress"),
-                    axial_stress, "a positive stress in Pa");
-    }
-    if (lateral == WallControl::Servo) {
-      require_value(lateral_stress > 0.0 && std::isfinite(lateral_stress), key("lateral_stress"),
-                    lateral_stress, "a positive stress in Pa");
-    }
-  }
-  if (kind == StageKind::Hold && (steps == 0) == !(duration > 0.0)) {
-    throw ConfigError(prefix + ": a hold stage needs exactly one of '" + key("steps") +
-                      "' (> 0) or '" + key("duration") + "' (> 0 s)");
-  }
+  validate_params(*this, kind->params, prefix);
+  if (kind->check) kind->check(*this, prefix);
 }
 
-double StageConfig::servo_strain_rate() const {
-  if (max_strain_rate > 0.0) return max_strain_rate;
-  return kind == StageKind::Triaxial ? std::max(10.0, 2.0 * strain_rate) : 10.0;
+std::string StageConfig::label() const {
+  return name.empty() ? std::string(kind->name) : name;
+}
+
+std::unique_ptr<Stage> make_stage(const StageConfig& cfg, double d50, Crusher* crusher) {
+  return cfg.kind->make(cfg, d50, crusher);
 }
 
 // --- Stage -------------------------------------------------------------------------------------
 
 Stage::Stage(const StageConfig& cfg, double d50) : cfg_(cfg), d50_(d50) {
   res_.name = cfg_.label();
-  res_.kind = to_string(cfg_.kind);
+  res_.kind = std::string(cfg_.kind->name);
+}
+
+void Stage::attach(StageOutputs& outputs, std::size_t index) {
+  outputs_ = &outputs;
+  index_ = index;
 }
 
 void Stage::set_servo(Walls& w, int k, double stress) const {
   WallConfig& c = w.config(k);
   c.mode = WallMode::Servo;
   c.target_stress = stress;
-  c.max_speed = 0.5 * cfg_.servo_strain_rate() * w.length(wall_axis(k));
+  const double rate = cfg_.max_strain_rate > 0.0 ? cfg_.max_strain_rate : automatic_servo_rate();
+  c.max_speed = 0.5 * rate * w.length(wall_axis(k));
+}
+
+void Stage::set_held_walls(Walls& w) const {
+  if (cfg_.axial == WallControl::Servo) set_servo(w, 5, cfg_.axial_stress);
+  if (cfg_.lateral == WallControl::Servo) {
+    for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.lateral_stress);
+  }
+}
+
+bool Stage::at_equilibrium(const Simulation& sim) const {
+  return servo_walls_at_target(sim.walls(), cfg_.tolerance) &&
+         unbalanced_force_ratio(sim) <= cfg_.unbalanced;
 }
 
 double Stage::stage_axial_strain(const Simulation& sim) const {
@@ -374,244 +313,6 @@ void Stage::load_state(StateReader& in) {
                     &res_.max_lateral_stress_error, &res_.max_lateral_strain, &res_.ageing_time}) {
     in.get(*v);
   }
-}
-
-// --- isotropic ---------------------------------------------------------------------------------
-
-namespace {
-bool at_equilibrium(const Simulation& sim, const StageConfig& cfg) {
-  return servo_walls_at_target(sim.walls(), cfg.tolerance) &&
-         unbalanced_force_ratio(sim) <= cfg.unbalanced;
-}
-}  // namespace
-
-void IsotropicStage::set_walls(Walls& w) {
-  for (int k = 0; k < kNumWalls; ++k) set_servo(w, k, cfg_.stress);
-}
-
-const char* IsotropicStage::end_reason(Simulation& sim) {
-  return at_equilibrium(sim, cfg_) ? "equilibrium" : nullptr;
-}
-
-// --- oedometric --------------------------------------------------------------------------------
-
-void OedometricStage::set_walls(Walls& w) {
-  if (cfg_.strain_rate == 0.0) {
-    set_servo(w, 5, cfg_.stress);
-  } else {
-    w.config(5).mode = WallMode::Velocity;
-    w.config(5).velocity = -cfg_.strain_rate * w.length(2);  // the top moves down in compression
-  }
-}
-
-const char* OedometricStage::end_reason(Simulation& sim) {
-  const double sv = sim.walls().axial_stress();
-  if (cfg_.strain_rate == 0.0 && at_equilibrium(sim, cfg_)) return "equilibrium";
-  if (cfg_.strain_rate > 0.0 && sv >= cfg_.stress) return "target stress";
-  if (cfg_.strain_rate < 0.0 && sv <= cfg_.stress) return "target stress";
-  return nullptr;
-}
-
-std::string OedometricStage::target_met_at_start(const Walls& w) const {
-  const double sv = w.axial_stress();
-  if ((cfg_.strain_rate > 0.0 && sv >= cfg_.stress) ||
-      (cfg_.strain_rate < 0.0 && sv <= cfg_.stress)) {
-    return "its target stress " + show_number(cfg_.stress) + " Pa is met at the start (axial " +
-           "stress " + show_number(sv) + " Pa; strain_rate > 0 loads to the target, < 0 unloads)";
-  }
-  return "";
-}
-
-void OedometricStage::observe_kind(const Walls& w) {
-  for (int a = 0; a < 2; ++a) {
-    res_.max_lateral_strain =
-        std::max(res_.max_lateral_strain, std::abs(1.0 - w.length(a) / ref_.length[a]));
-  }
-}
-
-// --- triaxial ----------------------------------------------------------------------------------
-
-void TriaxialStage::set_walls(Walls& w) {
-  const double Lz = w.length(2);
-  for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.sigma_3);
-  w.config(4).mode = WallMode::Velocity;
-  w.config(4).velocity = 0.5 * cfg_.strain_rate * Lz;
-  w.config(5).mode = WallMode::Velocity;
-  w.config(5).velocity = -0.5 * cfg_.strain_rate * Lz;
-}
-
-const char* TriaxialStage::end_reason(Simulation& sim) {
-  const Walls& w = sim.walls();
-  if (cfg_.stop_q > 0.0 && w.axial_stress() - w.lateral_stress() >= cfg_.stop_q) {
-    return "target q";
-  }
-  if (stage_axial_strain(sim) >= cfg_.axial_strain) {
-    if (cfg_.stop_q > 0.0) add_warning("q never reached stop_q before the final axial strain");
-    return "target axial strain";
-  }
-  return nullptr;
-}
-
-std::string TriaxialStage::target_met_at_start(const Walls& w) const {
-  const double q = w.axial_stress() - w.lateral_stress();
-  if (cfg_.stop_q > 0.0 && q >= cfg_.stop_q) {
-    return "its stop_q " + show_number(cfg_.stop_q) +
-           " Pa is met at the start (q = " + show_number(q) + " Pa)";
-  }
-  return "";
-}
-
-void TriaxialStage::observe_kind(const Walls& w) {
-  for (int k = 0; k < 4; ++k) {
-    res_.max_lateral_stress_error =
-        std::max(res_.max_lateral_stress_error, std::abs(w.stress(k) / cfg_.sigma_3 - 1.0));
-  }
-}
-
-// --- hold --------------------------------------------------------------------------------------
-
-namespace {
-void hold_walls(const StageConfig& cfg, Walls& w,
-                const std::function<void(Walls&, int, double)>& servo) {
-  if (cfg.axial == WallControl::Servo) servo(w, 5, cfg.axial_stress);
-  if (cfg.lateral == WallControl::Servo) {
-    for (int k = 0; k < 4; ++k) servo(w, k, cfg.lateral_stress);
-  }
-}
-}  // namespace
-
-void HoldStage::set_walls(Walls& w) {
-  hold_walls(cfg_, w, [this](Walls& ww, int k, double s) { set_servo(ww, k, s); });
-}
-
-const char* HoldStage::end_reason(Simulation& sim) {
-  if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return "duration";
-  if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
-    return "duration";
-  }
-  return nullptr;
-}
-
-std::uint64_t HoldStage::limit_steps(Simulation& sim, std::uint64_t n) const {
-  const std::uint64_t done = sim.step_count() - start_step_;
-  if (cfg_.steps > 0) n = std::min(n, cfg_.steps - std::min(cfg_.steps, done));
-  if (cfg_.duration > 0.0) {
-    const double left = std::ceil((start_time_ + cfg_.duration - sim.time()) / sim.dt());
-    n = std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
-  }
-  return n;
-}
-
-// --- age ---------------------------------------------------------------------------------------
-
-AgeStage::AgeStage(const StageConfig& cfg, double d50, Crusher* crusher)
-    : Stage(cfg, d50), crusher_(crusher) {
-  if (!crusher_) {
-    throw ConfigError("stage '" + cfg_.label() +
-                      "': an \"age\" stage needs [crushing] with crack_growth = true");
-  }
-}
-
-void AgeStage::set_walls(Walls& w) {
-  hold_walls(cfg_, w, [this](Walls& ww, int k, double s) { set_servo(ww, k, s); });
-}
-
-void AgeStage::begin(Simulation& sim) {
-  ageing_time_ = 0.0;
-  Stage::begin(sim);
-  start_phase(sim);
-}
-
-void AgeStage::start_phase(const Simulation& sim) {
-  phase_start_ = sim.step_count();
-  phase_volume_ = sim.walls().volume();
-  phase_lateral_ =
-      cfg_.lateral == WallControl::Servo ? cfg_.lateral_stress : sim.walls().lateral_stress();
-  if (on_phase_record) on_phase_record(phase_record(sim));
-}
-
-std::string AgeStage::progress_note() const {
-  char b[128];
-  std::snprintf(b, sizeof b, "phase %llu  ageing time %.4g s of %.4g s",
-                static_cast<unsigned long long>(res_.dynamic_phases), ageing_time_, cfg_.duration);
-  return b;
-}
-
-Measurement AgeStage::phase_record(const Simulation& sim) const {
-  const Walls& w = sim.walls();
-  const double sa = w.axial_stress(), sr = w.lateral_stress();
-  Measurement m;
-  m.emplace_back("dynamic_phase", static_cast<double>(res_.dynamic_phases));
-  m.emplace_back("cycle", static_cast<double>(sim.step_count() - phase_start_));
-  m.emplace_back("ageing_time_s", ageing_time_);
-  m.emplace_back("time_s", sim.time());
-  m.emplace_back("axial_stress_Pa", sa);
-  m.emplace_back("lateral_stress_Pa", sr);
-  m.emplace_back("deviator_stress_Pa", sa - sr);
-  m.emplace_back("confining_fluctuation", phase_lateral_ > 0 ? sr / phase_lateral_ - 1.0 : 0.0);
-  m.emplace_back("volumetric_strain_phase", 1.0 - w.volume() / phase_volume_);
-  m.emplace_back("axial_strain_phase", stage_axial_strain(sim));
-  m.emplace_back("unbalanced_force_ratio", unbalanced_force_ratio(sim));
-  m.emplace_back("breakages_instant",
-                 static_cast<double>(crusher_->breakages(BreakCause::Instant)));
-  m.emplace_back("breakages_crack", static_cast<double>(crusher_->breakages(BreakCause::Crack)));
-  m.emplace_back("n_particles", static_cast<double>(sim.particles().size()));
-  return m;
-}
-
-const char* AgeStage::end_reason(Simulation& sim) {
-  const std::uint64_t cycle = sim.step_count() - phase_start_;
-  if (on_phase_record && (cycle % cfg_.record_interval == 0 || cycle >= cfg_.min_cycles)) {
-    on_phase_record(phase_record(sim));
-  }
-  if (cycle < cfg_.min_cycles) return nullptr;
-  // End of a dynamic phase: record it, then jump the ageing clock (walls still).
-  ++res_.dynamic_phases;
-  if (on_dynamic_phase_end) on_dynamic_phase_end(sim, ageing_time_, res_.dynamic_phases - 1);
-  res_.ageing_time = ageing_time_;
-  if (ageing_time_ >= cfg_.duration) return "target ageing time";
-  const double left = cfg_.duration - ageing_time_;
-  const AgeingJump j = ageing_jump(sim, *crusher_, cfg_.n_break, left);
-  ageing_time_ = j.dt >= left ? cfg_.duration : ageing_time_ + j.dt;
-  start_phase(sim);
-  return nullptr;
-}
-
-bool AgeStage::reads_grains(const Simulation& sim) const {
-  return sim.step_count() - phase_start_ >= cfg_.min_cycles;
-}
-
-std::uint64_t AgeStage::limit_steps(Simulation& sim, std::uint64_t n) const {
-  const std::uint64_t in_phase = sim.step_count() - phase_start_;
-  if (in_phase < cfg_.min_cycles) n = std::min(n, cfg_.min_cycles - in_phase);
-  return std::min(n, cfg_.record_interval - in_phase % cfg_.record_interval);
-}
-
-void AgeStage::save_phase(StateWriter& out) const {
-  out.put(ageing_time_);
-  out.put(phase_start_);
-  out.put(phase_volume_);
-  out.put(phase_lateral_);
-}
-
-void AgeStage::load_phase(StateReader& in) {
-  in.get(ageing_time_);
-  in.get(phase_start_);
-  in.get(phase_volume_);
-  in.get(phase_lateral_);
-}
-
-// -----------------------------------------------------------------------------------------------
-
-std::unique_ptr<Stage> make_stage(const StageConfig& cfg, double d50, Crusher* crusher) {
-  switch (cfg.kind) {
-    case StageKind::Isotropic: return std::make_unique<IsotropicStage>(cfg, d50);
-    case StageKind::Oedometric: return std::make_unique<OedometricStage>(cfg, d50);
-    case StageKind::Triaxial: return std::make_unique<TriaxialStage>(cfg, d50);
-    case StageKind::Hold: return std::make_unique<HoldStage>(cfg, d50);
-    case StageKind::Age: return std::make_unique<AgeStage>(cfg, d50, crusher);
-  }
-  return nullptr;
 }
 
 }  // namespace crushdem

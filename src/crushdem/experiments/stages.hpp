@@ -1,44 +1,39 @@
-// Test stages (docs/model.md 4.2, 4.5, 3.1): one class per kind, each a Controller that sets
-// the six walls (fixed, moving, or servo-controlled) at its start and says when it is finished.
-//   isotropic   all six walls servo-controlled to `stress`, until equilibrium
-//   oedometric  lateral walls and the bottom fixed; the top moves at `strain_rate` (> 0 loading,
-//               < 0 unloading) until the vertical stress reaches `stress`; strain_rate = 0
-//               servo-controls the top to `stress` until equilibrium
-//   triaxial    lateral walls servo-controlled to sigma_3, both axial walls moving at
-//               strain_rate (compression), until `axial_strain` (from the stage start) or until
-//               q >= stop_q (> 0)
-//   hold        the walls keep still or are servo-controlled, for `steps` or `duration`
-//   age         off-DEM ageing (needs [crushing] crack_growth): dynamic phases of min_cycles
-//               steps (walls as `axial` / `lateral` say) alternate with ageing jumps that grow
-//               every crack at its frozen velocity until n_break grains would fail, until the
-//               ageing clock reaches `duration` (ageing time, not DEM time)
+// Test stages (docs/model.md 4.2, 4.5, 3.1): each a Controller that sets the six walls (fixed,
+// moving, or servo-controlled) at its start and says when it is finished. A stage kind is one
+// unit: its class, its parameter table, its description and how it is made are one `StageKind`
+// entry, defined in the kind's own file (experiments/stages/KIND.cpp) and listed in
+// stage_kinds() below. The reader and writer of [[stage]], docs/configuration.md, the Python
+// laboratory functions and the runner all work from that entry, so a new kind is its file, its
+// line in the list and its regenerated docs (ARCHITECTURE.md).
 // Axial is z; lateral is x and y. Strain rates are positive in compression and prescribed as
 // constant wall speeds: v = strain_rate * L_z at the start of the stage (a constant displacement
-// rate, as in a loading frame). Each kind's keys are one parameter table (stage_params).
+// rate, as in a loading frame).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
+#include <type_traits>
+#include <vector>
 
 #include "crushdem/core/params.hpp"
 #include "crushdem/experiments/protocol.hpp"
 
 namespace crushdem {
 
-enum class StageKind { Isotropic, Oedometric, Triaxial, Hold, Age };
-const char* to_string(StageKind k);
-StageKind parse_stage_kind(const std::string& s, const std::string& key);
-inline constexpr StageKind kStageKinds[] = {StageKind::Isotropic, StageKind::Oedometric,
-                                            StageKind::Triaxial, StageKind::Hold, StageKind::Age};
+class Crusher;
+class Stage;
+struct StageKind;
 
 /// How the walls of an axis are held during a hold or age stage.
 enum class WallControl { Fixed, Servo };
 
-/// The keys of one [[stage]] table; each kind reads the rows of its own table (stage_params).
+/// The keys of one [[stage]] table. Every kind reads, writes and checks only the rows of its own
+/// table (StageKind::params); the members are shared so that the tables stay plain rows.
 struct StageConfig {
-  StageKind kind = StageKind::Isotropic;
+  const StageKind* kind = nullptr;           // `type`
   std::string name;                          // for the outputs; defaults to the kind
   double stress = 0.0;                       // isotropic, oedometric [Pa]
   double strain_rate = 0.0;                  // oedometric, triaxial: axial [1/s]
@@ -60,17 +55,52 @@ struct StageConfig {
   double max_strain_rate = 0.0;  // servo speed limit as a strain rate [1/s]; 0 = automatic
   std::uint64_t check_interval = 200;
   std::uint64_t max_steps = 20000000;  // the stage ends (with a warning) after this many steps
-  /// The servo speed limit as a strain rate: max_strain_rate, or automatically 10 /s (I ~ 3e-4
-  /// at 100 kPa), and for triaxial lateral walls at least 2 strain_rate (dilation must not
-  /// outrun them).
-  double servo_strain_rate() const;
-  /// The ranges of the kind's table, then the checks that join keys; errors name prefix.key.
+  /// The ranges of the kind's table, then the kind's checks that join keys; errors name
+  /// prefix.key.
   void validate(const std::string& prefix) const;
-  std::string label() const { return name.empty() ? to_string(kind) : name; }
+  std::string label() const;
 };
 
-/// The keys of a stage kind, `type` and `name` aside (every kind has those).
-const ParamTable<StageConfig>& stage_params(StageKind kind);
+/// A stage kind, whole: what the configuration reader and writer, the docs, Python and the
+/// runner need of it.
+struct StageKind {
+  std::string_view name;           // the `type` of a [[stage]]
+  std::string_view description;    // one line: docs/configuration.md, Python docstrings
+  ParamTable<StageConfig> params;  // its keys, `type` and `name` aside (stage_table())
+  /// The stage of this kind. d50: of the sample (inertial number); crusher: the run's, null
+  /// without [crushing].
+  std::unique_ptr<Stage> (*make)(const StageConfig& cfg, double d50, Crusher* crusher) = nullptr;
+  /// The checks that join keys (the ranges are the rows'); errors name prefix.key. May be null.
+  void (*check)(const StageConfig& cfg, const std::string& prefix) = nullptr;
+  bool needs_crack_growth = false;  // needs [crushing] with crack_growth = true
+};
+
+// The kinds, in the order of the docs: each is defined in experiments/stages/KIND.cpp.
+const StageKind& isotropic_stage_kind();
+const StageKind& oedometric_stage_kind();
+const StageKind& triaxial_stage_kind();
+const StageKind& hold_stage_kind();
+const StageKind& age_stage_kind();
+
+inline const std::vector<const StageKind*>& stage_kinds() {
+  static const std::vector<const StageKind*> kinds = {
+      &isotropic_stage_kind(), &oedometric_stage_kind(), &triaxial_stage_kind(),
+      &hold_stage_kind(),      &age_stage_kind(),
+  };
+  return kinds;
+}
+
+/// The kind named `name`; ConfigError naming `key` and the kinds otherwise.
+const StageKind& stage_kind(const std::string& name, const std::string& key = "type");
+/// The kinds' names as a message's expected value: "\"isotropic\", ... or \"age\"".
+std::string stage_kind_names();
+
+/// A kind's table: its own rows, then those every kind has (tolerance, unbalanced,
+/// max_strain_rate, check_interval, max_steps).
+ParamTable<StageConfig> stage_table(std::initializer_list<Param<StageConfig>> own);
+/// The same, with the rows of walls held fixed or by servo first (axial, lateral and their
+/// servo targets), as a hold or age stage has them.
+ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<StageConfig>> own);
 
 /// Results of one stage, for summary.json.
 struct StageResult {
@@ -86,7 +116,20 @@ struct StageResult {
   double ageing_time = 0.0;               // age: the ageing clock at the end [s]
 };
 
-class Crusher;
+/// The run's result files as a stage sees them: the runner attaches every stage to one of these
+/// (Stage::attach), so that a kind with files of its own (the age stage's events.csv and
+/// phases.csv) writes them without the runner knowing the kind.
+class StageOutputs {
+ public:
+  virtual ~StageOutputs() = default;
+  /// Appends `row` to the result file `file` (created at its first row).
+  virtual void write(const std::string& file, const Measurement& row) = 0;
+  /// The run's measurements of the state (strains from the test's start; with [crushing] the
+  /// crushing columns), for a row of a stage's own file.
+  virtual Measurement measure(const Simulation& sim) const = 0;
+  /// A checkpoint once the current check is over (an ageing event).
+  virtual void request_checkpoint() = 0;
+};
 
 /// What every stage kind shares: its start (walls fixed, then the kind's set_walls), the peaks
 /// and limits it tracks (observe), its end (the kind's end condition, or max_steps) and its
@@ -95,6 +138,8 @@ class Stage : public Controller {
  public:
   /// d50: of the sample, for the inertial number.
   Stage(const StageConfig& cfg, double d50);
+  /// The run's files, and the index of this stage in the run (the `stage` column).
+  void attach(StageOutputs& outputs, std::size_t index);
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
@@ -120,14 +165,25 @@ class Stage : public Controller {
   virtual void observe_kind(const Walls&) {}
   /// The steps to the next check, at most n.
   virtual std::uint64_t limit_steps(Simulation&, std::uint64_t n) const { return n; }
+  /// The servo speed limit as a strain rate when max_strain_rate = 0 [1/s] (10 /s: I ~ 3e-4 at
+  /// 100 kPa).
+  virtual double automatic_servo_rate() const { return 10.0; }
   /// The age stage's phase state in the saved layout (zeros for the other kinds, so that every
   /// kind saves the same fields).
   virtual void save_phase(StateWriter& out) const;
   virtual void load_phase(StateReader& in);
 
   void set_servo(Walls& w, int k, double stress) const;
+  /// The top and the lateral walls as `axial` and `lateral` say (hold, age).
+  void set_held_walls(Walls& w) const;
+  /// Every servo wall within tolerance of its target and the unbalanced-force ratio below
+  /// `unbalanced`.
+  bool at_equilibrium(const Simulation& sim) const;
   double stage_axial_strain(const Simulation& sim) const;
   void add_warning(const std::string& w);
+  /// The run's files (null when the stage runs outside a run) and this stage's index.
+  StageOutputs* outputs() const { return outputs_; }
+  std::size_t index() const { return index_; }
   const StageConfig cfg_;
   StageResult res_;
   StrainReference ref_;
@@ -136,88 +192,25 @@ class Stage : public Controller {
 
  private:
   double d50_;
+  StageOutputs* outputs_ = nullptr;
+  std::size_t index_ = 0;
   bool warned_inertia_ = false;
   bool observed_ = false;
 };
 
-class IsotropicStage final : public Stage {
- public:
-  using Stage::Stage;
-
- protected:
-  void set_walls(Walls& w) override;
-  const char* end_reason(Simulation& sim) override;
-};
-
-class OedometricStage final : public Stage {
- public:
-  using Stage::Stage;
-
- protected:
-  void set_walls(Walls& w) override;
-  const char* end_reason(Simulation& sim) override;
-  std::string target_met_at_start(const Walls& w) const override;
-  void observe_kind(const Walls& w) override;
-};
-
-class TriaxialStage final : public Stage {
- public:
-  using Stage::Stage;
-
- protected:
-  void set_walls(Walls& w) override;
-  const char* end_reason(Simulation& sim) override;
-  std::string target_met_at_start(const Walls& w) const override;
-  void observe_kind(const Walls& w) override;
-};
-
-class HoldStage final : public Stage {
- public:
-  using Stage::Stage;
-
- protected:
-  void set_walls(Walls& w) override;
-  const char* end_reason(Simulation& sim) override;
-  std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override;
-};
-
-/// The on-off ageing loop (docs/model.md 3.1): a dynamic phase of min_cycles steps, then an
-/// ageing jump (ageing/ageing_jump.hpp), until the ageing clock reaches `duration`.
-class AgeStage final : public Stage {
- public:
-  /// crusher: its cracks grow; required.
-  AgeStage(const StageConfig& cfg, double d50, Crusher* crusher);
-  /// Called at the end of every dynamic phase (ageing clock, phase index).
-  std::function<void(const Simulation&, double, std::uint64_t)> on_dynamic_phase_end;
-  /// Called every record_interval cycles of each dynamic phase, from cycle 0 (just after the
-  /// ageing jump, before the grains it brought to failure split) to its last cycle, with a
-  /// phase_record() row (the study's Figure 2: what a jump disturbs).
-  std::function<void(const Measurement&)> on_phase_record;
-  /// The row for phases.csv at the current state.
-  Measurement phase_record(const Simulation& sim) const;
-  void begin(Simulation& sim) override;
-  /// The dynamic phase and the ageing time against its duration.
-  std::string progress_note() const override;
-
- protected:
-  void set_walls(Walls& w) override;
-  const char* end_reason(Simulation& sim) override;
-  /// The end of a dynamic phase reads and changes the grains (events row, ageing jump).
-  bool reads_grains(const Simulation& sim) const override;
-  std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override;
-  void save_phase(StateWriter& out) const override;
-  void load_phase(StateReader& in) override;
-
- private:
-  void start_phase(const Simulation& sim);
-  Crusher* crusher_;
-  double ageing_time_ = 0.0;
-  std::uint64_t phase_start_ = 0;
-  double phase_volume_ = 0.0;   // box volume at cycle 0 of the current phase [m^3]
-  double phase_lateral_ = 0.0;  // reference of the confining fluctuation [Pa]
-};
-
-/// The stage of cfg.kind. crusher: needed by an age stage (ConfigError without one).
+/// The stage of cfg.kind. crusher: needed by a kind with needs_crack_growth (ConfigError
+/// without one).
 std::unique_ptr<Stage> make_stage(const StageConfig& cfg, double d50, Crusher* crusher);
+
+/// StageKind::make for the class T, constructed from (cfg, d50) or, when it takes one, (cfg,
+/// d50, crusher).
+template <class T>
+std::unique_ptr<Stage> make_stage_of(const StageConfig& cfg, double d50, Crusher* crusher) {
+  if constexpr (std::is_constructible_v<T, const StageConfig&, double, Crusher*>) {
+    return std::make_unique<T>(cfg, d50, crusher);
+  } else {
+    return std::make_unique<T>(cfg, d50);
+  }
+}
 
 }  // namespace crushdem

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -160,18 +161,16 @@ void read_sample(Section& s, SampleConfig& c) {
 
 void read_stage(Section& s, StageConfig& c) {
   if (!s.has("type")) {
-    throw ConfigError(
-        "missing key '" + s.key("type") +
-        "': expected \"isotropic\", \"oedometric\", \"triaxial\", \"hold\" or \"age\"");
+    throw ConfigError("missing key '" + s.key("type") + "': expected " + stage_kind_names());
   }
   std::string type;
   s.string("type", type);
-  c.kind = parse_stage_kind(type, s.key("type"));
+  c.kind = &stage_kind(type, s.key("type"));
   s.string("name", c.name);
   // A key of another kind is a mistake, not a no-op: say so before the unknown-key check.
-  const ParamTable<StageConfig>& own = stage_params(c.kind);
-  for (const StageKind other : kStageKinds) {
-    for (const Param<StageConfig>& p : stage_params(other)) {
+  const ParamTable<StageConfig>& own = c.kind->params;
+  for (const StageKind* other : stage_kinds()) {
+    for (const Param<StageConfig>& p : other->params) {
       const std::string k(p.key);
       const bool mine = std::any_of(own.begin(), own.end(),
                                     [&](const Param<StageConfig>& q) { return q.key == p.key; });
@@ -320,35 +319,63 @@ const ParamTable<GenerateConfig>& generate_params() {
   return table;
 }
 
-std::vector<std::pair<std::string, std::string>> parameter_reference() {
+namespace {
+
+// The sections with a table, the stages aside.
+std::vector<std::pair<std::string, std::vector<param_io::ParamRow>>> section_tables() {
+  using param_io::param_rows;
   return {
-      {"material", markdown(material_params())},
-      {"contact", markdown(contact_params())},
-      {"damping", markdown(damping_params())},
-      {"timestep", markdown(timestep_params())},
-      {"neighbor", markdown(neighbor_params())},
-      {"gravity", markdown(gravity_params())},
-      {"crushing",
-       markdown(crushing_params(),
-                {"| `pattern` | (the 14 fragments) | | file of `radius_fraction x y z` rows "
-                 "(units of the parent radius, local axis z = the normal of the parent's largest "
-                 "contact force); relative to the config file |"})},
-      {"output", markdown(output_params())},
-      {"walls.NAME", markdown(wall_params())},
-      {"body", markdown(body_params())},
-      {"particles.generate", markdown(generate_params())},
-      {"sample",
-       markdown(
-           sample_params(),
-           {"| `grading.diameter` | NE34-like: 0.12 ... 0.27 mm | m | sieve sizes, increasing |",
-            "| `grading.passing` | 0, 0.1, 0.3, 0.5, 0.7, 0.9, 1 | - | mass fraction passing "
-            "each size (0 ... 1, first 0, last 1) |"})},
-      {"stage.isotropic", markdown(stage_params(StageKind::Isotropic))},
-      {"stage.oedometric", markdown(stage_params(StageKind::Oedometric))},
-      {"stage.triaxial", markdown(stage_params(StageKind::Triaxial))},
-      {"stage.hold", markdown(stage_params(StageKind::Hold))},
-      {"stage.age", markdown(stage_params(StageKind::Age))},
+      {"material", param_rows(material_params())},
+      {"contact", param_rows(contact_params())},
+      {"damping", param_rows(damping_params())},
+      {"timestep", param_rows(timestep_params())},
+      {"neighbor", param_rows(neighbor_params())},
+      {"gravity", param_rows(gravity_params())},
+      {"crushing", param_rows(crushing_params())},
+      {"output", param_rows(output_params())},
+      {"walls.NAME", param_rows(wall_params())},
+      {"body", param_rows(body_params())},
+      {"particles.generate", param_rows(generate_params())},
+      {"sample", param_rows(sample_params())},
   };
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::vector<param_io::ParamRow>>> parameter_tables() {
+  auto tables = section_tables();
+  for (const StageKind* k : stage_kinds()) {
+    tables.emplace_back("stage." + std::string(k->name), param_io::param_rows(k->params));
+  }
+  return tables;
+}
+
+std::vector<std::pair<std::string, std::string>> parameter_reference() {
+  // Keys read outside the tables.
+  const std::map<std::string, std::vector<std::string>> extra_rows = {
+      {"crushing",
+       {"| `pattern` | (the 14 fragments) | | file of `radius_fraction x y z` rows (units of the "
+        "parent radius, local axis z = the normal of the parent's largest contact force); "
+        "relative to the config file |"}},
+      {"sample",
+       {"| `grading.diameter` | NE34-like: 0.12 ... 0.27 mm | m | sieve sizes, increasing |",
+        "| `grading.passing` | 0, 0.1, 0.3, 0.5, 0.7, 0.9, 1 | - | mass fraction passing each "
+        "size (0 ... 1, first 0, last 1) |"}},
+  };
+  std::vector<std::pair<std::string, std::string>> ref;
+  for (const auto& [section, rows] : section_tables()) {
+    const auto extra = extra_rows.find(section);
+    ref.emplace_back(section, markdown(rows, extra == extra_rows.end() ? std::vector<std::string>{}
+                                                                       : extra->second));
+  }
+  std::string stages;
+  for (const StageKind* k : stage_kinds()) {
+    if (!stages.empty()) stages += "\n";
+    stages += "### type = \"" + std::string(k->name) + "\": " + std::string(k->description) +
+              "\n\n" + markdown(k->params);
+  }
+  ref.emplace_back("stage", stages);
+  return ref;
 }
 
 RunConfig load_run_config(const std::string& path) {
@@ -458,12 +485,13 @@ void RunConfig::validate() const {
     particles.validate(box());
   }
   for (std::size_t i = 0; i < stages.size(); ++i) {
-    stages[i].validate("stage[" + std::to_string(i) + "]");
-    if (stages[i].kind == StageKind::Age && !(crushing.enabled && crushing.crack_growth)) {
-      throw ConfigError("stage[" + std::to_string(i) +
-                        "]: an \"age\" stage needs crack growth: add [crushing] with "
-                        "crack_growth = true");
+    // A kind that cannot run here is said first, whatever its keys.
+    if (stages[i].kind->needs_crack_growth && !(crushing.enabled && crushing.crack_growth)) {
+      throw ConfigError("stage[" + std::to_string(i) + "]: an \"" +
+                        std::string(stages[i].kind->name) +
+                        "\" stage needs crack growth: add [crushing] with crack_growth = true");
     }
+    stages[i].validate("stage[" + std::to_string(i) + "]");
   }
   output.validate();
   if (crushing.enabled) {
@@ -548,8 +576,8 @@ toml::Table to_toml(const RunConfig& c) {
   if (!c.stages.empty()) {
     std::vector<Value> arr;
     for (const StageConfig& s : c.stages) {
-      Table st = write_params(s, stage_params(s.kind));
-      st["type"] = Value::make_string(to_string(s.kind));
+      Table st = write_params(s, s.kind->params);
+      st["type"] = Value::make_string(std::string(s.kind->name));
       st["name"] = Value::make_string(s.label());
       arr.push_back(Value::make_table(st));
     }

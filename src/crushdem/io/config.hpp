@@ -13,6 +13,7 @@
 #include "crushdem/experiments/stages.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/integrate/simulation.hpp"
+#include "crushdem/io/param_io.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem {
@@ -49,8 +50,13 @@ struct OutputConfig {
 /// The keys of [output] (core/params.hpp).
 const ParamTable<OutputConfig>& output_params();
 
-/// The reference tables of the configuration sections that have a parameter table, as
-/// (section, Markdown table) pairs: docs/configuration.md holds them verbatim (a test checks it).
+/// The rows of every configuration section that has a parameter table, as (section, rows)
+/// pairs; a stage kind's section is "stage.KIND".
+std::vector<std::pair<std::string, std::vector<param_io::ParamRow>>> parameter_tables();
+
+/// The reference of those sections as (section, Markdown) pairs: a table each, and for the
+/// stages ("stage") each kind's heading and table. docs/configuration.md holds them verbatim (a
+/// test checks it).
 std::vector<std::pair<std::string, std::string>> parameter_reference();
 
 struct RunConfig {

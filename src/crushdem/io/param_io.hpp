@@ -1,14 +1,18 @@
 // Reading and writing configuration sections through their parameter tables
 // (core/params.hpp): the Section reader (types checked, unknown keys reported with the file and
-// line), read_params / write_params for a table, and the Markdown reference of a table. Used by
-// io/config.cpp; a test drives it with a made-up table of its own.
+// line), read_params / write_params for a table, a table's rows as plain values (ParamRow, what
+// the docs and Python show) and its Markdown reference. Used by io/config.cpp; a test drives it
+// with a made-up table of its own.
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <charconv>
+#include <cstdint>
 #include <set>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "crushdem/core/error.hpp"
@@ -222,47 +226,88 @@ inline std::string cell(std::string_view text) {
   return out;
 }
 
+/// One row of a table as plain values: what docs/configuration.md and Python show of it.
+struct ParamRow {
+  using Value = std::variant<double, std::uint64_t, bool, std::string, std::array<double, 3>>;
+  std::string key;
+  std::string type;  // the Python type: "float", "int", "bool", "str" (a text or a choice), "list"
+  Value default_value;      // the member's value in a default-constructed struct
+  std::string default_doc;  // shown instead of the value ("-": none, the key must be given)
+  std::string unit, doc;
+  std::string choices;   // a choice's values, e.g. "\"fixed\" or \"servo\"" (empty otherwise)
+  bool checked = false;  // a range check, whose expected value is `expected`
+  std::string expected;
+};
+
 template <class S>
-std::string default_text(const Param<S>& p) {
-  if (!p.default_doc.empty()) return std::string(p.default_doc);
+std::vector<ParamRow> param_rows(const ParamTable<S>& table) {
   static const S d{};  // the defaults (static: GCC 12 misreads a local as uninitialised)
-  if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
-    return doc_number(d.*(*num));
-  }
-  if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
-    return std::to_string(d.*(*cnt));
-  }
-  if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
-    return d.*(*flag) ? "true" : "false";
-  }
-  if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
-    return "`\"" + d.*(*text) + "\"`";
-  }
-  // (A struct smaller than a Vec3 has no Triple row; the guard keeps GCC from warning about the
-  // access it cannot prove unreachable.)
-  if constexpr (kMayHoldTriple<S>) {
-    if (const auto* tri = std::get_if<typename Param<S>::Triple>(&p.member)) {
-      const Vec3 v = d.*(*tri);
-      return "[" + doc_number(v.x) + ", " + doc_number(v.y) + ", " + doc_number(v.z) + "]";
+  std::vector<ParamRow> rows;
+  for (const Param<S>& p : table) {
+    ParamRow r;
+    r.key = p.key;
+    r.default_doc = p.default_doc;
+    r.unit = p.unit;
+    r.doc = p.doc;
+    r.checked = p.ok != nullptr;
+    if (r.checked) r.expected = p.expected;
+    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+      r.type = "float";
+      r.default_value = d.*(*num);
+    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+      r.type = "int";
+      r.default_value = d.*(*cnt);
+    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+      r.type = "bool";
+      r.default_value = d.*(*flag);
+    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+      r.type = "str";
+      r.default_value = d.*(*text);
+    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+      r.type = "str";
+      r.default_value = choice->get(d);
+      r.choices = choice->choices;
+    } else if constexpr (kMayHoldTriple<S>) {  // [x, y, z]
+      const Vec3 v = d.*std::get<typename Param<S>::Triple>(p.member);
+      r.type = "list";
+      r.default_value = std::array<double, 3>{v.x, v.y, v.z};
     }
+    rows.push_back(std::move(r));
   }
-  return "`\"" + std::get<ParamChoice<S>>(p.member).get(d) + "\"`";
+  return rows;
+}
+
+/// The docs' default of a row: its default_doc, or its value.
+inline std::string default_text(const ParamRow& r) {
+  if (!r.default_doc.empty()) return r.default_doc;
+  if (const auto* num = std::get_if<double>(&r.default_value)) return doc_number(*num);
+  if (const auto* cnt = std::get_if<std::uint64_t>(&r.default_value)) return std::to_string(*cnt);
+  if (const auto* flag = std::get_if<bool>(&r.default_value)) return *flag ? "true" : "false";
+  if (const auto* v = std::get_if<std::array<double, 3>>(&r.default_value)) {
+    return "[" + doc_number((*v)[0]) + ", " + doc_number((*v)[1]) + ", " + doc_number((*v)[2]) +
+           "]";
+  }
+  return "`\"" + std::get<std::string>(r.default_value) + "\"`";
+}
+
+/// A table's rows as the Markdown table of docs/configuration.md, then `extra_rows`.
+inline std::string markdown(const std::vector<ParamRow>& rows,
+                            const std::vector<std::string>& extra_rows = {}) {
+  std::string out = "| key | default | unit | meaning |\n|---|---|---|---|\n";
+  for (const ParamRow& r : rows) {
+    std::string meaning = r.doc;
+    if (!r.choices.empty()) meaning += "; one of " + r.choices;
+    if (r.checked) meaning += "; expected: " + r.expected;
+    out +=
+        "| `" + r.key + "` | " + default_text(r) + " | " + r.unit + " | " + cell(meaning) + " |\n";
+  }
+  for (const std::string& row : extra_rows) out += row + "\n";
+  return out;
 }
 
 template <class S>
 std::string markdown(const ParamTable<S>& table, const std::vector<std::string>& extra_rows = {}) {
-  std::string out = "| key | default | unit | meaning |\n|---|---|---|---|\n";
-  for (const Param<S>& p : table) {
-    std::string meaning(p.doc);
-    if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
-      meaning += "; one of " + std::string(choice->choices);
-    }
-    if (p.ok) meaning += "; expected: " + std::string(p.expected);
-    out += "| `" + std::string(p.key) + "` | " + default_text(p) + " | " + std::string(p.unit) +
-           " | " + cell(meaning) + " |\n";
-  }
-  for (const std::string& row : extra_rows) out += row + "\n";
-  return out;
+  return markdown(param_rows(table), extra_rows);
 }
 
 }  // namespace crushdem::param_io

@@ -80,6 +80,29 @@ void create_directory(const fs::path& dir, const std::string& out) {
   if (ec) throw ConfigError("--out '" + out + "': cannot create directory: " + ec.message());
 }
 
+/// The run's result files as its stages see them (Stage::attach).
+class RunFiles final : public StageOutputs {
+ public:
+  RunFiles(Driver& driver, const StrainReference& ref, const Crusher* crusher)
+      : driver_(driver), ref_(ref), crusher_(crusher) {}
+  void write(const std::string& file, const Measurement& row) override {
+    driver_.file(file).write(row);
+  }
+  Measurement measure(const Simulation& sim) const override {
+    Measurement m = crushdem::measure(sim, ref_);
+    if (crusher_) {
+      for (auto& kv : crushing_measurements(sim, *crusher_)) m.push_back(kv);
+    }
+    return m;
+  }
+  void request_checkpoint() override { driver_.request_checkpoint(); }
+
+ private:
+  Driver& driver_;
+  const StrainReference& ref_;
+  const Crusher* crusher_;
+};
+
 /// One run, from its directory to its summary: open (directory, lock, a saved state to continue
 /// from), prepare (the sample or the configured grains), test (stage after stage, or a plain
 /// [run]), finish (summary.json, timing.json). Each part starts from the checkpoint when the run
@@ -375,25 +398,8 @@ class Run {
     if (!cont) boundary(part);
     const std::unique_ptr<Stage> made = make_stage(cfg_.stages[k], pos_.d50, crusher_.get());
     Stage& stage = *made;
-    if (auto* age = dynamic_cast<AgeStage*>(made.get())) {
-      age->on_dynamic_phase_end = [this, k](const Simulation& s, double t_age,
-                                            std::uint64_t phase) {
-        Measurement m;
-        m.emplace_back("ageing_time_s", t_age);
-        m.emplace_back("stage", static_cast<double>(k));
-        m.emplace_back("dynamic_phase", static_cast<double>(phase));
-        for (auto& kv : measure(s, pos_.ref)) m.push_back(kv);
-        for (auto& kv : crushing_measurements(s, *crusher_)) m.push_back(kv);
-        driver_->file("events.csv").write(m);
-        driver_->request_checkpoint();  // every event is a checkpoint
-      };
-      age->on_phase_record = [this, k](const Measurement& r) {
-        Measurement m;
-        m.emplace_back("stage", static_cast<double>(k));
-        for (const auto& kv : r) m.push_back(kv);
-        driver_->file("phases.csv").write(m);
-      };
-    }
+    RunFiles files(*driver_, pos_.ref, crusher_.get());
+    stage.attach(files, k);
     if (cont) stage.load_state(*in_);
     driver_->drive(
         stage, driver_->file("timeseries.csv"),
