@@ -236,24 +236,9 @@ std::uint64_t PreparationController::steps_to_check(Simulation& sim) {
 
 // --- checkpoints -------------------------------------------------------------------------------
 
-void PreparationController::save_state(StateWriter& out) const {
-  out.tag("preparation");
-  out.put(mu_);
-  out.put(mu_found_);
-  out.put(e_);
-  out.put(phase_);
-  out.put(start_step_);
-  out.put(warning_);
-}
-
-void PreparationController::load_state(StateReader& in) {
-  in.tag("preparation");
-  in.get(mu_);
-  in.get(mu_found_);
-  in.get(e_);
-  in.get(phase_);
-  in.get(start_step_);
-  in.get(warning_);
+void PreparationController::state(StateArchive& a) {
+  a.section("preparation");
+  a(mu_, mu_found_, e_, phase_, start_step_, warning_);
 }
 
 }  // namespace crushdem

@@ -73,10 +73,9 @@ class Controller {
   }
   /// Extra columns for the time series (stage-specific), in a fixed order.
   virtual Measurement columns(const Simulation& sim) const = 0;
-  /// What begin() and update() have set up and counted so far (checkpoints); load_state()
-  /// replaces begin() when a run resumes.
-  virtual void save_state(StateWriter& out) const = 0;
-  virtual void load_state(StateReader& in) = 0;
+  /// What begin() and update() have set up and counted so far, declared once for saving and
+  /// loading (checkpoints: core/state_io.hpp); loading it replaces begin() when a run resumes.
+  virtual void state(StateArchive& a) = 0;
 };
 
 /// The place a grain cloud starts from, drawn from the grading (sizes) and placed without
@@ -97,8 +96,7 @@ class PreparationController final : public Controller {
   /// Reads the walls, the grains' sizes and the unbalanced-force ratio only.
   bool reads_grains(const Simulation&) const override { return false; }
   Measurement columns(const Simulation& sim) const override;
-  void save_state(StateWriter& out) const override;
-  void load_state(StateReader& in) override;
+  void state(StateArchive& a) override;
   double preparation_friction() const { return mu_found_; }
   double void_ratio() const { return e_; }
   /// Empty when the target was reached; otherwise what went wrong.

@@ -260,59 +260,20 @@ Measurement Stage::columns(const Simulation& sim) const {
           {"inertial_number", inertial_number(sim.walls(), d50_, sim.config().material.density)}};
 }
 
-void Stage::save_phase(StateWriter& out) const {
-  out.put(0.0);
-  out.put(std::uint64_t{0});
-  out.put(0.0);
-  out.put(0.0);
-}
-
-void Stage::load_phase(StateReader& in) {
+void Stage::phase_state(StateArchive& a) {
   double ageing_time = 0.0, volume = 0.0, lateral = 0.0;
   std::uint64_t start = 0;
-  in.get(ageing_time);
-  in.get(start);
-  in.get(volume);
-  in.get(lateral);
+  a(ageing_time, start, volume, lateral);
 }
 
-void Stage::save_state(StateWriter& out) const {
-  out.tag("stage");
-  save_phase(out);
-  out.put(ref_);
-  out.put(start_step_);
-  out.put(start_time_);
-  out.put(warned_inertia_);
-  out.put(observed_);
-  for (const std::string* t : {&res_.name, &res_.kind, &res_.end_reason, &res_.warning}) {
-    out.put(*t);
-  }
-  out.put(res_.steps);
-  out.put(res_.dynamic_phases);
-  for (const double v :
-       {res_.q_max, res_.axial_strain_at_q_max, res_.sigma_3_at_q_max, res_.friction_angle_deg,
-        res_.K0, res_.max_inertial_number, res_.max_lateral_stress_error, res_.max_lateral_strain,
-        res_.ageing_time}) {
-    out.put(v);
-  }
-}
-
-void Stage::load_state(StateReader& in) {
-  in.tag("stage");
-  load_phase(in);
-  in.get(ref_);
-  in.get(start_step_);
-  in.get(start_time_);
-  in.get(warned_inertia_);
-  in.get(observed_);
-  for (std::string* t : {&res_.name, &res_.kind, &res_.end_reason, &res_.warning}) in.get(*t);
-  in.get(res_.steps);
-  in.get(res_.dynamic_phases);
-  for (double* v : {&res_.q_max, &res_.axial_strain_at_q_max, &res_.sigma_3_at_q_max,
-                    &res_.friction_angle_deg, &res_.K0, &res_.max_inertial_number,
-                    &res_.max_lateral_stress_error, &res_.max_lateral_strain, &res_.ageing_time}) {
-    in.get(*v);
-  }
+void Stage::state(StateArchive& a) {
+  a.section("stage");
+  phase_state(a);
+  a(ref_, start_step_, start_time_, warned_inertia_, observed_);
+  a(res_.name, res_.kind, res_.end_reason, res_.warning, res_.steps, res_.dynamic_phases);
+  a(res_.q_max, res_.axial_strain_at_q_max, res_.sigma_3_at_q_max, res_.friction_angle_deg, res_.K0,
+    res_.max_inertial_number, res_.max_lateral_stress_error, res_.max_lateral_strain,
+    res_.ageing_time);
 }
 
 }  // namespace crushdem

@@ -146,8 +146,7 @@ class Stage : public Controller {
   /// A stage's check reads the walls, the clock and the unbalanced-force ratio.
   bool reads_grains(const Simulation&) const override { return false; }
   Measurement columns(const Simulation& sim) const override;
-  void save_state(StateWriter& out) const override;
-  void load_state(StateReader& in) override;
+  void state(StateArchive& a) override;
   const StageResult& result() const { return res_; }
   /// Where the stage stands, for progress lines (empty: the lines give the stresses).
   virtual std::string progress_note() const { return ""; }
@@ -168,10 +167,9 @@ class Stage : public Controller {
   /// The servo speed limit as a strain rate when max_strain_rate = 0 [1/s] (10 /s: I ~ 3e-4 at
   /// 100 kPa).
   virtual double automatic_servo_rate() const { return 10.0; }
-  /// The age stage's phase state in the saved layout (zeros for the other kinds, so that every
-  /// kind saves the same fields).
-  virtual void save_phase(StateWriter& out) const;
-  virtual void load_phase(StateReader& in);
+  /// The age stage's phase state in the saved layout, declared as state() declares the rest
+  /// (zeros for the other kinds, so that every kind saves the same fields).
+  virtual void phase_state(StateArchive& a);
 
   void set_servo(Walls& w, int k, double stress) const;
   /// The top and the lateral walls as `axial` and `lateral` say (hold, age).

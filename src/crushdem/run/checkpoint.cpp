@@ -63,7 +63,7 @@ std::string checkpoint_bytes(const std::string& config_text, const RunPosition& 
   save_state(driver, out);
   save_state(sim, out);
   if (crusher) save_state(*crusher, out);
-  if (running) running->save_state(out);
+  if (running) save_state(*running, out);
   out.put(fnv1a64(out.bytes().data(), out.bytes().size()));
   return out.bytes();
 }

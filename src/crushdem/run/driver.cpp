@@ -39,16 +39,9 @@ std::uint64_t FixedLengthController::steps_to_check(Simulation& sim) {
   return static_cast<std::uint64_t>(std::max(1.0, left));
 }
 
-void FixedLengthController::save_state(StateWriter& out) const {
-  out.tag("run");
-  out.put(start_step_);
-  out.put(start_time_);
-}
-
-void FixedLengthController::load_state(StateReader& in) {
-  in.tag("run");
-  in.get(start_step_);
-  in.get(start_time_);
+void FixedLengthController::state(StateArchive& a) {
+  a.section("run");
+  a(start_step_, start_time_);
 }
 
 double FixedLengthController::fraction(const Simulation& sim) const {

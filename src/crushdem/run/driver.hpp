@@ -45,8 +45,7 @@ class FixedLengthController final : public Controller {
   std::uint64_t steps_to_check(Simulation& sim) override;
   bool reads_grains(const Simulation&) const override { return false; }  // the clock only
   Measurement columns(const Simulation&) const override { return {}; }
-  void save_state(StateWriter& out) const override;
-  void load_state(StateReader& in) override;
+  void state(StateArchive& a) override;
   double fraction(const Simulation& sim) const;
 
  private:

@@ -311,7 +311,7 @@ class Run {
     }
     PreparationController prep(cfg_.sample, cfg_.simulation.material.friction);
     const bool cont = resume_here(kPartPreparation);
-    if (cont) prep.load_state(*in_);
+    if (cont) load_state(prep, *in_);
     CsvWriter& csv = driver_->file(cfg_.stages.empty() ? "timeseries.csv" : "preparation.csv");
     driver_->drive(
         prep, csv,
@@ -400,7 +400,7 @@ class Run {
     Stage& stage = *made;
     RunFiles files(*driver_, pos_.ref, crusher_.get());
     stage.attach(files, k);
-    if (cont) stage.load_state(*in_);
+    if (cont) load_state(stage, *in_);
     driver_->drive(
         stage, driver_->file("timeseries.csv"),
         [&]() {
@@ -427,7 +427,7 @@ class Run {
     const bool cont = resume_here(kPartRun);
     if (!cont) boundary(kPartRun);
     FixedLengthController run(cfg_.steps, cfg_.duration);
-    if (cont) run.load_state(*in_);
+    if (cont) load_state(run, *in_);
     driver_->drive(
         run, driver_->file("timeseries.csv"),
         [&]() {

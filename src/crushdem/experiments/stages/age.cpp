@@ -72,18 +72,8 @@ class AgeStage final : public Stage {
     return std::min(n, cfg_.record_interval - in_phase % cfg_.record_interval);
   }
 
-  void save_phase(StateWriter& out) const override {
-    out.put(ageing_time_);
-    out.put(phase_start_);
-    out.put(phase_volume_);
-    out.put(phase_lateral_);
-  }
-
-  void load_phase(StateReader& in) override {
-    in.get(ageing_time_);
-    in.get(phase_start_);
-    in.get(phase_volume_);
-    in.get(phase_lateral_);
+  void phase_state(StateArchive& a) override {
+    a(ageing_time_, phase_start_, phase_volume_, phase_lateral_);
   }
 
  private:
