@@ -180,30 +180,26 @@ std::string config_error(const std::string& bodies) {
 }
 
 TEST(Bodies, BadBodiesAreRefusedNamingTheKey) {
-  const std::string zero_angle =
-      config_error("[[body]]\nname = \"tip\"\nshape = \"cone\"\nradius = 1e-3\nhalf_angle = 0.0\n");
-  EXPECT_NE(zero_angle.find("body[0].half_angle"), std::string::npos) << zero_angle;
-  const std::string dilate_plane =
-      config_error("[[body]]\nname = \"p\"\nshape = \"plane\"\nmotion = \"dilate\"\n");
-  EXPECT_NE(dilate_plane.find("body[0].motion"), std::string::npos) << dilate_plane;
-  const std::string servo_plane = config_error(
-      "[[body]]\nname = \"p\"\nshape = \"plane\"\nmode = \"servo\"\ntarget_stress = 1e5\n");
-  EXPECT_NE(servo_plane.find("body[0].area"), std::string::npos) << servo_plane;
-  const std::string no_radius =
-      config_error("[[body]]\nname = \"c\"\nshape = \"cylinder_inside\"\nlength = 1e-3\n");
-  EXPECT_NE(no_radius.find("body[0].radius"), std::string::npos) << no_radius;
-  const std::string twice = config_error("[[body]]\nname = \"a\"\n[[body]]\nname = \"a\"\n");
-  EXPECT_NE(twice.find("body[1].name"), std::string::npos) << twice;
-  const std::string box_name = config_error("[[body]]\nname = \"zmax\"\n");
-  EXPECT_NE(box_name.find("body[0].name"), std::string::npos) << box_name;
-  const std::string no_axis = config_error("[[body]]\nname = \"a\"\naxis = [0, 0, 0]\n");
-  EXPECT_NE(no_axis.find("body[0].axis"), std::string::npos) << no_axis;
-  const std::string short_pile =
-      config_error("[[body]]\nname = \"pile\"\nshape = \"pile\"\nradius = 1e-3\nlength = 1e-3\n");
-  EXPECT_NE(short_pile.find("body[0].length"), std::string::npos) << short_pile;
-  const std::string unused =
-      config_error("[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n");
-  EXPECT_NE(unused.find("body[0].target_stress"), std::string::npos) << unused;
+  // (the [[body]] tables, the key the error must name)
+  const std::pair<std::string, std::string> cases[] = {
+      {"[[body]]\nname = \"tip\"\nshape = \"cone\"\nradius = 1e-3\nhalf_angle = 0.0\n",
+       "body[0].half_angle"},
+      {"[[body]]\nname = \"p\"\nshape = \"plane\"\nmotion = \"dilate\"\n", "body[0].motion"},
+      {"[[body]]\nname = \"p\"\nshape = \"plane\"\nmode = \"servo\"\ntarget_stress = 1e5\n",
+       "body[0].area"},
+      {"[[body]]\nname = \"c\"\nshape = \"cylinder_inside\"\nlength = 1e-3\n", "body[0].radius"},
+      {"[[body]]\nname = \"a\"\n[[body]]\nname = \"a\"\n", "body[1].name"},
+      {"[[body]]\nname = \"zmax\"\n", "body[0].name"},
+      {"[[body]]\nname = \"a\"\naxis = [0, 0, 0]\n", "body[0].axis"},
+      {"[[body]]\nname = \"pile\"\nshape = \"pile\"\nradius = 1e-3\nlength = 1e-3\n",
+       "body[0].length"},
+      {"[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n", "body[0].target_stress"},
+      {"[[body]]\nname = \"a\"\nshape = \"sphere\"\n", "body[0].shape"},
+  };
+  for (const auto& [bodies, key] : cases) {
+    const std::string error = config_error(bodies);
+    EXPECT_NE(error.find(key), std::string::npos) << bodies << " -> " << error;
+  }
 }
 
 TEST(Bodies, ABoxRunWritesNoBodyKeysAndABodyIsWrittenAndReadBack) {

@@ -103,66 +103,61 @@ enum class When { Always, Load, Crushing };
 // host array (an expression on `s`, the Simulation, and `crusher`, the run's Crusher; expanded
 // by host code only). The View's members and backend/device_stepper.cpp's transfer list both
 // come from these rows; the contact history the law declares comes on top (View::ph).
-#define CD_DEVICE_FIELDS(X)                                                               \
-  X(x, double, Grains, true, Always, false, s.particles().x)                              \
-  X(y, double, Grains, true, Always, false, s.particles().y)                              \
-  X(z, double, Grains, true, Always, false, s.particles().z)                              \
-  X(vx, double, Grains, true, Always, false, s.particles().vx)                            \
-  X(vy, double, Grains, true, Always, false, s.particles().vy)                            \
-  X(vz, double, Grains, true, Always, false, s.particles().vz)                            \
-  X(wx, double, Grains, true, Always, false, s.particles().wx)                            \
-  X(wy, double, Grains, true, Always, false, s.particles().wy)                            \
-  X(wz, double, Grains, true, Always, false, s.particles().wz)                            \
-  X(fx, double, Grains, true, Always, false, s.particles().fx)                            \
-  X(fy, double, Grains, true, Always, false, s.particles().fy)                            \
-  X(fz, double, Grains, true, Always, false, s.particles().fz)                            \
-  X(tx, double, Grains, true, Always, false, s.particles().tx)                            \
-  X(ty, double, Grains, true, Always, false, s.particles().ty)                            \
-  X(tz, double, Grains, true, Always, false, s.particles().tz)                            \
-  /* the resultant force before local damping (for output) */                             \
-  X(fux, double, Grains, true, Always, false, s.resultant_force(0))                       \
-  X(fuy, double, Grains, true, Always, false, s.resultant_force(1))                       \
-  X(fuz, double, Grains, true, Always, false, s.resultant_force(2))                       \
-  X(radius, double, Grains, false, Always, true, s.particles().radius)                    \
-  X(mass, double, Grains, false, Always, true, s.particles().mass)                        \
-  X(inv_mass, double, Grains, false, Always, true, s.particles().inv_mass)                \
-  X(inv_inertia, double, Grains, false, Always, false, s.particles().inv_inertia)         \
-  /* the positions at the last list build */                                              \
-  X(x0, double, Grains, false, Always, false, s.neighbors().x_ref())                      \
-  X(y0, double, Grains, false, Always, false, s.neighbors().y_ref())                      \
-  X(z0, double, Grains, false, Always, false, s.neighbors().z_ref())                      \
-  /* the half list and its touching flags */                                              \
-  X(owner, Index, Entries, false, Always, false, s.neighbors().owner)                     \
-  X(nb, Index, Entries, false, Always, false, s.neighbors().neighbors)                    \
-  X(touch, std::uint8_t, Entries, true, Always, false, s.history().touching)              \
-  /* wall entries: grain and wall; tangential history and the results of the last pass */ \
-  X(wp, Index, WallEntries, false, Always, false, s.wall_contacts().particle)             \
-  X(ww, std::uint8_t, WallEntries, false, Always, false, s.wall_contacts().wall)          \
-  X(wftx, double, WallEntries, true, Always, false, s.wall_contacts().ft_x)               \
-  X(wfty, double, WallEntries, true, Always, false, s.wall_contacts().ft_y)               \
-  X(wftz, double, WallEntries, true, Always, false, s.wall_contacts().ft_z)               \
-  X(wfx, double, WallEntries, true, Always, false, s.wall_contacts().fx)                  \
-  X(wfy, double, WallEntries, true, Always, false, s.wall_contacts().fy)                  \
-  X(wfz, double, WallEntries, true, Always, false, s.wall_contacts().fz)                  \
-  X(wtx, double, WallEntries, true, Always, false, s.wall_contacts().tx)                  \
-  X(wty, double, WallEntries, true, Always, false, s.wall_contacts().ty)                  \
-  X(wtz, double, WallEntries, true, Always, false, s.wall_contacts().tz)                  \
-  X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n)                 \
-  X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n)                 \
-  X(wdelta, double, WallEntries, true, Always, false, s.wall_contacts().delta)            \
-  /* the bodies' shapes and the servo areas they were given */                            \
-  X(shape, BodyShape, Bodies, false, Always, false, s.walls().shapes())                   \
-  X(body_area, double, Bodies, false, Always, false, s.walls().given_areas())             \
-  /* the contact load per grain (both ways: the host's forces fill it too) */             \
-  X(LS, double, Grains, true, Load, false, s.contact_load().sigma)                        \
-  X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max)                      \
-  X(LNX, double, Grains, true, Load, false, s.contact_load().nx)                          \
-  X(LNY, double, Grains, true, Load, false, s.contact_load().ny)                          \
-  X(LNZ, double, Grains, true, Load, false, s.contact_load().nz)                          \
-  /* crushing: strengths and crack half-lengths */                                        \
-  X(sigma_lim, double, Grains, false, Crushing, false,                                    \
-    s.particles().field(crusher->strength_field()))                                       \
-  X(crack_a, double, Grains, true, Crushing, false, s.particles().field(crusher->crack_field()))
+#define CD_DEVICE_FIELDS(X)                                                                        \
+  /* per grain: position, velocity, spin, force, torque; the resultant before damping */           \
+  CD_GRAIN_XYZ(X, )                                                                                \
+  CD_GRAIN_XYZ(X, v)                                                                               \
+  CD_GRAIN_XYZ(X, w) CD_GRAIN_XYZ(X, f) CD_GRAIN_XYZ(X, t)                                         \
+      X(fux, double, Grains, true, Always, false, s.resultant_force(0))                            \
+          X(fuy, double, Grains, true, Always, false, s.resultant_force(1))                        \
+              X(fuz, double, Grains, true, Always, false, s.resultant_force(2))                    \
+                  X(radius, double, Grains, false, Always, true, s.particles().radius)             \
+                      X(mass, double, Grains, false, Always, true, s.particles().mass) X(          \
+                          inv_mass, double, Grains, false, Always, true, s.particles().inv_mass)   \
+                          X(inv_inertia, double, Grains, false, Always, false,                     \
+                            s.particles().inv_inertia) /* the positions at the last list build */  \
+      X(x0, double, Grains, false, Always, false, s.neighbors().x_ref())                           \
+          X(y0, double, Grains, false, Always, false, s.neighbors().y_ref())                       \
+              X(z0, double, Grains, false, Always, false,                                          \
+                s.neighbors().z_ref()) /* the half list and its touching flags */                  \
+      X(owner, Index, Entries, false, Always, false, s.neighbors().owner)                          \
+          X(nb, Index, Entries, false, Always, false, s.neighbors().neighbors)                     \
+              X(touch, std::uint8_t, Entries, true, Always, false,                                 \
+                s.history().touching) /* wall entries: grain and body; tangential history and the  \
+                                         results of the last pass */                               \
+      X(wp, Index, WallEntries, false, Always, false, s.wall_contacts().particle)                  \
+          X(ww, std::uint8_t, WallEntries, false, Always, false, s.wall_contacts().wall)           \
+              CD_WALL_XYZ(X, wft, ft_) CD_WALL_XYZ(X, wf, f) CD_WALL_XYZ(X, wt, t)                 \
+                  X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n)          \
+                      X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n) X(   \
+                          wdelta, double, WallEntries, true, Always, false,                        \
+                          s.wall_contacts()                                                        \
+                              .delta) /* the bodies' shapes and the servo areas they were given */ \
+      X(shape, BodyShape, Bodies, false, Always, false, s.walls().shapes())                        \
+          X(body_area, double, Bodies, false, Always, false,                                       \
+            s.walls().given_areas()) /* the contact load per grain (both ways: the host's forces   \
+                                        fill it too) */                                            \
+      X(LS, double, Grains, true, Load, false, s.contact_load().sigma)                             \
+          X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max)                       \
+              X(LNX, double, Grains, true, Load, false, s.contact_load().nx)                       \
+                  X(LNY, double, Grains, true, Load, false, s.contact_load().ny)                   \
+                      X(LNZ, double, Grains, true, Load, false,                                    \
+                        s.contact_load().nz) /* crushing: strengths and crack half-lengths */      \
+      X(sigma_lim, double, Grains, false, Crushing, false,                                         \
+        s.particles().field(crusher->strength_field()))                                            \
+          X(crack_a, double, Grains, true, Crushing, false,                                        \
+            s.particles().field(crusher->crack_field()))
+
+// The three components of a grain vector of the store (prefix p: x, vx, wx, fx, tx ...), both
+// ways, and of a wall entry's vector (the device's prefix, the host's).
+#define CD_GRAIN_XYZ(X, p)                                         \
+  X(p##x, double, Grains, true, Always, false, s.particles().p##x) \
+  X(p##y, double, Grains, true, Always, false, s.particles().p##y) \
+  X(p##z, double, Grains, true, Always, false, s.particles().p##z)
+#define CD_WALL_XYZ(X, dev, host)                                                \
+  X(dev##x, double, WallEntries, true, Always, false, s.wall_contacts().host##x) \
+  X(dev##y, double, WallEntries, true, Always, false, s.wall_contacts().host##y) \
+  X(dev##z, double, WallEntries, true, Always, false, s.wall_contacts().host##z)
 
 // The device-only arrays: what the device derives at an upload or keeps between kernels. Each
 // row: the View member, its element type, what it is counted by, when the run holds it.
@@ -288,9 +283,7 @@ CD_HD inline void pair_item(const View& v, const Model& model, Index e) {
                    Vec3{v.vx[i] - v.vx[j], v.vy[i] - v.vy[j], v.vz[i] - v.vz[j]}, wi, wj, v.RS[e],
                    v.SRS[e], v.ME[e], Vec3{ft[0][e], ft[1][e], ft[2][e]}, v.cp, h);
   const ContactResponse& c = pc.c;
-  ft[0][e] = c.F_t.x;
-  ft[1][e] = c.F_t.y;
-  ft[2][e] = c.F_t.z;
+  store(ft[0], ft[1], ft[2], e, c.F_t);
   v.touch[e] = 1;
   Vec3 ti = pc.a_i * pc.tn, tj = pc.a_j * pc.tn;
   if constexpr (Model::kCouple) {
@@ -298,21 +291,13 @@ CD_HD inline void pair_item(const View& v, const Model& model, Index e) {
     const Vec3 M_r = Model::CoupleModel::moment(model.couple, pc.n, pc.c.k_n, pc.c.F_n,
                                                 Vec3{ch[0][e], ch[1][e], ch[2][e]}, wi, wj, v.RS[e],
                                                 v.cp.tangential_ratio, h);
-    ch[0][e] = M_r.x;
-    ch[1][e] = M_r.y;
-    ch[2][e] = M_r.z;
+    store(ch[0], ch[1], ch[2], e, M_r);
     ti += M_r;
     tj -= M_r;
   }
-  v.rfx[e] = c.force.x;
-  v.rfy[e] = c.force.y;
-  v.rfz[e] = c.force.z;
-  v.rix[e] = ti.x;
-  v.riy[e] = ti.y;
-  v.riz[e] = ti.z;
-  v.rjx[e] = tj.x;
-  v.rjy[e] = tj.y;
-  v.rjz[e] = tj.z;
+  store(v.rfx, v.rfy, v.rfz, e, c.force);
+  store(v.rix, v.riy, v.riz, e, ti);
+  store(v.rjx, v.rjy, v.rjz, e, tj);
   if (v.esig) {  // as the CPU pair loop (integrate/pair_loop.cpp, record_contact_load)
     v.esig[e] = pair_contact_stress(c.F_n, v.inv_pi_k, v.RS[e], pc.delta);
     v.eFn[e] = c.F_n;
@@ -328,32 +313,27 @@ CD_HD inline void wall_item(const View& v, const Model& model, Index e) {
   const int k = v.ww[e];
   const WallDev& W = v.ctrl->walls[k];
   const BodyShape& body = v.shape[k];
-  int part = 0;
-  const SurfacePoint sp = body_surface(body, W.position, Vec3{v.x[i], v.y[i], v.z[i]}, part);
-  const double dist = sp.dist;
+  const BodyContact bc =
+      body_contact(body, W.position, W.velocity, Vec3{v.x[i], v.y[i], v.z[i]}, v.radius[i]);
+  const double dist = bc.dist;
   const double delta = v.radius[i] - dist;
   if (delta <= 0.0) {
-    v.wftx[e] = v.wfty[e] = v.wftz[e] = 0.0;
-    v.wfx[e] = v.wfy[e] = v.wfz[e] = v.wtx[e] = v.wty[e] = v.wtz[e] = 0.0;
-    v.wFn[e] = v.wkn[e] = v.wdelta[e] = 0.0;
+    // Apart: no history, no force, no load.
+    double* const cleared[] = {v.wftx, v.wfty, v.wftz, v.wfx, v.wfy, v.wfz,
+                               v.wtx,  v.wty,  v.wtz,  v.wFn, v.wkn, v.wdelta};
+    for (double* a : cleared) a[e] = 0.0;
     if (v.wsig) v.wsig[e] = v.wFel[e] = 0.0;
     return;
   }
-  const double R_star = surface_R_star(v.radius[i], sp.kappa_1, sp.kappa_2);
-  const WallContact wcon = wall_contact(
-      model.wall_law, sp.n, dist, delta, R_star, v.mass[i], Vec3{v.vx[i], v.vy[i], v.vz[i]},
-      Vec3{v.wx[i], v.wy[i], v.wz[i]}, body_surface_velocity(body, W.velocity, sp.radial),
-      Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, body.friction, v.cp, v.ctrl->h);
+  const double R_star = bc.R_star;
+  const WallContact wcon =
+      wall_contact(model.wall_law, bc.n, dist, delta, R_star, v.mass[i],
+                   Vec3{v.vx[i], v.vy[i], v.vz[i]}, Vec3{v.wx[i], v.wy[i], v.wz[i]}, bc.velocity,
+                   Vec3{v.wftx[e], v.wfty[e], v.wftz[e]}, body.friction, v.cp, v.ctrl->h);
   const ContactResponse& r = wcon.c;
-  v.wftx[e] = r.F_t.x;
-  v.wfty[e] = r.F_t.y;
-  v.wftz[e] = r.F_t.z;
-  v.wfx[e] = r.force.x;
-  v.wfy[e] = r.force.y;
-  v.wfz[e] = r.force.z;
-  v.wtx[e] = wcon.torque.x;
-  v.wty[e] = wcon.torque.y;
-  v.wtz[e] = wcon.torque.z;
+  store(v.wftx, v.wfty, v.wftz, e, r.F_t);
+  store(v.wfx, v.wfy, v.wfz, e, r.force);
+  store(v.wtx, v.wty, v.wtz, e, wcon.torque);
   v.wFn[e] = wcon.F_n_wall;
   v.wkn[e] = r.k_n;
   v.wdelta[e] = delta;
@@ -481,12 +461,8 @@ CD_HD inline void gather_item(const View& v, Index j) {
   if (v.alpha > 0.0) {
     damp(v.alpha, Vec3{v.vx[j], v.vy[j], v.vz[j]}, Vec3{v.wx[j], v.wy[j], v.wz[j]}, F, T);
   }
-  v.fx[j] = F.x;
-  v.fy[j] = F.y;
-  v.fz[j] = F.z;
-  v.tx[j] = T.x;
-  v.ty[j] = T.y;
-  v.tz[j] = T.z;
+  store(v.fx, v.fy, v.fz, j, F);
+  store(v.tx, v.ty, v.tz, j, T);
   half_kick(v.ctrl->hh, v.cp.spin_scale, v.inv_mass[j], v.inv_inertia[j], F, T, v.vx[j], v.vy[j],
             v.vz[j], v.wx[j], v.wy[j], v.wz[j]);
 }

@@ -38,20 +38,11 @@ CD_HD inline Vec3 rolling_moment(Vec3 M_r, Vec3 n, Vec3 dw, double dt, double k_
 /// Not in Table 1 (CHOICE).
 enum class Rotation { Free, Rolling, Blocked };
 
-inline const char* to_string(Rotation r) {
-  switch (r) {
-    case Rotation::Free: return "free";
-    case Rotation::Rolling: return "rolling";
-    case Rotation::Blocked: return "blocked";
-  }
-  return "free";
-}
+inline constexpr std::array<Named<Rotation>, 3> kRotationNames = {
+    {{Rotation::Free, "free"}, {Rotation::Rolling, "rolling"}, {Rotation::Blocked, "blocked"}}};
 
-inline Rotation parse_rotation(const std::string& s, const std::string& key) {
-  for (Rotation r : {Rotation::Free, Rotation::Rolling, Rotation::Blocked}) {
-    if (s == to_string(r)) return r;
-  }
-  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"free\", \"rolling\" or \"blocked\""));
+inline const char* to_string(Rotation r) {
+  return name_of(kRotationNames, r);
 }
 
 /// The keys of [contact] on the grains' rotation and the rolling resistance.
@@ -68,13 +59,7 @@ struct RotationConfig {
          "\"rolling\"` (implied when `rotation` is not given). Grain-grain contacts only",
          [](double v) { return v >= 0.0; },
          "a rolling friction coefficient >= 0 (0 = no rolling resistance)"},
-        {"rotation",
-         ParamChoice<C>{[](const C& c) { return std::string(to_string(c.rotation)); },
-                        [](C& c, const std::string& v, const std::string& key) {
-                          c.rotation = parse_rotation(v, key);
-                        },
-                        "\"free\", \"rolling\" or \"blocked\""},
-         "",
+        {"rotation", enum_choice(&C::rotation, kRotationNames), "",
          "how grains turn (not in Table 1, CHOICE): `\"free\"` spins from the contact moments; "
          "`\"rolling\"` free spins plus the rolling resistance of `rolling_friction` (> 0); "
          "`\"blocked\"` spins held at zero and contact moments ignored (the rotation-prohibited "

@@ -6,6 +6,7 @@
 // adding a key is one row. Pure data and checks, no I/O.
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -27,8 +28,56 @@ template <class S>
 struct ParamChoice {
   std::function<std::string(const S&)> get;
   std::function<void(S&, const std::string& value, const std::string& key)> set;
-  std::string_view choices;  // for messages and docs, e.g. "\"hertz\" or \"rough\""
+  std::string choices;  // for messages and docs, e.g. "\"hertz\" or \"rough\""
 };
+
+/// An enum value and its name in configuration files.
+template <class E>
+struct Named {
+  E value;
+  std::string_view name;
+};
+
+/// "\"a\", \"b\" or \"c\"": the names, for messages and docs.
+template <class E, std::size_t N>
+std::string choice_list(const std::array<Named<E>, N>& names) {
+  std::string out;
+  for (std::size_t k = 0; k < N; ++k) {
+    out += k == 0 ? "" : (k + 1 == N ? " or " : ", ");
+    out += "\"";
+    out += names[k].name;
+    out += "\"";
+  }
+  return out;
+}
+
+/// The name of `value` among `names` (empty if it has none).
+template <class E, std::size_t N>
+const char* name_of(const std::array<Named<E>, N>& names, E value) {
+  for (const Named<E>& n : names) {
+    if (n.value == value) return n.name.data();
+  }
+  return "";
+}
+
+/// The value named `s`; ConfigError naming `key`, the value and the names otherwise.
+template <class E, std::size_t N>
+E parse_named(const std::array<Named<E>, N>& names, const std::string& s, const std::string& key) {
+  for (const Named<E>& n : names) {
+    if (s == n.name) return n.value;
+  }
+  throw ConfigError(bad_value(key, "\"" + s + "\"", choice_list(names)));
+}
+
+/// A choice row for an enum member of S with named values.
+template <class S, class E, std::size_t N>
+ParamChoice<S> enum_choice(E S::*member, const std::array<Named<E>, N>& names) {
+  return {[member, names](const S& s) { return std::string(name_of(names, s.*member)); },
+          [member, names](S& s, const std::string& v, const std::string& key) {
+            s.*member = parse_named(names, v, key);
+          },
+          choice_list(names)};
+}
 
 template <class S>
 struct Param {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 
 #if defined(__CUDACC__)
@@ -68,6 +69,13 @@ CD_HD inline Vec3 cross(Vec3 a, Vec3 b) {
 }
 CD_HD inline double norm(Vec3 a) {
   return std::sqrt(dot(a, a));
+}
+
+/// v's components into x[k], y[k], z[k]: a store into struct-of-arrays columns.
+CD_HD_INLINE void store(double* x, double* y, double* z, std::size_t k, Vec3 v) {
+  x[k] = v.x;
+  y[k] = v.y;
+  z[k] = v.z;
 }
 
 inline constexpr double kPi = 3.14159265358979323846;

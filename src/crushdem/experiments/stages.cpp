@@ -33,15 +33,8 @@ namespace {
 
 using Row = Param<StageConfig>;
 
-const char* wall_control_name(WallControl c) {
-  return c == WallControl::Servo ? "servo" : "fixed";
-}
-
-WallControl parse_wall_control(const std::string& v, const std::string& key) {
-  if (v == "fixed") return WallControl::Fixed;
-  if (v == "servo") return WallControl::Servo;
-  throw ConfigError(bad_value(key, "\"" + v + "\"", "\"fixed\" or \"servo\""));
-}
+constexpr std::array<Named<WallControl>, 2> kWallControlNames = {
+    {{WallControl::Fixed, "fixed"}, {WallControl::Servo, "servo"}}};
 
 bool positive(double v) {
   return v > 0.0;
@@ -81,19 +74,9 @@ const Row kMaxSteps{"max_steps",  &StageConfig::max_steps,
                     "",           "the stage stops (with a warning) after this many steps",
                     at_least_one, "> 0 steps"};
 
-// How the walls of one axis are held (`member`: axial or lateral), as a string choice.
-template <WallControl StageConfig::*member>
-ParamChoice<StageConfig> wall_control_choice() {
-  return {[](const StageConfig& c) -> std::string { return wall_control_name(c.*member); },
-          [](StageConfig& c, const std::string& v, const std::string& key) {
-            c.*member = parse_wall_control(v, key);
-          },
-          "\"fixed\" or \"servo\""};
-}
-
-const Row kAxial{"axial", wall_control_choice<&StageConfig::axial>(), "",
+const Row kAxial{"axial", enum_choice(&StageConfig::axial, kWallControlNames), "",
                  "the top wall: fixed, or servo-controlled to axial_stress"};
-const Row kLateral{"lateral", wall_control_choice<&StageConfig::lateral>(), "",
+const Row kLateral{"lateral", enum_choice(&StageConfig::lateral, kWallControlNames), "",
                    "the four lateral walls: fixed, or servo-controlled to lateral_stress"};
 const Row kAxialStress{"axial_stress",
                        &StageConfig::axial_stress,

@@ -24,14 +24,13 @@ void require(bool ok, const std::string& key, double v, const std::string& expec
 
 }  // namespace
 
-const char* to_string(StrengthDistribution d) {
-  return d == StrengthDistribution::Uniform ? "uniform" : "normal";
-}
+namespace {
+constexpr std::array<Named<StrengthDistribution>, 2> kDistributionNames = {
+    {{StrengthDistribution::Normal, "normal"}, {StrengthDistribution::Uniform, "uniform"}}};
+}  // namespace
 
-StrengthDistribution parse_strength_distribution(const std::string& s, const std::string& key) {
-  if (s == "normal") return StrengthDistribution::Normal;
-  if (s == "uniform") return StrengthDistribution::Uniform;
-  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"normal\" or \"uniform\""));
+const char* to_string(StrengthDistribution d) {
+  return name_of(kDistributionNames, d);
 }
 
 const char* to_string(BreakCause c) {
@@ -69,13 +68,7 @@ const ParamTable<CrushingConfig>& crushing_params() {
        positive, "a positive Weibull modulus"},
       {"var", &K::var, "-",
        "strength variability (STUDY); < 1 with the uniform distribution (checked in validate)"},
-      {"distribution",
-       ParamChoice<K>{[](const K& k) { return std::string(to_string(k.distribution)); },
-                      [](K& k, const std::string& v, const std::string& key) {
-                        k.distribution = parse_strength_distribution(v, key);
-                      },
-                      "\"normal\" or \"uniform\""},
-       "",
+      {"distribution", enum_choice(&K::distribution, kDistributionNames), "",
        "f ~ normal(1, var) truncated to [0.05, 1 + 3 var] (CHOICE), or `\"uniform\"` on "
        "[1 - var, 1 + var]"},
       {"d0", &K::d0, "m",

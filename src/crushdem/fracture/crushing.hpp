@@ -57,7 +57,6 @@ struct CrushingConfig {
 };
 
 const char* to_string(StrengthDistribution d);
-StrengthDistribution parse_strength_distribution(const std::string& s, const std::string& key);
 
 /// The keys of [crushing] (core/params.hpp); `enabled` and `pattern` are read apart (a present
 /// section turns crushing on; a pattern path is relative to the configuration file).

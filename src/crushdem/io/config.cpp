@@ -22,12 +22,16 @@ using param_io::write_params;
 using toml::Table;
 using toml::Value;
 
+/// A section read whole through its table (unknown keys refused).
+template <class S>
+void read_section(Section& root, const std::string& name, S& c, const ParamTable<S>& table) {
+  Section s = root.sub(name);
+  read_params(s, c, table);
+  s.finish();
+}
+
 void read_simulation(Section& root, SimulationConfig& c, bool box_required = true) {
-  {
-    Section s = root.sub("material");
-    read_params(s, c.material, material_params());
-    s.finish();
-  }
+  read_section(root, "material", c.material, material_params());
   {
     Section s = root.sub("contact");
     read_params(s, c.contact, contact_params());
@@ -37,26 +41,10 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     }
     s.finish();
   }
-  {
-    Section s = root.sub("damping");
-    read_params(s, c.damping, damping_params());
-    s.finish();
-  }
-  {
-    Section s = root.sub("timestep");
-    read_params(s, c.timestep, timestep_params());
-    s.finish();
-  }
-  {
-    Section s = root.sub("neighbor");
-    read_params(s, c.neighbor, neighbor_params());
-    s.finish();
-  }
-  {
-    Section s = root.sub("gravity");
-    read_params(s, c.gravity, gravity_params());
-    s.finish();
-  }
+  read_section(root, "damping", c.damping, damping_params());
+  read_section(root, "timestep", c.timestep, timestep_params());
+  read_section(root, "neighbor", c.neighbor, neighbor_params());
+  read_section(root, "gravity", c.gravity, gravity_params());
   {
     Section walls = root.sub("walls");
     for (int k = 0; k < kNumWalls; ++k) {
@@ -297,11 +285,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     s.number("duration", c.duration);
     s.finish();
   }
-  {
-    Section s = r.sub("output");
-    read_params(s, c.output, output_params());
-    s.finish();
-  }
+  read_section(r, "output", c.output, output_params());
   r.finish();
   c.validate();
   return c;

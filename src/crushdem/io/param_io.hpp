@@ -239,6 +239,14 @@ struct ParamRow {
   std::string expected;
 };
 
+/// The member type T of a pointer to member T S::*.
+template <class M>
+struct MemberOf;
+template <class T, class S>
+struct MemberOf<T S::*> {
+  using type = T;
+};
+
 template <class S>
 std::vector<ParamRow> param_rows(const ParamTable<S>& table) {
   static const S d{};  // the defaults (static: GCC 12 misreads a local as uninitialised)
@@ -251,27 +259,39 @@ std::vector<ParamRow> param_rows(const ParamTable<S>& table) {
     r.doc = p.doc;
     r.checked = p.ok != nullptr;
     if (r.checked) r.expected = p.expected;
-    if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
-      r.type = "float";
-      r.default_value = d.*(*num);
-    } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
-      r.type = "int";
-      r.default_value = d.*(*cnt);
-    } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
-      r.type = "bool";
-      r.default_value = d.*(*flag);
-    } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
-      r.type = "str";
-      r.default_value = d.*(*text);
-    } else if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
-      r.type = "str";
-      r.default_value = choice->get(d);
-      r.choices = choice->choices;
-    } else if constexpr (kMayHoldTriple<S>) {  // [x, y, z]
-      const Vec3 v = d.*std::get<typename Param<S>::Triple>(p.member);
-      r.type = "list";
-      r.default_value = std::array<double, 3>{v.x, v.y, v.z};
-    }
+    std::visit(
+        [&r](const auto& m) {
+          using M = std::decay_t<decltype(m)>;
+          if constexpr (std::is_same_v<M, ParamChoice<S>>) {
+            r.type = "str";
+            r.default_value = m.get(d);
+            r.choices = m.choices;
+          } else {
+            using T = typename MemberOf<M>::type;
+            // (A member larger than the struct is no member of it: GCC cannot prove the access
+            // unreachable and warns, so it is not compiled.)
+            if constexpr (sizeof(T) <= sizeof(S)) {
+              const T& v = d.*m;
+              if constexpr (std::is_same_v<T, double>) {
+                r.type = "float";
+                r.default_value = v;
+              } else if constexpr (std::is_same_v<T, std::uint64_t>) {
+                r.type = "int";
+                r.default_value = v;
+              } else if constexpr (std::is_same_v<T, bool>) {
+                r.type = "bool";
+                r.default_value = v;
+              } else if constexpr (std::is_same_v<T, std::string>) {
+                r.type = "str";
+                r.default_value = v;
+              } else {  // Vec3: [x, y, z]
+                r.type = "list";
+                r.default_value = std::array<double, 3>{v.x, v.y, v.z};
+              }
+            }
+          }
+        },
+        p.member);
     rows.push_back(std::move(r));
   }
   return rows;

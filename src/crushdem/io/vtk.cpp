@@ -3,10 +3,14 @@
 // the VTK readers expect for encoding="raw".
 #include "crushdem/io/vtk.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
+#include <string_view>
 #include <unordered_map>
+#include <utility>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/output.hpp"
@@ -82,14 +86,16 @@ std::vector<double> interleave(const std::vector<double>& a, const std::vector<d
 }
 
 std::string xml_escape(const std::string& s) {
+  static constexpr std::pair<char, std::string_view> kEntities[] = {
+      {'&', "&amp;"}, {'<', "&lt;"}, {'>', "&gt;"}, {'"', "&quot;"}};
   std::string out;
   for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+    const auto* entity = std::find_if(std::begin(kEntities), std::end(kEntities),
+                                      [c](const auto& e) { return e.first == c; });
+    if (entity != std::end(kEntities)) {
+      out += entity->second;
+    } else {
+      out += c;
     }
   }
   return out;

@@ -1,6 +1,7 @@
 #include "crushdem/run/results.hpp"
 
 #include <cmath>
+#include <utility>
 
 #include "crushdem/core/build_info.hpp"
 #include "crushdem/experiments/measurements.hpp"
@@ -18,14 +19,17 @@ JsonObject stage_json(const StageResult& r) {
   o.string("type", r.kind);
   o.string("end", r.end_reason);
   o.integer("steps", static_cast<long long>(r.steps));
-  o.number("q_max_Pa", r.q_max);
-  o.number("axial_strain_at_q_max", r.axial_strain_at_q_max);
-  o.number("sigma_3_at_q_max_Pa", r.sigma_3_at_q_max);
-  o.number("friction_angle_peak_deg", r.friction_angle_deg);
-  o.number("K0_end", r.K0);
-  o.number("max_inertial_number", r.max_inertial_number);
-  o.number("max_lateral_stress_error", r.max_lateral_stress_error);
-  o.number("max_lateral_strain", r.max_lateral_strain);
+  // The numbers, in the order summary.json has always written them.
+  static constexpr std::pair<const char*, double StageResult::*> kPeak[] = {
+      {"q_max_Pa", &StageResult::q_max},
+      {"axial_strain_at_q_max", &StageResult::axial_strain_at_q_max},
+      {"sigma_3_at_q_max_Pa", &StageResult::sigma_3_at_q_max},
+      {"friction_angle_peak_deg", &StageResult::friction_angle_deg},
+      {"K0_end", &StageResult::K0},
+      {"max_inertial_number", &StageResult::max_inertial_number},
+      {"max_lateral_stress_error", &StageResult::max_lateral_stress_error},
+      {"max_lateral_strain", &StageResult::max_lateral_strain}};
+  for (const auto& [key, member] : kPeak) o.number(key, r.*member);
   o.integer("dynamic_phases", static_cast<long long>(r.dynamic_phases));
   o.number("ageing_time_s", r.ageing_time);
   o.string("warning", r.warning);

@@ -8,20 +8,21 @@
 namespace crushdem {
 namespace {
 
-const char* to_string(BodyKind k) {
-  switch (k) {
-    case BodyKind::Plane: return "plane";
-    case BodyKind::Disk: return "disk";
-    case BodyKind::CylinderInside: return "cylinder_inside";
-    case BodyKind::CylinderOutside: return "cylinder_outside";
-    case BodyKind::Cone: return "cone";
-    case BodyKind::Pile: return "pile";
-  }
-  return "plane";
-}
+constexpr std::array<Named<BodyKind>, 6> kKindNames = {
+    {{BodyKind::Plane, "plane"},
+     {BodyKind::Disk, "disk"},
+     {BodyKind::CylinderInside, "cylinder_inside"},
+     {BodyKind::CylinderOutside, "cylinder_outside"},
+     {BodyKind::Cone, "cone"},
+     {BodyKind::Pile, "pile"}}};
+constexpr std::array<Named<PileTip>, 2> kTipNames = {
+    {{PileTip::Cone, "cone"}, {PileTip::Flat, "flat"}}};
+constexpr std::array<Named<BodyMotion>, 2> kMotionNames = {
+    {{BodyMotion::Translate, "translate"}, {BodyMotion::Dilate, "dilate"}}};
 
-constexpr BodyKind kKinds[] = {BodyKind::Plane,           BodyKind::Disk, BodyKind::CylinderInside,
-                               BodyKind::CylinderOutside, BodyKind::Cone, BodyKind::Pile};
+const char* to_string(BodyKind k) {
+  return name_of(kKindNames, k);
+}
 
 bool is_cylinder(BodyKind k) {
   return k == BodyKind::CylinderInside || k == BodyKind::CylinderOutside;
@@ -71,23 +72,8 @@ const ParamTable<BodyConfig>& body_params() {
   static const ParamTable<B> table = [] {
     ParamTable<B> t = {
         {"name", &B::name, "", "the body's name in the outputs (timeseries columns body_NAME_...)"},
-        {"shape",
-         ParamChoice<B>{[](const B& b) { return std::string(to_string(b.kind)); },
-                        [](B& b, const std::string& v, const std::string& key) {
-                          for (BodyKind k : kKinds) {
-                            if (v == to_string(k)) {
-                              b.kind = k;
-                              return;
-                            }
-                          }
-                          throw ConfigError(bad_value(
-                              key, "\"" + v + "\"",
-                              "\"plane\", \"disk\", \"cylinder_inside\", \"cylinder_outside\", "
-                              "\"cone\" or \"pile\""));
-                        },
-                        "\"plane\", \"disk\", \"cylinder_inside\", \"cylinder_outside\", \"cone\" "
-                        "or \"pile\""},
-         "", "the body's shape (walls/body_geometry.hpp, docs/chamber.md)"},
+        {"shape", enum_choice(&B::kind, kKindNames), "",
+         "the body's shape (walls/body_geometry.hpp, docs/chamber.md)"},
         {"origin", &B::origin, "m",
          "a point of the plane, the disk's centre, the start of a cylinder's axis, the cone's "
          "apex, the pile's tip (its apex or the centre of its flat end)",
@@ -105,40 +91,14 @@ const ParamTable<BodyConfig>& body_params() {
          "degree apex (ISO 22476-1)",
          [](double v) { return v > 0.0 && v < 90.0; }, "an angle in (0, 90) degrees"},
         {"tip",
-         ParamChoice<B>{
-             [](const B& b) { return std::string(b.tip == PileTip::Cone ? "cone" : "flat"); },
-             [](B& b, const std::string& v, const std::string& key) {
-               if (v == "cone") {
-                 b.tip = PileTip::Cone;
-               } else if (v == "flat") {
-                 b.tip = PileTip::Flat;
-               } else {
-                 throw ConfigError(bad_value(key, "\"" + v + "\"", "\"cone\" or \"flat\""));
-               }
-             },
-             "\"cone\" or \"flat\""},
+         enum_choice(&B::tip, kTipNames),
          "",
          "a pile's tip",
          nullptr,
          {},
          {},
          [](const B& b) { return b.kind == BodyKind::Pile; }},
-        {"motion",
-         ParamChoice<B>{
-             [](const B& b) {
-               return std::string(b.motion == BodyMotion::Translate ? "translate" : "dilate");
-             },
-             [](B& b, const std::string& v, const std::string& key) {
-               if (v == "translate") {
-                 b.motion = BodyMotion::Translate;
-               } else if (v == "dilate") {
-                 b.motion = BodyMotion::Dilate;
-               } else {
-                 throw ConfigError(bad_value(key, "\"" + v + "\"", "\"translate\" or \"dilate\""));
-               }
-             },
-             "\"translate\" or \"dilate\""},
-         "",
+        {"motion", enum_choice(&B::motion, kMotionNames), "",
          "what the degree of freedom q does: translate the body by q along `direction`, or "
          "(a cylinder) change its radius by q"},
         {"direction", &B::direction, "-",

@@ -115,15 +115,18 @@ CD_HD inline AxialPosition axial_position(Vec3 c, Vec3 origin, Vec3 axis) {
 
 /// The surface of one part for a grain centred at c, the part moved by q along `motion` (a unit
 /// vector; zero for a part that moves by dilation, whose radius is then radius + q).
-CD_HD inline SurfacePoint part_surface(const BodyPart& s, double q, Vec3 motion, bool dilate,
+CD_HD_INLINE SurfacePoint part_surface(const BodyPart& s, double q, Vec3 motion, bool dilate,
                                        Vec3 c) {
   SurfacePoint out;
+  if (s.shape == Shape::AxisPlane) {  // the box's walls: most entries, and their own arithmetic
+    out.dist = wall_gap(s.wall, q, c.x, c.y, c.z);
+    out.n = wall_outward_normal(s.wall);
+    return out;
+  }
   const Vec3 origin = dilate ? s.origin : s.origin + q * motion;
   const double radius = dilate ? s.radius + q : s.radius;
   switch (s.shape) {
-    case Shape::AxisPlane:
-      out.dist = wall_gap(s.wall, q, c.x, c.y, c.z);
-      out.n = wall_outward_normal(s.wall);
+    case Shape::AxisPlane:  // above
       break;
     case Shape::Plane:
       out.dist = dot(origin - c, s.axis);
@@ -206,7 +209,7 @@ struct BodyShape {
 
 /// The nearest surface of body b (degree of freedom q) to a grain centred at c; `part` is set to
 /// the part it belongs to.
-CD_HD inline SurfacePoint body_surface(const BodyShape& b, double q, Vec3 c, int& part) {
+CD_HD_INLINE SurfacePoint body_surface(const BodyShape& b, double q, Vec3 c, int& part) {
   SurfacePoint best = part_surface(b.part[0], q, b.motion, b.dilate, c);
   part = 0;
   for (int k = 1; k < b.parts; ++k) {
@@ -252,6 +255,26 @@ CD_HD inline double body_load(const BodyShape& b, double normal_force, Vec3 forc
 CD_HD inline Vec3 body_surface_velocity(const BodyShape& b, double v, Vec3 radial) {
   if (b.part[0].shape == Shape::AxisPlane) return wall_velocity_vector(b.part[0].wall, v);
   return b.dilate ? v * radial : v * b.motion;
+}
+
+/// What a contact needs of a body: for a grain of radius r centred at c, the distance to the
+/// body's nearest surface, the normal towards it, the surface's velocity there (dq/dt = v) and
+/// the contact's effective radius. One function for the CPU's wall loop and the device's.
+struct BodyContact {
+  double dist;
+  Vec3 n, velocity;
+  double R_star;
+};
+
+CD_HD_INLINE BodyContact body_contact(const BodyShape& b, double q, double v, Vec3 c, double r) {
+  if (b.part[0].shape == Shape::AxisPlane) {  // a box wall (most contacts): its own arithmetic
+    const int k = b.part[0].wall;
+    return {wall_gap(k, q, c.x, c.y, c.z), wall_outward_normal(k), wall_velocity_vector(k, v), r};
+  }
+  int part = 0;
+  const SurfacePoint s = body_surface(b, q, c, part);
+  return {s.dist, s.n, body_surface_velocity(b, v, s.radial),
+          surface_R_star(r, s.kappa_1, s.kappa_2)};
 }
 
 }  // namespace crushdem

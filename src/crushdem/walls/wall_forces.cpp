@@ -19,10 +19,9 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
   const std::size_t M = wc.size();
   const ContactParams cp = params;
   const int bodies = walls.size();
-  std::array<BodyShape, kMaxBodies> shape{};
+  const BodyShape* const shape = walls.shapes().data();
   std::array<double, kMaxBodies> pos{}, vel{};
   for (int k = 0; k < bodies; ++k) {
-    shape[static_cast<std::size_t>(k)] = walls.shape(k);
     pos[static_cast<std::size_t>(k)] = walls.position(k);
     vel[static_cast<std::size_t>(k)] = walls.state(k).velocity;
   }
@@ -45,9 +44,9 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
     for (std::size_t e = first; e < last; ++e) {
       const std::size_t i = wc.particle[e];
       const auto ks = static_cast<std::size_t>(wc.wall[e]);
-      int part = 0;
-      const SurfacePoint sp = body_surface(shape[ks], pos[ks], {p.x[i], p.y[i], p.z[i]}, part);
-      const double dist = sp.dist;
+      const BodyContact bc =
+          body_contact(shape[ks], pos[ks], vel[ks], {p.x[i], p.y[i], p.z[i]}, p.radius[i]);
+      const double dist = bc.dist;
       const double delta = p.radius[i] - dist;
       if (delta <= 0.0) {
         wc.ft_x[e] = wc.ft_y[e] = wc.ft_z[e] = 0.0;
@@ -55,15 +54,15 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
         wc.F_n[e] = wc.k_n[e] = wc.delta[e] = 0.0;
         continue;
       }
-      const Vec3 nk = sp.n;
-      const Vec3 u = body_surface_velocity(shape[ks], vel[ks], sp.radial);
+      const Vec3 nk = bc.n;
+      const Vec3 u = bc.velocity;
       slot_entry[n] = static_cast<std::uint32_t>(e);
       in[NX][n] = nk.x;
       in[NY][n] = nk.y;
       in[NZ][n] = nk.z;
       in[DIST][n] = dist;
       in[DELTA][n] = delta;
-      in[RSTAR][n] = surface_R_star(p.radius[i], sp.kappa_1, sp.kappa_2);
+      in[RSTAR][n] = bc.R_star;
       in[MASS][n] = p.mass[i];
       in[VX][n] = p.vx[i];
       in[VY][n] = p.vy[i];
@@ -130,20 +129,15 @@ void wall_forces_with(const Law& law, const ContactParams& params, double h, con
       wFNW[m] = wcon.F_n_wall;
       wKN[m] = wcon.c.k_n;
     }
-    for (std::size_t m = 0; m < n; ++m) {
-      const std::size_t e = slot_entry[m];
-      wc.ft_x[e] = in[FTX][m];
-      wc.ft_y[e] = in[FTY][m];
-      wc.ft_z[e] = in[FTZ][m];
-      wc.fx[e] = in[FX][m];
-      wc.fy[e] = in[FY][m];
-      wc.fz[e] = in[FZ][m];
-      wc.tx[e] = in[TX][m];
-      wc.ty[e] = in[TY][m];
-      wc.tz[e] = in[TZ][m];
-      wc.F_n[e] = in[FNW][m];
-      wc.k_n[e] = in[KN][m];
-      wc.delta[e] = in[DELTA][m];
+    // The results back to their entries, column by column.
+    const std::pair<std::vector<double>*, std::size_t> results[] = {
+        {&wc.ft_x, FTX}, {&wc.ft_y, FTY}, {&wc.ft_z, FTZ}, {&wc.fx, FX},
+        {&wc.fy, FY},    {&wc.fz, FZ},    {&wc.tx, TX},    {&wc.ty, TY},
+        {&wc.tz, TZ},    {&wc.F_n, FNW},  {&wc.k_n, KN},   {&wc.delta, DELTA}};
+    for (const auto& [column, field] : results) {
+      double* const to = column->data();
+      const double* const from = in[field];
+      for (std::size_t m = 0; m < n; ++m) to[slot_entry[m]] = from[m];
     }
   }
   // Body totals in entry order (deterministic; wall entries are few).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <sstream>
 
@@ -14,33 +15,11 @@ const char* wall_name(int k) {
   return names[k];
 }
 
-const char* to_string(WallMode m) {
-  switch (m) {
-    case WallMode::Fixed: return "fixed";
-    case WallMode::Velocity: return "velocity";
-    case WallMode::Servo: return "servo";
-  }
-  return "?";
-}
-
-WallMode parse_wall_mode(const std::string& s, const std::string& key) {
-  if (s == "fixed") return WallMode::Fixed;
-  if (s == "velocity") return WallMode::Velocity;
-  if (s == "servo") return WallMode::Servo;
-  throw ConfigError(bad_value(key, "\"" + s + "\"", "\"fixed\", \"velocity\" or \"servo\""));
-}
-
 const ParamTable<WallConfig>& wall_params() {
   using Row = Param<WallConfig>;
   static const ParamTable<WallConfig> table = {
-      Row{"mode",
-          ParamChoice<WallConfig>{
-              [](const WallConfig& w) -> std::string { return to_string(w.mode); },
-              [](WallConfig& w, const std::string& v, const std::string& key) {
-                w.mode = parse_wall_mode(v, key);
-              },
-              "\"fixed\", \"velocity\" or \"servo\""},
-          "", "fixed, moving at `velocity`, or servo-controlled to `target_stress`"},
+      Row{"mode", enum_choice(&WallConfig::mode, kWallModeNames), "",
+          "fixed, moving at `velocity`, or servo-controlled to `target_stress`"},
       Row{"velocity",
           &WallConfig::velocity,
           "m/s",
@@ -189,19 +168,13 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
 
 void Walls::state(StateArchive& a) {
   a.section("walls");
+  // The layout of the struct's bytes (the format since version 1): the mode, 4 bytes of
+  // padding (written as zeros, so that equal states give equal files: saved stage states are
+  // compared as results), then the five numbers.
+  static_assert(offsetof(WallConfig, position) == 8 && sizeof(WallConfig) == 48);
   for (WallConfig& c : cfg_) {
-    // The struct's bytes (the format since version 1), written with its padding zeroed so that
-    // equal states give equal files (saved stage states are compared as results).
-    WallConfig z;
-    std::memset(static_cast<void*>(&z), 0, sizeof z);
-    z.mode = c.mode;
-    z.position = c.position;
-    z.velocity = c.velocity;
-    z.target_stress = c.target_stress;
-    z.servo_alpha = c.servo_alpha;
-    z.max_speed = c.max_speed;
-    a(z);
-    if (a.loading()) c = z;
+    std::uint32_t padding = 0;
+    a(c.mode, padding, c.position, c.velocity, c.target_stress, c.servo_alpha, c.max_speed);
   }
   for (WallState& st : st_) a(st);
 }

@@ -32,9 +32,15 @@ namespace crushdem {
 const char* wall_name(int k);  // "xmin" ... "zmax"
 
 enum class WallMode { Fixed, Velocity, Servo };
-const char* to_string(WallMode m);
+inline constexpr std::array<Named<WallMode>, 3> kWallModeNames = {
+    {{WallMode::Fixed, "fixed"}, {WallMode::Velocity, "velocity"}, {WallMode::Servo, "servo"}}};
+inline const char* to_string(WallMode m) {
+  return name_of(kWallModeNames, m);
+}
 /// "fixed" | "velocity" | "servo"; anything else throws ConfigError naming `key`.
-WallMode parse_wall_mode(const std::string& s, const std::string& key);
+inline WallMode parse_wall_mode(const std::string& s, const std::string& key) {
+  return parse_named(kWallModeNames, s, key);
+}
 
 struct WallConfig {
   WallMode mode = WallMode::Fixed;
