@@ -34,10 +34,6 @@ const std::string& law_choices() {
 
 }  // namespace
 
-void MaterialConfig::validate() const {
-  validate_params(*this, material_params(), "material");
-}
-
 const ParamTable<MaterialConfig>& material_params() {
   using M = MaterialConfig;
   static const ParamTable<M> table = {

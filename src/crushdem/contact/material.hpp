@@ -17,7 +17,6 @@ struct MaterialConfig {
   double shear_modulus = 32e9;  // G [Pa] (STUDY, Table 1)
   double poisson_ratio = 0.19;  // nu [-] (STUDY)
   double friction = 0.275;      // mu, grain-grain [-] (STUDY)
-  void validate() const;        // throws ConfigError naming "material.<key>"
   double E_star() const { return effective_modulus(shear_modulus, poisson_ratio); }
 };
 

@@ -21,14 +21,6 @@ using Idx = std::ptrdiff_t;
 
 }  // namespace
 
-void DampingConfig::validate() const {
-  validate_params(*this, damping_params(), "damping");
-}
-
-void NeighborConfig::validate() const {
-  validate_params(*this, neighbor_params(), "neighbor");
-}
-
 const ParamTable<DampingConfig>& damping_params() {
   using D = DampingConfig;
   static const ParamTable<D> table = {
@@ -56,10 +48,6 @@ const ParamTable<NeighborConfig>& neighbor_params() {
   return table;
 }
 
-void GravityConfig::validate() const {
-  validate_params(*this, gravity_params(), "gravity");
-}
-
 const ParamTable<GravityConfig>& gravity_params() {
   using G = GravityConfig;
   static const ParamTable<G> table = {
@@ -73,12 +61,13 @@ const ParamTable<GravityConfig>& gravity_params() {
 }
 
 void SimulationConfig::validate() const {
-  material.validate();
-  gravity.validate();
+  // The sections whose checks are all in their tables.
+  validate_params(material, material_params(), "material");
+  validate_params(gravity, gravity_params(), "gravity");
+  validate_params(damping, damping_params(), "damping");
+  validate_params(timestep, timestep_params(), "timestep");
+  validate_params(neighbor, neighbor_params(), "neighbor");
   contact.validate();
-  damping.validate();
-  timestep.validate();
-  neighbor.validate();
   for (int k = 0; k < kNumWalls; ++k) {
     walls[static_cast<std::size_t>(k)].validate(std::string("walls.") + wall_name(k));
   }

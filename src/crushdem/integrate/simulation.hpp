@@ -35,14 +35,12 @@ namespace crushdem {
 
 struct DampingConfig {
   double local_alpha = 0.7;  // alpha_d of PFC local damping (CHOICE); 0 turns it off
-  void validate() const;
 };
 
 struct NeighborConfig {
   double skin = 0.0;           // Verlet skin [m]; 0 = 0.5 * smallest radius at the first build
   bool sort_particles = true;  // reorder particles in cell order at each rebuild (cache locality)
   bool prune = true;           // pair loop walks a pruned copy of the list (PrunedList; speed only)
-  void validate() const;
 };
 
 /// A uniform body force on every grain, its weight m g (none by default: the study's tests
@@ -50,7 +48,6 @@ struct NeighborConfig {
 struct GravityConfig {
   Vec3 g;  // [m/s^2], e.g. [0, 0, -9.81]
   bool on() const { return g.x != 0.0 || g.y != 0.0 || g.z != 0.0; }
-  void validate() const;
 };
 
 /// The keys of [damping], [neighbor] and [gravity] (core/params.hpp); [timestep]: time_step.hpp.

@@ -9,10 +9,6 @@
 
 namespace crushdem {
 
-void TimestepConfig::validate() const {
-  validate_params(*this, timestep_params(), "timestep");
-}
-
 const ParamTable<TimestepConfig>& timestep_params() {
   using T = TimestepConfig;
   static const ParamTable<T> table = {

@@ -24,7 +24,6 @@ struct TimestepConfig {
       0.2;              // automatic: dt <= fraction * Rayleigh time of the smallest grain
   double safety = 0.3;  // automatic: dt <= safety * min_i sqrt(m_i / sum k_i)
   std::uint64_t update_interval = 1000;  // automatic: steps between re-evaluations
-  void validate() const;
 };
 
 /// The keys of [timestep] (core/params.hpp).

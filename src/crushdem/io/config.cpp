@@ -437,10 +437,6 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
   }
 }
 
-void OutputConfig::validate() const {
-  validate_params(*this, output_params(), "output");
-}
-
 const ParamTable<OutputConfig>& output_params() {
   using O = OutputConfig;
   static const ParamTable<O> table = {
@@ -477,7 +473,7 @@ void RunConfig::validate() const {
     }
     stages[i].validate("stage[" + std::to_string(i) + "]");
   }
-  output.validate();
+  validate_params(output, output_params(), "output");
   if (crushing.enabled) {
     crushing.validate();
     if (!crushing.pattern.empty()) SplitPattern::from_file(crushing.pattern);  // fails early

@@ -44,7 +44,6 @@ struct OutputConfig {
   double progress_seconds = 2.0;      // wall-clock seconds between progress lines
   double checkpoint_seconds = 600.0;  // wall-clock seconds between periodic checkpoints (0: at
                                       // events and stage ends only)
-  void validate() const;
 };
 
 /// The keys of [output] (core/params.hpp).
