@@ -168,6 +168,22 @@ inline std::string read_file(const std::filesystem::path& p) {
   return ss.str();
 }
 
+/// Every file of run directory `a` (timing.json aside: wall-clock seconds) exists in `b` with the
+/// same bytes; returns how many were compared.
+inline std::size_t expect_same_run_files(const std::filesystem::path& a,
+                                         const std::filesystem::path& b) {
+  namespace fs = std::filesystem;
+  std::size_t compared = 0;
+  for (const auto& e : fs::recursive_directory_iterator(a)) {
+    if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
+    const fs::path other = b / fs::relative(e.path(), a);
+    EXPECT_TRUE(fs::exists(other)) << other;
+    EXPECT_EQ(read_file(e.path()), read_file(other)) << "differs: " << fs::relative(e.path(), a);
+    ++compared;
+  }
+  return compared;
+}
+
 /// A number from a flat "key": value in a JSON text (the n-th occurrence).
 inline double json_number(const std::string& json, const std::string& key, int nth = 0) {
   std::size_t at = 0;

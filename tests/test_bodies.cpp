@@ -10,6 +10,7 @@
 
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
+#include "crushdem/walls/body_probe.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -168,6 +169,52 @@ TEST(Bodies, APrescribedVelocityMovesTheBodyAndAServoHoldsItsStress) {
   sim.step(200000);
   EXPECT_NEAR(sim.walls().stress(platen) / 2e3, 1.0, 1e-3);
   EXPECT_NEAR(sim.walls().state(platen).force.z / (2e3 * kPi * 1e-6), 1.0, 1e-3);
+}
+
+TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {
+  // A flat-ended pile of radius 1 mm, its tip at z = -5 mm, driven down (-axis); one grain
+  // pressed on the tip from below, two on the shaft at heights 1.3 and 5.1 mm, one sliding
+  // along it (the shaft's friction), in 8 bins of 1 mm.
+  const double R = 1e-3, r = 0.1e-3, delta = 2e-7;
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0, 0, -5e-3]\naxis = [0, 0, 1]\n"
+      "radius = 1e-3\nlength = 8e-3\ntip = \"flat\"\nfriction = 0.5\n");
+  Simulation sim(cfg);
+  sim.add_particle({0.0, 0.0, -5e-3 - r + delta}, r);
+  sim.add_particle({R + r - delta, 0.0, -5e-3 + 1.3e-3}, r, {0.0, 0.0, 0.01});
+  sim.add_particle({0.0, -(R + r - 2.0 * delta), -5e-3 + 5.1e-3}, r);
+  sim.set_dt(1e-9);
+  sim.step(1);
+  const int pile = kNumWalls;
+  const BodyProbe p = probe_body(sim.walls(), pile, sim.wall_contacts(), sim.particles(), 2e-3, 8);
+  const WallContacts& wc = sim.wall_contacts();
+  ASSERT_TRUE(probe_supports(sim.walls().shape(pile)));
+  EXPECT_EQ(p.tip_contacts, 1u);
+  EXPECT_EQ(p.shaft_contacts, 2u);
+  ASSERT_EQ(p.sigma_r.size(), 8u);
+  EXPECT_DOUBLE_EQ(p.bin_height, 1e-3);
+  double F_n[3] = {0.0, 0.0, 0.0};
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    if (wc.wall[e] == pile) F_n[sim.particles().id[wc.particle[e]]] = wc.F_n[e];
+  }
+  // The tip: the grain's normal force, against the advance, over the tip's area.
+  EXPECT_DOUBLE_EQ(p.tip_load, F_n[0]);
+  EXPECT_NEAR(p.q_c() * kPi * R * R / F_n[0], 1.0, 1e-12);
+  // The shaft: the radial stress in bins 1 and 5 only; the sliding grain's friction (it moves
+  // up the shaft: the shaft drags it down, along the advance) is the shaft's load, all of it in
+  // bin 1 and in the 2 mm sleeve.
+  for (std::size_t j = 0; j < 8; ++j) {
+    const double expected = j == 1 ? F_n[1] : j == 5 ? F_n[2] : 0.0;
+    EXPECT_NEAR(p.sigma_r[j] * 2.0 * kPi * R * 1e-3, expected, 1e-12 * F_n[1]) << j;
+  }
+  EXPECT_GT(p.shaft_load, 0.0);
+  EXPECT_NEAR(p.tau[1] * 2.0 * kPi * R * 1e-3, p.shaft_load, 1e-12 * F_n[1]);
+  EXPECT_DOUBLE_EQ(p.sleeve_load, p.shaft_load);
+  EXPECT_NEAR(p.f_s() * 2.0 * kPi * R * 2e-3, p.shaft_load, 1e-12 * F_n[1]);
+  // Together, the load the body's servo would hold (walls/body_geometry.hpp body_load).
+  const WallState& st = sim.walls().state(pile);
+  EXPECT_NEAR(p.tip_load + p.shaft_load,
+              body_load(sim.walls().shape(pile), st.normal_force, st.force), 1e-12 * F_n[0]);
 }
 
 std::string config_error(const std::string& bodies) {

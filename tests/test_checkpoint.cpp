@@ -184,14 +184,7 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
   resume_directory((base / "stopped").string(), opt);
   EXPECT_FALSE(fs::exists(base / "stopped" / "checkpoint.bin")) << "kept after the run ended";
 
-  std::size_t compared = 0;
-  for (const auto& e : fs::recursive_directory_iterator(base / "whole")) {
-    if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
-    const fs::path other = base / "stopped" / fs::relative(e.path(), base / "whole");
-    EXPECT_TRUE(fs::exists(other)) << other;
-    EXPECT_EQ(read_file(e.path()), read_file(other)) << "differs: " << fs::relative(e.path(), base);
-    ++compared;
-  }
+  const std::size_t compared = testing::expect_same_run_files(base / "whole", base / "stopped");
   // config, timeseries, summary, breakage, grading, events, phases and the snapshots.
   EXPECT_GE(compared, 9u);
   const std::string events = read_file(base / "whole" / "events.csv");

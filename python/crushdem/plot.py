@@ -79,6 +79,13 @@ vertical lines mark 1 h and 1 day when they lie within the ageing time reached:
 * ``relaxation_breakage.png`` cumulative breakages by cause (instant, crack) with the number of
                               particles on a second axis
 
+Penetration ("penetrate" stages; drawn only when DIR/penetration.csv exists):
+
+* ``penetration.png``         cone resistance q_c [MPa] and sleeve friction f_s [kPa] against
+                              the body's travel [mm], downwards
+* ``shaft_stress.png``        radial stress on the shaft [kPa] against the height above its
+                              start [mm], at four travels of the last penetrate stage
+
 A day of ageing is a few milliseconds of DEM time, so the figures against time (stress_time,
 coordination, kinetic_energy) draw the stages before the age stages against DEM time and the age
 stages, from events.csv, against ageing time on a second panel.

@@ -2,8 +2,8 @@
 
 A run directory holds ``config.toml`` (written when the run starts), ``timeseries.csv``,
 ``summary.json`` (written when it ends), and, depending on the run, ``events.csv`` and
-``phases.csv`` (age stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and
-``timing.json``; docs/configuration.md lists their columns. Every reader here returns an empty
+``phases.csv`` (age stages), ``penetration.csv`` and ``shaft_profile.csv`` (penetrate
+stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and ``timing.json``; docs/configuration.md lists their columns. Every reader here returns an empty
 or ``None`` result for a file that is missing, so a run still going can be read too.
 
 :func:`read_run` reads everything the figures need into one :class:`RunData`.
@@ -141,6 +141,22 @@ def read_events(run_dir: PathLike) -> Optional[Columns]:
         return None
 
 
+def read_penetration(run_dir: PathLike) -> Optional[Columns]:
+    """DIR/penetration.csv (a row every ``record_interval`` steps of each "penetrate" stage:
+    ``travel_m``, the tip's position, ``q_c_Pa``, ``f_s_Pa``, the tip, shaft and sleeve loads
+    and the run's measurements), or None when missing."""
+    path = os.path.join(run_dir, "penetration.csv")
+    return read_csv(path) if os.path.isfile(path) else None
+
+
+def read_shaft_profile(run_dir: PathLike) -> Optional[Columns]:
+    """DIR/shaft_profile.csv (at every row of penetration.csv, one row per bin along the shaft:
+    ``travel_m``, ``bin``, ``height_m`` above the shaft's start, ``sigma_r_Pa``, ``tau_Pa``,
+    ``contacts``), or None when missing."""
+    path = os.path.join(run_dir, "shaft_profile.csv")
+    return read_csv(path) if os.path.isfile(path) else None
+
+
 def read_phases(run_dir: PathLike) -> Optional[Columns]:
     """DIR/phases.csv (rows within the dynamic phases of age stages), or None when missing."""
     path = os.path.join(run_dir, "phases.csv")
@@ -214,6 +230,8 @@ class RunData:
     events: Optional[Columns] = None
     grading: Optional[Tuple[np.ndarray, np.ndarray]] = None
     breakage: List[Tuple[float, str]] = field(default_factory=list)
+    penetration: Optional[Columns] = None
+    shaft_profile: Optional[Columns] = None
 
     @property
     def title(self) -> str:
@@ -232,4 +250,5 @@ def read_run(run_dir: PathLike) -> RunData:
         summary = {"stages": stages_from_config(run_dir)}
     return RunData(directory=run_dir, timeseries=d, summary=summary, finished=finished,
                    events=read_events(run_dir), grading=read_grading(run_dir),
-                   breakage=read_breakage(run_dir))
+                   breakage=read_breakage(run_dir), penetration=read_penetration(run_dir),
+                   shaft_profile=read_shaft_profile(run_dir))

@@ -778,3 +778,51 @@ def test_rundir_readers_are_the_ones_plot_exports(tmp_path):
     data = rundir.read_run(run)
     assert data.finished and data.title == "crushing" and data.grading is not None
     assert data.breakage and data.events is None
+
+
+def _penetration_run(path):
+    """A run with a penetrate stage (stage 1): penetration.csv and shaft_profile.csv (3 bins)."""
+    rows = [_row(i * 1e-5, 0.2e6, 0.2e6, 0.0, 0.0, 0.7, stage=min(i, 1)) for i in range(8)]
+    run = _write_run(path, rows, {"stages": [_stage_summary("iso", "isotropic"),
+                                             _stage_summary("cpt", "penetrate")]})
+    travel = np.linspace(0.0, 0.7e-3, 8)
+    q_c = np.where(travel > 0.2e-3, 2e7 * (travel - 0.2e-3), 0.0)
+    with open(os.path.join(run, "penetration.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stage", "travel_m", "q_c_Pa", "f_s_Pa", "time_s"])
+        for t, q in zip(travel, q_c):
+            w.writerow([1, float(t), float(q), float(0.01 * q), float(t / 2.0)])
+    with open(os.path.join(run, "shaft_profile.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stage", "travel_m", "bin", "height_m", "sigma_r_Pa", "tau_Pa", "contacts"])
+        for t in travel:
+            for b in range(3):
+                w.writerow([1, float(t), b, (b + 0.5) * 1e-4, float(1e5 * (b + 1) * t / 7e-4),
+                            0.0, 2])
+    return run, travel, q_c
+
+
+def test_penetration_run_draws_q_c_f_s_and_the_shaft_stress(tmp_path):
+    run, travel, q_c = _penetration_run(tmp_path / "cpt")
+    assert {"penetration.png", "shaft_stress.png"} <= _plots(run)
+    data = rundir.read_run(run)
+    fig = figures.figure_penetration(data)
+    ax_q, ax_f = fig.axes
+    assert_drawn(labelled(ax_q, "stage 1"), q_c * MPA, travel * 1e3)
+    assert_drawn(labelled(ax_f, "stage 1"), 0.01 * q_c * 1e-3, travel * 1e3)
+    assert ax_q.yaxis_inverted()  # depth downwards
+    _close(fig)
+    fig = figures.figure_shaft_stress(data)
+    (ax,) = fig.axes
+    # Four travels picked evenly from the eight, the first and the last among them.
+    lines = ax.get_lines()
+    assert [ln.get_label() for ln in lines][0] == "travel 0 mm"
+    assert lines[-1].get_label() == "travel 0.7 mm"
+    assert_drawn(lines[-1], [100.0, 200.0, 300.0], (np.arange(3) + 0.5) * 1e-4 * 1e3)
+    assert len(lines) == 4
+    _close(fig)
+
+
+def test_a_run_without_penetration_has_no_penetration_figures(tmp_path):
+    names = _plots(_plain_run(tmp_path / "plain"))
+    assert not {"penetration.png", "shaft_stress.png"} & names

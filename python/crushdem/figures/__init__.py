@@ -16,7 +16,8 @@ other stages against DEM time.
 
 The figures live in modules by subject: :mod:`~crushdem.figures.time_series`,
 :mod:`~crushdem.figures.laboratory`, :mod:`~crushdem.figures.crushing`,
-:mod:`~crushdem.figures.ageing` and :mod:`~crushdem.figures.study`, on the helpers of
+:mod:`~crushdem.figures.ageing`, :mod:`~crushdem.figures.penetration` and
+:mod:`~crushdem.figures.study`, on the helpers of
 :mod:`~crushdem.figures.common`; every one is importable from here.
 """
 
@@ -35,6 +36,7 @@ from .laboratory import (figure_inertial_number, figure_oedometer, figure_prepar
                          figure_void_ratio, oedometer_label)
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
+from .penetration import figure_penetration, figure_shaft_stress
 from .time_series import figure_coordination, figure_kinetic_energy, figure_stress_time
 
 # The functions of the modules below (FIGURES and the constants of figures.common are
@@ -48,7 +50,7 @@ __all__ = [
     "figure_grading", "figure_breakage", "figure_breakage_sizes",
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",
-    "figure_force_statistics",
+    "figure_force_statistics", "figure_penetration", "figure_shaft_stress",
     "draw_all", "display_available", "use_file_backend_without_display",
 ]
 
@@ -71,6 +73,8 @@ FIGURES: Dict[str, Callable[[Run], Any]] = {
     "relaxation.png": figure_relaxation,
     "relaxation_forces.png": figure_relaxation_forces,
     "relaxation_breakage.png": figure_relaxation_breakage,
+    "penetration.png": figure_penetration,
+    "shaft_stress.png": figure_shaft_stress,
 }
 
 

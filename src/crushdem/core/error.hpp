@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "crushdem/core/types.hpp"
+
 namespace crushdem {
 
 /// Invalid user input: configuration keys, files, arguments. Thrown before anything runs.
@@ -26,6 +28,18 @@ inline std::string show_number(double v) {
     if (std::strtod(shorter, nullptr) == v) return shorter;
   }
   return buf;
+}
+
+/// A point or direction as in a configuration: "[x, y, z]" (appended piece by piece: GCC 12
+/// warns falsely about "[" + std::string).
+inline std::string show_vec(Vec3 v) {
+  std::string out("[");
+  out += show_number(v.x);
+  out += ", ";
+  out += show_number(v.y);
+  out += ", ";
+  out += show_number(v.z);
+  return out + "]";
 }
 
 /// Builds the standard message "key 'K' = V: expected E".

@@ -26,6 +26,7 @@ namespace crushdem {
 class Crusher;
 class Stage;
 struct StageKind;
+struct BodyConfig;
 
 /// How the walls of an axis are held during a hold or age stage.
 enum class WallControl { Fixed, Servo };
@@ -48,7 +49,12 @@ struct StageConfig {
   double duration = 0.0;                     // hold [s of DEM time], age [s of ageing time]
   std::uint64_t min_cycles = 150000;         // age: steps per dynamic phase (STUDY)
   std::uint64_t n_break = 30;                // age: grains brought to failure per jump (STUDY)
-  std::uint64_t record_interval = 1000;      // age: steps between rows of phases.csv
+  std::uint64_t record_interval = 1000;      // age, penetrate: steps between rows of its files
+  std::string body;                          // penetrate: the [[body]] driven
+  double velocity = 0.0;                     // penetrate [m/s]
+  double depth = 0.0;                        // penetrate: travel [m]
+  std::uint64_t bins = 20;                   // penetrate: bins along the shaft
+  double sleeve_length = 0.0;                // penetrate [m]; 0 = 3.75 shaft diameters
   // Equilibrium (isotropic, servo oedometric) and limits: every kind.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this
@@ -72,6 +78,9 @@ struct StageKind {
   std::unique_ptr<Stage> (*make)(const StageConfig& cfg, double d50, Crusher* crusher) = nullptr;
   /// The checks that join keys (the ranges are the rows'); errors name prefix.key. May be null.
   void (*check)(const StageConfig& cfg, const std::string& prefix) = nullptr;
+  /// The checks against the run's [[body]] tables (a stage that drives one); may be null.
+  void (*check_bodies)(const StageConfig& cfg, const std::vector<BodyConfig>& bodies,
+                       const std::string& prefix) = nullptr;
   bool needs_crack_growth = false;  // needs [crushing] with crack_growth = true
 };
 
@@ -81,11 +90,12 @@ const StageKind& oedometric_stage_kind();
 const StageKind& triaxial_stage_kind();
 const StageKind& hold_stage_kind();
 const StageKind& age_stage_kind();
+const StageKind& penetrate_stage_kind();
 
 inline const std::vector<const StageKind*>& stage_kinds() {
   static const std::vector<const StageKind*> kinds = {
       &isotropic_stage_kind(), &oedometric_stage_kind(), &triaxial_stage_kind(),
-      &hold_stage_kind(),      &age_stage_kind(),
+      &hold_stage_kind(),      &age_stage_kind(),        &penetrate_stage_kind(),
   };
   return kinds;
 }

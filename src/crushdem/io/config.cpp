@@ -471,7 +471,11 @@ void RunConfig::validate() const {
                         std::string(stages[i].kind->name) +
                         "\" stage needs crack growth: add [crushing] with crack_growth = true");
     }
-    stages[i].validate("stage[" + std::to_string(i) + "]");
+    const std::string prefix = "stage[" + std::to_string(i) + "]";
+    stages[i].validate(prefix);
+    if (stages[i].kind->check_bodies) {
+      stages[i].kind->check_bodies(stages[i], simulation.bodies, prefix);
+    }
   }
   validate_params(output, output_params(), "output");
   if (crushing.enabled) {

@@ -18,6 +18,7 @@
 #include "crushdem/run/driver.hpp"
 #include "crushdem/run/results.hpp"
 #include "crushdem/run/run_directory.hpp"
+#include "crushdem/walls/body_probe.hpp"
 
 namespace crushdem {
 
@@ -291,6 +292,7 @@ class Run {
       prepare_sample();
     } else if (!cfg_.has_sample && !resumed_) {
       add_configured_particles(*sim_, cfg_);
+      check_bodies_clear(sim_->walls(), sim_->particles());
       sim_->compute_forces();
       driver_->snapshot();
     }
@@ -304,6 +306,7 @@ class Run {
       for (std::size_t i = 0; i < cloud_.radius.size(); ++i) {
         sim.add_particle(cloud_.position[i], cloud_.radius[i]);
       }
+      check_bodies_clear(sim.walls(), sim.particles());
       sim.compute_forces();
       driver_->snapshot();
       pos_.ref0 = StrainReference::from(sim.walls());

@@ -20,10 +20,6 @@ constexpr std::array<Named<PileTip>, 2> kTipNames = {
 constexpr std::array<Named<BodyMotion>, 2> kMotionNames = {
     {{BodyMotion::Translate, "translate"}, {BodyMotion::Dilate, "dilate"}}};
 
-const char* to_string(BodyKind k) {
-  return name_of(kKindNames, k);
-}
-
 bool is_cylinder(BodyKind k) {
   return k == BodyKind::CylinderInside || k == BodyKind::CylinderOutside;
 }
@@ -32,16 +28,6 @@ bool has_radius(BodyKind k) {
 }
 bool has_length(BodyKind k) {
   return is_cylinder(k) || k == BodyKind::Pile;
-}
-
-std::string show_vec(Vec3 v) {
-  std::string out("[");
-  out += show_number(v.x);
-  out += ", ";
-  out += show_number(v.y);
-  out += ", ";
-  out += show_number(v.z);
-  return out + "]";
 }
 
 Vec3 unit(Vec3 v) {
@@ -66,6 +52,10 @@ BodyPart cone_part(Vec3 apex, Vec3 axis, double R, double alpha_deg) {
 }
 
 }  // namespace
+
+const char* to_string(BodyKind k) {
+  return name_of(kKindNames, k);
+}
 
 const ParamTable<BodyConfig>& body_params() {
   using B = BodyConfig;

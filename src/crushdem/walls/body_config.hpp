@@ -28,6 +28,8 @@ namespace crushdem {
 enum class BodyKind { Plane, Disk, CylinderInside, CylinderOutside, Cone, Pile };
 enum class PileTip { Cone, Flat };
 enum class BodyMotion { Translate, Dilate };
+/// The `shape` key's value of a kind ("plane", ..., "pile").
+const char* to_string(BodyKind k);
 
 struct BodyConfig : WallConfig {
   std::string name;

@@ -1,0 +1,198 @@
+// The penetrate stage (docs/chamber.md): a [[body]] (a cone, a pile, a flat punch or a bare
+// shaft) driven into the grains at a constant `velocity` until it has travelled `depth`, the
+// box's walls held as `axial` and `lateral` say and every other body as configured (a chamber's
+// servo cylinder keeps its radial stress). Its own files, a row every record_interval steps:
+// penetration.csv (travel, tip position, q_c, f_s, the loads on the tip and the shaft, with the
+// run's measurements) and shaft_profile.csv (the radial and shear stress on the shaft by bins
+// along it: walls/body_probe.hpp).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "crushdem/core/error.hpp"
+#include "crushdem/experiments/stages.hpp"
+#include "crushdem/walls/body_config.hpp"
+#include "crushdem/walls/body_probe.hpp"
+
+namespace crushdem {
+namespace {
+
+/// The standard friction sleeve: 150 cm^2 on a 35.7 mm cone (ISO 22476-1), 133.7 mm long.
+constexpr double kSleeveDiameters = 0.1337 / 0.0357;
+
+int body_index(const Walls& w, const std::string& name) {
+  for (int k = kNumWalls; k < w.size(); ++k) {
+    if (w.name(k) == name) return k;
+  }
+  throw ConfigError("penetrate stage: no [[body]] named \"" + name + "\"");
+}
+
+class PenetrateStage final : public Stage {
+ public:
+  using Stage::Stage;
+
+  void begin(Simulation& sim) override {
+    Stage::begin(sim);
+    Walls& w = sim.walls();
+    const int k = body_index(w, cfg_.body);
+    q_start_ = w.position(k);
+    WallConfig& c = w.config(k);
+    c.mode = WallMode::Velocity;
+    c.velocity = cfg_.velocity;
+    w.update_velocities(sim.current_dt());
+    record(sim);
+  }
+
+  std::string progress_note() const override {
+    char b[128];
+    std::snprintf(b, sizeof b, "travel %.4g m of %.4g m  q_c %.4g Pa", travel_, cfg_.depth, q_c_);
+    return b;
+  }
+
+  /// A record reads the grains' positions and their contacts with the body.
+  bool reads_grains(const Simulation& sim) const override {
+    const Walls& w = sim.walls();
+    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
+           w.position(body_index(w, cfg_.body)) - q_start_ >= cfg_.depth * (1.0 - 1e-12);
+  }
+
+  void state(StateArchive& a) override {
+    Stage::state(a);
+    a.section("penetration");
+    a(q_start_, travel_, q_c_);
+  }
+
+ protected:
+  void set_walls(Walls& w) override { set_held_walls(w); }
+
+  const char* end_reason(Simulation& sim) override {
+    Walls& w = sim.walls();
+    const int k = body_index(w, cfg_.body);
+    travel_ = w.position(k) - q_start_;
+    const bool done = travel_ >= cfg_.depth * (1.0 - 1e-12);
+    if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || done) record(sim);
+    if (!done) return nullptr;
+    // The body stops where it is; the next stage finds it still.
+    w.config(k).mode = WallMode::Fixed;
+    w.config(k).velocity = 0.0;
+    w.update_velocities(sim.current_dt());
+    return "depth reached";
+  }
+
+  std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override {
+    const std::uint64_t done = sim.step_count() - start_step_;
+    n = std::min(n, cfg_.record_interval - done % cfg_.record_interval);
+    // The last steps land on the depth.
+    const double left = std::ceil((cfg_.depth - travel_) / (cfg_.velocity * sim.dt()));
+    return std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
+  }
+
+ private:
+  void record(const Simulation& sim) {
+    const Walls& w = sim.walls();
+    const int k = body_index(w, cfg_.body);
+    travel_ = w.position(k) - q_start_;
+    const double R = w.shape(k).part[0].radius;
+    const double sleeve = cfg_.sleeve_length > 0.0 ? cfg_.sleeve_length : kSleeveDiameters * 2 * R;
+    const BodyProbe p =
+        probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(cfg_.bins));
+    q_c_ = p.q_c();
+    StageOutputs* out = outputs();
+    if (!out) return;
+    Measurement m;
+    m.emplace_back("stage", static_cast<double>(index()));
+    m.emplace_back("travel_m", travel_);
+    m.emplace_back("tip_x_m", p.tip.x);
+    m.emplace_back("tip_y_m", p.tip.y);
+    m.emplace_back("tip_z_m", p.tip.z);
+    m.emplace_back("q_c_Pa", q_c_);
+    m.emplace_back("f_s_Pa", p.f_s());
+    m.emplace_back("tip_load_N", p.tip_load);
+    m.emplace_back("shaft_load_N", p.shaft_load);
+    m.emplace_back("sleeve_load_N", p.sleeve_load);
+    m.emplace_back("tip_contacts", static_cast<double>(p.tip_contacts));
+    m.emplace_back("shaft_contacts", static_cast<double>(p.shaft_contacts));
+    for (auto& kv : out->measure(sim)) m.push_back(kv);  // time_s, step, the walls, crushing
+    out->write("penetration.csv", m);
+    for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
+      Measurement b;
+      b.emplace_back("stage", static_cast<double>(index()));
+      b.emplace_back("time_s", sim.time());
+      b.emplace_back("travel_m", travel_);
+      b.emplace_back("bin", static_cast<double>(j));
+      b.emplace_back("height_m", (static_cast<double>(j) + 0.5) * p.bin_height);
+      b.emplace_back("sigma_r_Pa", p.sigma_r[j]);
+      b.emplace_back("tau_Pa", p.tau[j]);
+      b.emplace_back("contacts", static_cast<double>(p.bin_contacts[j]));
+      out->write("shaft_profile.csv", b);
+    }
+  }
+
+  double q_start_ = 0.0;  // the body's degree of freedom at the start [m]
+  double travel_ = 0.0;   // since the start [m]
+  double q_c_ = 0.0;      // at the last record [Pa]
+};
+
+}  // namespace
+
+const StageKind& penetrate_stage_kind() {
+  static const StageKind kind{
+      .name = "penetrate",
+      .description =
+          "a [[body]] (cone, pile, flat punch, shaft) driven at `velocity` for `depth`; q_c, f_s "
+          "and the shaft's radial stress recorded (penetration.csv, shaft_profile.csv)",
+      .params = held_walls_stage_table({
+          {"body",
+           &StageConfig::body,
+           "",
+           "the [[body]] driven (its `name`): a translating cone, pile, disk or "
+           "cylinder_outside",
+           nullptr,
+           {},
+           "-"},
+          {"velocity", &StageConfig::velocity, "m/s",
+           "penetration rate along the body's `direction` (the standard CPT's is 0.02 m/s; DEM "
+           "chambers push faster while the inertial number stays low)",
+           [](double v) { return v > 0.0; }, "a positive velocity in m/s", "-"},
+          {"depth", &StageConfig::depth, "m", "how far the body travels in this stage",
+           [](double v) { return v > 0.0; }, "a positive travel in m", "-"},
+          {"record_interval", &StageConfig::record_interval, "",
+           "steps between rows of penetration.csv and shaft_profile.csv",
+           [](double v) { return v >= 1.0; }, "> 0 steps"},
+          {"bins", &StageConfig::bins, "", "bins along the shaft in shaft_profile.csv",
+           [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of bins in [1, 10000]"},
+          {"sleeve_length", &StageConfig::sleeve_length, "m",
+           "friction sleeve above the tip for f_s; 0 = 3.75 shaft diameters (150 cm^2 on a "
+           "35.7 mm cone, ISO 22476-1)",
+           [](double v) { return v >= 0.0; }, "a length >= 0 in m"},
+      }),
+      .make = make_stage_of<PenetrateStage>,
+      .check_bodies =
+          [](const StageConfig& c, const std::vector<BodyConfig>& bodies,
+             const std::string& prefix) {
+            for (const BodyConfig& b : bodies) {
+              if (b.name != c.body) continue;
+              const Body made = b.make(0.0);
+              if (!probe_supports(made.shape)) {
+                throw ConfigError(bad_value(
+                    prefix + ".body", "\"" + c.body + "\"",
+                    "a translating cone, pile, disk or cylinder_outside (this body is a " +
+                        std::string(to_string(b.kind)) +
+                        (b.motion == BodyMotion::Dilate ? " that dilates)" : ")")));
+              }
+              return;
+            }
+            std::string names;
+            for (const BodyConfig& b : bodies)
+              names += (names.empty() ? "\"" : ", \"") + b.name + "\"";
+            throw ConfigError(bad_value(
+                prefix + ".body", "\"" + c.body + "\"",
+                "the name of a [[body]]" +
+                    (names.empty() ? std::string(" (there is none)") : " (" + names + ")")));
+          },
+  };
+  return kind;
+}
+
+}  // namespace crushdem

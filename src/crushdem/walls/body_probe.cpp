@@ -1,0 +1,113 @@
+#include "crushdem/walls/body_probe.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "crushdem/core/error.hpp"
+
+namespace crushdem {
+namespace {
+
+bool is_tip(Shape s) {
+  return s == Shape::Cone || s == Shape::Disk;
+}
+
+}  // namespace
+
+bool probe_supports(const BodyShape& b) {
+  if (b.dilate || b.part[0].shape == Shape::AxisPlane) return false;
+  for (int k = 0; k < b.parts; ++k) {
+    const Shape s = b.part[k].shape;
+    if (!is_tip(s) && s != Shape::CylinderOutside) return false;
+  }
+  return true;
+}
+
+void check_bodies_clear(const Walls& walls, const ParticleStore& p) {
+  for (int k = kNumWalls; k < walls.size(); ++k) {
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const Vec3 c{p.x[i], p.y[i], p.z[i]};
+      if (walls.surface(k, c).dist >= p.radius[i]) continue;
+      throw ConfigError(bad_value("body[" + std::to_string(k - kNumWalls) + "].origin",
+                                  show_vec(walls.shape(k).part[0].origin),
+                                  "a place where body \"" + walls.name(k) +
+                                      "\" is clear of the grains at the start (it "
+                                      "overlaps grain id " +
+                                      std::to_string(p.id[i]) + " of radius " +
+                                      show_number(p.radius[i]) + " m at " + show_vec(c) + ")"));
+    }
+  }
+}
+
+double BodyProbe::q_c() const {
+  return has_tip ? tip_load / (kPi * radius * radius) : 0.0;
+}
+
+double BodyProbe::f_s() const {
+  return sleeve_length > 0.0 ? sleeve_load / (2.0 * kPi * radius * sleeve_length) : 0.0;
+}
+
+BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
+                     double sleeve_length, int bins) {
+  const BodyShape& b = walls.shape(k);
+  const double q = walls.position(k);
+  BodyProbe out;
+  const BodyPart* shaft = nullptr;
+  int shaft_index = -1;
+  for (int j = 0; j < b.parts; ++j) {
+    if (b.part[j].shape == Shape::CylinderOutside) {
+      shaft = &b.part[j];
+      shaft_index = j;
+    }
+  }
+  const BodyPart& first = b.part[0];
+  out.tip = first.origin + q * b.motion;
+  out.radius = first.radius;
+  out.has_tip = is_tip(first.shape);
+  Vec3 shaft_origin;
+  double dh = 0.0;
+  if (shaft != nullptr) {
+    shaft_origin = shaft->origin + q * b.motion;
+    out.sleeve_length = std::min(sleeve_length, shaft->length);
+    bins = std::max(bins, 1);
+    dh = shaft->length / bins;
+    out.bin_height = dh;
+    out.sigma_r.assign(static_cast<std::size_t>(bins), 0.0);
+    out.tau.assign(static_cast<std::size_t>(bins), 0.0);
+    out.bin_contacts.assign(static_cast<std::size_t>(bins), 0);
+  }
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    if (wc.wall[e] != k || !(wc.F_n[e] > 0.0)) continue;
+    const std::uint32_t i = wc.particle[e];
+    const Vec3 c{p.x[i], p.y[i], p.z[i]};
+    int part = 0;
+    (void)body_surface(b, q, c, part);
+    // The grain's force on the body resisting the advance: minus the entry's force on the grain.
+    const double load = dot(Vec3{wc.fx[e], wc.fy[e], wc.fz[e]}, b.motion);
+    if (part != shaft_index) {
+      out.tip_load += load;
+      ++out.tip_contacts;
+      continue;
+    }
+    out.shaft_load += load;
+    ++out.shaft_contacts;
+    const double h = dot(c - shaft_origin, shaft->axis);
+    if (h < out.sleeve_length) out.sleeve_load += load;
+    const auto bin = static_cast<std::size_t>(
+        std::clamp(static_cast<int>(std::floor(h / dh)), 0, static_cast<int>(bins) - 1));
+    out.sigma_r[bin] += wc.F_n[e];
+    out.tau[bin] += load;
+    ++out.bin_contacts[bin];
+  }
+  if (shaft != nullptr) {
+    const double A_bin = 2.0 * kPi * shaft->radius * dh;
+    for (std::size_t j = 0; j < out.sigma_r.size(); ++j) {
+      out.sigma_r[j] /= A_bin;
+      out.tau[j] /= A_bin;
+    }
+  }
+  return out;
+}
+
+}  // namespace crushdem

@@ -1,0 +1,63 @@
+// What the grains do to one body, by part and along its axis: the measurements of a penetration
+// test (docs/chamber.md). From the wall loop's last results per contact (WallContacts), on the
+// host, when a controller asks (the device brings them back with Sync::All):
+//
+//   tip load      F_tip   = -sum over the tip's contacts of F_body . m    (m: the motion's unit
+//                                                                          direction, into the
+//                                                                          grains)
+//   cone resistance q_c   = F_tip / (pi R^2)                             (R: the tip's base)
+//   shaft load    F_shaft = -sum over the shaft's contacts of F_body . m  (friction)
+//   sleeve friction f_s   = F_sleeve / (2 pi R L_s)                      (the shaft's contacts
+//                                                                          within L_s of the tip)
+//   radial stress sigma_r(bin) = sum of F_n in the bin / (2 pi R dh)     (bins of height dh
+//                                                                          along the shaft)
+//   shear stress  tau(bin)     = -sum of F_body . m in the bin / (2 pi R dh)
+//
+// F_body is the force of the grain on the body (minus the entry's force on the grain). A
+// contact's height on the shaft is its grain centre's axial coordinate from the shaft's start
+// (the normal of a cylinder is radial, so the contact point has the same height). These are the
+// chamber-test conventions of Lunne, Robertson & Powell (1997) and ISO 22476-1, without the
+// pore-pressure correction (dry grains).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "crushdem/core/types.hpp"
+#include "crushdem/particles/particle_store.hpp"
+#include "crushdem/walls/walls.hpp"
+
+namespace crushdem {
+
+/// Whether body b can be probed: a translating body with a tip (a cone or a disk), a shaft (the
+/// outside of a cylinder) or both (a pile).
+bool probe_supports(const BodyShape& b);
+
+struct BodyProbe {
+  Vec3 tip;                    // the tip's point: a cone's apex, a flat tip's centre [m]
+  double radius = 0.0;         // the shaft's or the tip's base radius R [m]
+  bool has_tip = false;        // a cone or a flat tip (a bare shaft has none)
+  double tip_load = 0.0;       // F_tip [N]
+  double shaft_load = 0.0;     // F_shaft [N]
+  double sleeve_load = 0.0;    // F_sleeve [N]
+  double sleeve_length = 0.0;  // L_s, the shaft's length at most [m]
+  std::uint64_t tip_contacts = 0, shaft_contacts = 0;  // touching (F_n > 0)
+  double bin_height = 0.0;                             // dh [m]
+  std::vector<double> sigma_r, tau;                    // by bin, from the shaft's start up [Pa]
+  std::vector<std::uint64_t> bin_contacts;
+
+  double q_c() const;  // F_tip / (pi R^2) [Pa]; 0 without a tip
+  double f_s() const;  // F_sleeve / (2 pi R L_s) [Pa]; 0 without a shaft
+};
+
+/// Every body beyond the box clear of every grain (no grain overlaps its surface or lies inside
+/// it): a body placed into the grains would start with an explosive overlap. ConfigError naming
+/// body[i].origin, the body, the grain and its position otherwise.
+void check_bodies_clear(const Walls& walls, const ParticleStore& p);
+
+/// Body k of `walls` as the last force evaluation left it (probe_supports() must hold).
+/// sleeve_length: L_s (clamped to the shaft's length); bins: the number of bins along the shaft.
+BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
+                     double sleeve_length, int bins);
+
+}  // namespace crushdem

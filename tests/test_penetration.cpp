@@ -1,0 +1,164 @@
+// The penetrate stage (experiments/stages/penetrate.cpp, docs/chamber.md): a cone driven into a
+// compressed sample records q_c from the moment its tip reaches the grains, lands on its
+// depth and stops; a run stopped while the cone moves and resumed writes the files of an
+// uninterrupted one byte for byte; bad input names its key.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/toml.hpp"
+#include "crushdem/run/runner.hpp"
+#include "crushdem/run/signals.hpp"
+#include "helpers.hpp"
+
+namespace crushdem {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The run: 300 grains compressed to 200 kPa, then a 60 degree cone 0.2 mm across driven 0.45 mm
+// down at 2 m/s from 1.3 mm above the floor (tests/data/penetration_300.toml); or `text`.
+RunConfig config(std::string text = "") {
+  if (text.empty()) {
+    text = testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
+  }
+  return run_config_from_toml(toml::parse(text, "test"), "test", ".");
+}
+
+TEST(Penetration, AConeRecordsTipResistanceFromTheSurfaceOnAndStopsAtItsDepth) {
+  const testing::TempDir temp("penetrate");
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (temp.path() / "run").string();
+  run_to_directory(config(), opt);
+  auto pen = testing::read_csv((temp.path() / "run" / "penetration.csv").string());
+  const std::vector<double>& travel = pen["travel_m"];
+  ASSERT_GE(travel.size(), 60u);
+  // Every record_interval (500) steps of the stage, and at its start and end.
+  const double depth = 0.45e-3, v = 2.0;
+  EXPECT_EQ(travel.front(), 0.0);
+  EXPECT_GE(travel.back(), depth * (1.0 - 1e-12));
+  const double dt = pen["time_s"][1] - pen["time_s"][0];  // 500 steps
+  EXPECT_LT(travel.back() - depth, v * dt / 500.0 * 1.01) << "overshot its depth";
+  // No grain lies above the top wall: q_c is zero until the tip passes it, then positive once
+  // the cone is in.
+  std::size_t above = 0, below = 0;
+  double q_c_last = 0.0;  // summed over the last sixth of the rows
+  const std::size_t n = travel.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double q_c = pen["q_c_Pa"][i];
+    EXPECT_GE(q_c, 0.0);
+    if (pen["tip_z_m"][i] > pen["wall_zmax_position_m"][i] + 1e-6) {
+      EXPECT_EQ(q_c, 0.0) << "row " << i;
+      ++above;
+    } else {
+      ++below;
+      if (i > n - n / 6) q_c_last += q_c;
+    }
+  }
+  EXPECT_GT(above, 10u);
+  ASSERT_GT(below, 10u);
+  EXPECT_GT(q_c_last, 0.0);
+  EXPECT_GT(pen["tip_contacts"].back(), 0.0);
+  // The tip moves by the travel along -z.
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_NEAR(pen["tip_z_m"][i], 1.3e-3 - travel[i], 1e-15);
+  }
+  // The shaft's profile: 10 bins per record.
+  auto shaft = testing::read_csv((temp.path() / "run" / "shaft_profile.csv").string());
+  EXPECT_EQ(shaft["bin"].size(), 10 * n);
+  // The cone stays where the stage left it.
+  auto ts = testing::read_csv((temp.path() / "run" / "timeseries.csv").string());
+  EXPECT_EQ(ts["body_cone_position_m"].back(), travel.back());
+  const std::string summary = testing::read_file(temp.path() / "run" / "summary.json");
+  EXPECT_NE(summary.find("\"depth reached\""), std::string::npos) << summary;
+}
+
+TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) {
+  const testing::TempDir temp("penetrate");
+  const fs::path& base = temp.path();
+  const RunConfig cfg = config();
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (base / "whole").string();
+  run_to_directory(cfg, opt);
+
+  // Stopped (as SIGINT does) as soon as the cone has begun to move, then resumed.
+  opt.out_dir = (base / "stopped").string();
+  std::atomic<bool> done{false};
+  std::thread stopper([&] {
+    while (!done && !fs::exists(base / "stopped" / "penetration.csv")) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    if (!done) request_stop(SIGINT);
+  });
+  bool interrupted = false;
+  try {
+    run_to_directory(cfg, opt);
+  } catch (const Interrupted&) {
+    interrupted = true;
+  }
+  done = true;
+  stopper.join();
+  ASSERT_TRUE(interrupted) << "the run ended before the stop request";
+  ASSERT_TRUE(fs::exists(base / "stopped" / "checkpoint.bin"));
+  resume_directory((base / "stopped").string(), opt);
+
+  const std::size_t compared = testing::expect_same_run_files(base / "whole", base / "stopped");
+  EXPECT_GE(compared, 6u);  // config, timeseries, summary, penetration, shaft profile, snapshots
+}
+
+std::string config_error(const std::string& text) {
+  try {
+    const RunConfig cfg = config(text);
+    const testing::TempDir temp("penetrate");
+    RunOptions opt;
+    opt.progress = false;
+    opt.out_dir = (temp.path() / "run").string();
+    run_to_directory(cfg, opt);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Penetration, BadPenetrationsAreRefusedNamingTheKey) {
+  const std::string grains = testing::test_data("grains_300.toml");
+  const std::string cone =
+      "[[body]]\nname = \"cone\"\nshape = \"cone\"\norigin = [0.6e-3, 0.6e-3, 1.3e-3]\n"
+      "radius = 1e-4\n";
+  const std::string stage = "[[stage]]\ntype = \"penetrate\"\nvelocity = 1.0\ndepth = 1e-4\n";
+  // (the configuration, the key its error must name)
+  const std::pair<std::string, std::string> cases[] = {
+      {cone + stage, "stage[0].body"},                        // no body named
+      {cone + stage + "body = \"pile\"\n", "stage[0].body"},  // none of that name
+      {"[[body]]\nname = \"chamber\"\nshape = \"cylinder_inside\"\norigin = [0.6e-3, 0.6e-3, 0]\n"
+       "radius = 2e-3\nlength = 2e-3\nmotion = \"dilate\"\n" +
+           stage + "body = \"chamber\"\n",
+       "stage[0].body"},  // a chamber's wall is not driven in
+      {cone + "[[stage]]\ntype = \"penetrate\"\nbody = \"cone\"\nvelocity = 0.0\ndepth = 1e-4\n",
+       "stage[0].velocity"},
+      {cone + "[[stage]]\ntype = \"penetrate\"\nbody = \"cone\"\nvelocity = 1.0\n",
+       "stage[0].depth"},
+      // A pile through the grains.
+      {"[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0.6e-3, 0.6e-3, 0.1e-3]\n"
+       "radius = 1e-4\nlength = 2e-3\n" +
+           stage + "body = \"pile\"\n",
+       "body[0].origin"},
+  };
+  for (const auto& [text, key] : cases) {
+    const std::string error = config_error(grains + text);
+    EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
+  }
+}
+
+}  // namespace
+}  // namespace crushdem
