@@ -437,27 +437,91 @@ inline std::vector<Check> inspection(const ApiFactory& api) {
 }
 
 /// Every check on the device `api` makes.
+/// 100 grains in the lower part of a box of side 3 L about [-L, 2 L], run `steps` steps on the CPU
+/// and twice on the device: the device follows the CPU (positions and the bodies' degrees of
+/// freedom to 1e-6 of the mean radius), rebuilds when the CPU does, repeats itself bit for bit,
+/// and the bodies `moved` have moved (`what` names the case).
+inline std::vector<Check> body_checks(const SimulationConfig& cfg, const ApiFactory& api,
+                                      const std::string& what, std::vector<int> moved,
+                                      std::uint64_t steps = 4000) {
+  const double L = 1.25e-3;
+  Simulation sample(cfg);
+  RandomStream rng(5, 0xB0D);
+  std::vector<double> radii(100);
+  for (double& r : radii) r = 0.5 * rng.uniform(0.1e-3, 0.15e-3);
+  const double lo = 0.2 * L, hi = 0.8 * L;
+  for (const PlacedSphere& p :
+       random_sequential_addition(radii, {lo, hi, lo, hi, 0.0, 0.6 * L}, 4)) {
+    sample.add_particle(p.position, p.radius);
+  }
+  sample.set_dt(0.5 * sample.automatic_dt());
+  Simulation cpu = sample, d1 = sample, d2 = sample;
+  const std::size_t builds0 = sample.neighbors().builds();
+  cpu.step(steps);
+  run_device(d1, steps, api);
+  run_device(d2, steps, api);
+  const double r = mean_radius(sample);
+  const double dev = max_position_difference(cpu, d1) / r;
+  double dbody = 0.0;
+  for (int k = 0; k < cpu.walls().size(); ++k) {
+    dbody = std::max(dbody, std::fabs(cpu.walls().position(k) - d1.walls().position(k)) / r);
+  }
+  int touching = 0;  // contacts with the bodies beyond the box or those that moved
+  for (const ContactRecord& rec : cpu.contacts()) {
+    const bool watched =
+        rec.id_j >= kNumWalls || std::find(moved.begin(), moved.end(), rec.id_j) != moved.end();
+    touching += rec.is_wall && watched;
+  }
+  const std::size_t bc = cpu.neighbors().builds() - builds0, bd = d1.neighbors().builds() - builds0;
+  bool same = identical(d1, d2);
+  for (int k = kNumWalls; k < d1.walls().size(); ++k) {
+    same = same && d1.walls().state(k).position == d2.walls().state(k).position;
+  }
+  bool all_moved = true;
+  std::string travel;
+  for (const int k : moved) {
+    const double q = cpu.walls().position(k) - sample.walls().position(k);
+    all_moved = all_moved && q != 0.0;
+    travel += fmt(" %.3g", q / r);
+  }
+  return {{dev < 1e-6 && dbody < 1e-6 && touching > 10 && all_moved,
+           what + ": the device follows the CPU",
+           fmt("max |dx|/r_mean = %.3g, bodies %.3g (tolerance 1e-6); %.0f grain-body contacts; "
+               "moved by (r_mean)",
+               dev, dbody, touching) +
+               travel},
+          {bc == bd && bd >= 1, what + ": the same neighbour rebuilds",
+           fmt("CPU %.0f, device %.0f rebuilds", static_cast<double>(bc), static_cast<double>(bd))},
+          {same, what + ": two device runs are bit-identical",
+           "positions, velocities, forces, walls, bodies and clock"}};
+}
+
+/// The chamber's cylinder of body_checks' samples: radius R about the box's centre line,
+/// servo-controlled to 200 kPa by its radius.
+inline BodyConfig check_chamber(double R) {
+  const double L = 1.25e-3, c = 0.5 * L;
+  BodyConfig chamber;
+  chamber.name = "chamber";
+  chamber.kind = BodyKind::CylinderInside;
+  chamber.origin = {c, c, -L};
+  chamber.radius = R;
+  chamber.length = 3.0 * L;
+  chamber.motion = BodyMotion::Dilate;
+  chamber.mode = WallMode::Servo;
+  chamber.target_stress = 2e5;
+  chamber.max_speed = 10.0;
+  return chamber;
+}
+
 /// h) Bodies beyond the box and gravity: grains in a chamber whose cylinder is servo-controlled
 /// by its radius, a pile with a conical tip driven into them at a prescribed velocity, and a
-/// platen servo-controlled from above. The device follows the CPU, as the dense sample does
-/// (positions and the bodies' degrees of freedom to 1e-6 of the mean radius), rebuilds when the CPU
-/// does, and repeats itself bit for bit.
+/// platen servo-controlled from above (body_checks).
 inline std::vector<Check> bodies(const ApiFactory& api) {
   const double L = 1.25e-3, c = 0.5 * L;
   SimulationConfig cfg = box_config(-L, 2.0 * L, NormalLaw::Rough);
   cfg.damping.local_alpha = 0.7;
   cfg.contact.wall_friction = 0.2;
   cfg.gravity.g = {0.0, 0.0, -9.81e3};  // strong enough to matter in 4,000 steps
-  BodyConfig chamber;
-  chamber.name = "chamber";
-  chamber.kind = BodyKind::CylinderInside;
-  chamber.origin = {c, c, -L};
-  chamber.radius = 0.52 * L;
-  chamber.length = 3.0 * L;
-  chamber.motion = BodyMotion::Dilate;
-  chamber.mode = WallMode::Servo;
-  chamber.target_stress = 2e5;
-  chamber.max_speed = 10.0;
   BodyConfig pile;
   pile.name = "pile";
   pile.kind = BodyKind::Pile;
@@ -475,47 +539,27 @@ inline std::vector<Check> bodies(const ApiFactory& api) {
   platen.mode = WallMode::Servo;
   platen.target_stress = 2e5;
   platen.max_speed = 10.0;
-  cfg.bodies = {chamber, pile, platen};
-  Simulation sample(cfg);
-  RandomStream rng(5, 0xB0D);
-  std::vector<double> radii(100);
-  for (double& r : radii) r = 0.5 * rng.uniform(0.1e-3, 0.15e-3);
-  const double lo = 0.2 * L, hi = 0.8 * L;
-  for (const PlacedSphere& p :
-       random_sequential_addition(radii, {lo, hi, lo, hi, 0.0, 0.6 * L}, 4)) {
-    sample.add_particle(p.position, p.radius);
-  }
-  sample.set_dt(0.5 * sample.automatic_dt());
-  const std::uint64_t steps = 4000;
-  Simulation cpu = sample, d1 = sample, d2 = sample;
-  const std::size_t builds0 = sample.neighbors().builds();
-  cpu.step(steps);
-  run_device(d1, steps, api);
-  run_device(d2, steps, api);
-  const double r = mean_radius(sample);
-  const double dev = max_position_difference(cpu, d1) / r;
-  double dbody = 0.0;
-  for (int k = 0; k < cpu.walls().size(); ++k) {
-    dbody = std::max(dbody, std::fabs(cpu.walls().position(k) - d1.walls().position(k)) / r);
-  }
-  int touching = 0;
-  for (const ContactRecord& rec : cpu.contacts()) touching += rec.is_wall && rec.id_j >= kNumWalls;
-  const std::size_t bc = cpu.neighbors().builds() - builds0, bd = d1.neighbors().builds() - builds0;
-  const int ch = kNumWalls, pl = kNumWalls + 1;
-  bool same = identical(d1, d2);
-  for (int k = kNumWalls; k < d1.walls().size(); ++k) {
-    same = same && d1.walls().state(k).position == d2.walls().state(k).position;
-  }
-  return {{dev < 1e-6 && dbody < 1e-6 && touching > 10 && cpu.walls().position(pl) > 0.0 &&
-               cpu.walls().position(ch) < 0.0,
-           "bodies: the device follows the CPU",
-           fmt("max |dx|/r_mean = %.3g, bodies %.3g (tolerance 1e-6); %.0f grain-body contacts; "
-               "the chamber's radius changed by %.3g r_mean",
-               dev, dbody, touching, cpu.walls().position(ch) / r)},
-          {bc == bd && bd >= 1, "bodies: the same neighbour rebuilds",
-           fmt("CPU %.0f, device %.0f rebuilds", static_cast<double>(bc), static_cast<double>(bd))},
-          {same, "bodies: two device runs are bit-identical",
-           "positions, velocities, forces, walls, bodies and clock"}};
+  cfg.bodies = {check_chamber(0.52 * L), pile, platen};
+  return body_checks(cfg, api, "bodies", {kNumWalls, kNumWalls + 1});
+}
+
+/// i) A chamber sample: the chamber's cylinder and the box's top wall as its platen, both
+/// servo-controlled on the areas of the chamber (2 pi R H and pi R^2, walls/body_geometry.hpp
+/// chamber_area) (body_checks).
+inline std::vector<Check> chamber_sample(const ApiFactory& api) {
+  const double L = 1.25e-3;
+  SimulationConfig cfg = box_config(-L, 2.0 * L, NormalLaw::Rough);
+  cfg.damping.local_alpha = 0.7;
+  cfg.gravity.g = {0.0, 0.0, -9.81e3};
+  cfg.walls[4].position = 0.0;
+  cfg.walls[5].position = 0.62 * L;
+  cfg.walls[5].mode = WallMode::Servo;
+  cfg.walls[5].target_stress = 2e5;
+  cfg.walls[5].max_speed = 10.0;
+  BodyConfig chamber = check_chamber(0.45 * L);  // clear of the grains' corners by 0.03 L
+  chamber.chamber = true;
+  cfg.bodies = {chamber};
+  return body_checks(cfg, api, "chamber sample", {5, kNumWalls}, 8000);
 }
 
 inline std::vector<Check> all(const ApiFactory& api) {
@@ -539,6 +583,7 @@ inline std::vector<Check> all(const ApiFactory& api) {
   add(nan_rule(fixed, api));
   add(inspection(api));
   add(bodies(api));
+  add(chamber_sample(api));
   return out;
 }
 

@@ -43,6 +43,10 @@ TEST(DeviceStep, BodiesOfAnyShapeFollowTheCpu) {
   expect_all(device_checks::bodies(kEmulated));
 }
 
+TEST(DeviceStep, AChamberSampleFollowsTheCpu) {
+  expect_all(device_checks::chamber_sample(kEmulated));
+}
+
 TEST(DeviceStep, DenseSampleAgreesWithTheCpuAndRepeats) {
   expect_all(
       device_checks::compare_runs("fixed step", fixed_step_sample(), 2000, kEmulated, false));

@@ -264,7 +264,9 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
                    output: Optional[Mapping[str, Any]] = None, **sample_keys: Any) -> Result:
     """Prepares a sample from a grading curve (``[sample]``); ``Result.sample_file`` is the
     reusable ``sample.txt``. ``grading`` = {"diameter": [...m], "passing": [...0-1]}; default
-    NE34-like. Other ``[sample]`` keys (``tolerance``, ``friction_start``, ...) pass through."""
+    NE34-like. Other ``[sample]`` keys pass through: ``shape="cylinder"`` (with
+    ``height_ratio``) prepares a cylinder in a servo-controlled chamber (docs/chamber.md),
+    ``tolerance``, ``friction_start``, ..."""
     s: Dict[str, Any] = {"void_ratio": void_ratio, "seed": seed, "stress": stress}
     if side is not None:
         s["side"] = side

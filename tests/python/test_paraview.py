@@ -134,3 +134,40 @@ def test_box_is_the_walls_at_the_end(run_dir):
     row = dict(zip(header, (float(v) for v in last)))
     assert corners[:, 0].min() == pytest.approx(row["wall_xmin_position_m"], rel=1e-12)
     assert corners[:, 2].max() == pytest.approx(row["wall_zmax_position_m"], rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def chamber_dir(tmp_path_factory):
+    """tests/data/chamber_400.toml: a chamber sample and a cone pushed into it."""
+    pytest.importorskip("crushdem._core")
+    out = tmp_path_factory.mktemp("paraview_chamber") / "run"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "run",
+                          os.path.join(DATA, "chamber_400.toml"), "--out", str(out)],
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    return out
+
+
+def test_bodies_are_surfaces_where_their_degrees_of_freedom_put_them(chamber_dir):
+    entries = _collection(chamber_dir / "vtk" / "bodies.pvd")
+    assert [f for _, f in entries] == [f.replace("box", "bodies")
+                                       for _, f in _collection(chamber_dir / "vtk" / "box.pvd")]
+    last = _read(chamber_dir / "vtk" / entries[-1][1])
+    body = vtk_to_numpy(last.GetCellData().GetArray("body"))
+    part = vtk_to_numpy(last.GetCellData().GetArray("part"))
+    # The chamber (body 6): 48 quadrilaterals; the cone (body 7): a tip of 48 triangles and a
+    # shaft of 48 quadrilaterals.
+    assert last.GetNumberOfPolys() == 144
+    assert (body == 6).sum() == 48 and ((body == 7) & (part == 0)).sum() == 48
+    points = vtk_to_numpy(last.GetPoints().GetData())
+    cells = vtk_to_numpy(last.GetPolys().GetConnectivityArray())
+    offsets = vtk_to_numpy(last.GetPolys().GetOffsetsArray())
+    chamber = np.unique(cells[offsets[0]:offsets[48]])
+    radius = np.hypot(points[chamber, 0], points[chamber, 1])
+    np.testing.assert_allclose(radius, radius[0], rtol=1e-12)  # a cylinder about the z axis
+    with open(chamber_dir / "penetration.csv") as f:
+        header = f.readline().strip().split(",")
+        row = dict(zip(header, (float(v) for v in f.readlines()[-1].strip().split(","))))
+    apex = cells[offsets[48]]  # the cone's first triangle starts at its apex
+    np.testing.assert_allclose(points[apex], [row["tip_x_m"], row["tip_y_m"], row["tip_z_m"]],
+                               rtol=0, atol=1e-15)

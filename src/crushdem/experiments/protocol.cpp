@@ -12,7 +12,7 @@
 namespace crushdem {
 
 bool servo_walls_at_target(const Walls& w, double tol) {
-  for (int k = 0; k < kNumWalls; ++k) {
+  for (int k = 0; k < w.size(); ++k) {
     const WallConfig& c = w.config(k);
     if (c.mode != WallMode::Servo) continue;
     if (!(std::abs(w.stress(k) / c.target_stress - 1.0) <= tol)) return false;
@@ -25,9 +25,15 @@ bool servo_walls_at_target(const Walls& w, double tol) {
 double SampleConfig::cube_side() const {
   if (side > 0.0) return side;
   if (count > 0) {
-    return std::cbrt(static_cast<double>(count) * grading.mean_grain_volume() * (1.0 + void_ratio));
+    const double V = static_cast<double>(count) * grading.mean_grain_volume() * (1.0 + void_ratio);
+    // A cylinder: V = pi D^2 H / 4 with H = height_ratio D.
+    return shape == SampleShape::Cube ? std::cbrt(V) : std::cbrt(4.0 * V / (kPi * height_ratio));
   }
   return 4e-3;
+}
+
+double SampleConfig::height() const {
+  return shape == SampleShape::Cube ? cube_side() : height_ratio * cube_side();
 }
 
 namespace {
@@ -37,10 +43,28 @@ constexpr double kLoosestVoidRatio = 1.2;
 const ParamTable<SampleConfig>& sample_params() {
   using Row = Param<SampleConfig>;
   static const ParamTable<SampleConfig> table = {
+      Row{"shape",
+          enum_choice(&SampleConfig::shape, kSampleShapeNames),
+          "",
+          "a cube between the box's six walls, or a cylinder in a chamber (docs/chamber.md): a "
+          "servo-controlled cylinder_inside named \"chamber\", the box's z walls its platens",
+          nullptr,
+          {},
+          {},
+          // Written for a cylinder only: a cube's config.toml is as it was before the key.
+          [](const SampleConfig& c) { return c.shape == SampleShape::Cylinder; }},
       Row{"side", &SampleConfig::side, "m",
-          "cube side at the target void ratio (give side or count)",
-          [](double v) { return v >= 0.0; }, "a cube side in m (> 0)", "4e-3 (unless count)",
-          [](const SampleConfig& c) { return c.count == 0; }},
+          "cube side, or cylinder diameter, at the target void ratio (give side or count)",
+          [](double v) { return v >= 0.0; }, "a cube side or cylinder diameter in m (> 0)",
+          "4e-3 (unless count)", [](const SampleConfig& c) { return c.count == 0; }},
+      Row{"height_ratio",
+          &SampleConfig::height_ratio,
+          "-",
+          "a cylinder's height / diameter",
+          [](double v) { return v >= 0.2 && v <= 5.0; },
+          "a ratio in [0.2, 5]",
+          {},
+          [](const SampleConfig& c) { return c.shape == SampleShape::Cylinder; }},
       Row{"count",
           &SampleConfig::count,
           "",
@@ -91,28 +115,32 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
         "many grains), not both");
   }
   validate_params(*this, sample_params(), "sample");
-  const double e_min = densest_void_ratio(grading, cube_side());
+  // The wall effect of the narrower of the cylinder's diameter and height.
+  const double e_min = densest_void_ratio(grading, std::min(cube_side(), height()));
   if (void_ratio < e_min) {
     throw ConfigError(bad_value(
         "sample.void_ratio", show_number(void_ratio),
-        "a void ratio this grading can reach in this cube: random close packing gives about e = " +
+        "a void ratio this grading can reach in this sample: random close packing gives about e "
+        "= " +
             show_number(std::round(e_min * 1000.0) / 1000.0) +
             " here (Desmond & Weeks 2014, with a looser layer along the walls), and no random "
-            "packing is denser: more grains than fit (a wider cube packs denser)"));
+            "packing is denser: more grains than fit (a wider sample packs denser)"));
   }
   require_value(friction_start >= sim.material.friction && friction_start <= 2.0,
                 "sample.friction_start", friction_start,
                 "a friction coefficient in [material.friction, 2] to start the preparation from");
-  const double L = cube_side();
+  const double L = std::min(cube_side(), height());
   const double d_max = grading.diameter.back();
   if (L < 5.0 * d_max) {
-    throw ConfigError(
-        bad_value(side > 0 ? "sample.side" : "sample.count",
-                  side > 0 ? show_number(side) : std::to_string(count),
-                  "a cube at least 5 largest grains wide (side >= " + show_number(5.0 * d_max) +
-                      " m; this gives " + show_number(L) + " m)"));
+    throw ConfigError(bad_value(side > 0 ? "sample.side" : "sample.count",
+                                side > 0 ? show_number(side) : std::to_string(count),
+                                "a sample at least 5 largest grains wide and high (" +
+                                    show_number(5.0 * d_max) + " m; this gives " + show_number(L) +
+                                    " m)"));
   }
-  const double n = L * L * L / (1.0 + void_ratio) / grading.mean_grain_volume();
+  const double V =
+      shape == SampleShape::Cube ? L * L * L : kPi / 4.0 * cube_side() * cube_side() * height();
+  const double n = V / (1.0 + void_ratio) / grading.mean_grain_volume();
   if (n > 5e7) {
     throw ConfigError(bad_value(
         side > 0 ? "sample.side" : "sample.count",
@@ -121,22 +149,42 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
   }
 }
 
-LooseCloud make_loose_cloud(const SampleConfig& cfg) {
+LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place) {
+  const bool cylinder = cfg.shape == SampleShape::Cylinder;
   const double L = cfg.cube_side();
-  const double Vs = L * L * L / (1.0 + cfg.void_ratio);
-  const std::vector<double> d = draw_diameters(cfg.grading, Vs, cfg.seed);
+  const double V = cylinder ? kPi / 4.0 * L * L * cfg.height() : L * L * L;
+  const std::vector<double> d = draw_diameters(cfg.grading, V / (1.0 + cfg.void_ratio), cfg.seed);
   double vol = 0.0;
   for (double x : d) vol += kPi / 6.0 * x * x * x;
   LooseCloud c;
-  c.side = std::cbrt(vol / cfg.placement_fraction);
+  const double V_loose = vol / cfg.placement_fraction;
+  c.side = cylinder ? std::cbrt(4.0 * V_loose / (kPi * cfg.height_ratio)) : std::cbrt(V_loose);
+  c.height = cylinder ? cfg.height_ratio * c.side : c.side;
+  if (!place) return c;
   std::vector<double> radii(d.size());
   for (std::size_t i = 0; i < d.size(); ++i) radii[i] = 0.5 * d[i];
-  const std::array<double, 6> box{0.0, c.side, 0.0, c.side, 0.0, c.side};
-  for (const PlacedSphere& s : random_sequential_addition(radii, box, cfg.seed)) {
+  // A cube with its lower corner at the origin; a cylinder about the z axis, its base at z = 0.
+  const double lo = cylinder ? -0.5 * c.side : 0.0;
+  const std::array<double, 6> box{lo, lo + c.side, lo, lo + c.side, 0.0, c.height};
+  for (const PlacedSphere& s :
+       random_sequential_addition(radii, box, cfg.seed, 100000, cylinder ? 0.5 * c.side : 0.0)) {
     c.position.push_back(s.position);
     c.radius.push_back(s.radius);
   }
   return c;
+}
+
+BodyConfig chamber_body(const LooseCloud& cloud) {
+  BodyConfig b;
+  b.name = "chamber";
+  b.kind = BodyKind::CylinderInside;
+  b.origin = {0.0, 0.0, -cloud.height};
+  b.axis = {0.0, 0.0, 1.0};
+  b.radius = 0.5 * cloud.side;
+  b.length = 3.0 * cloud.height;
+  b.motion = BodyMotion::Dilate;
+  b.chamber = true;
+  return b;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -145,11 +193,18 @@ double inertial_number(const Walls& w, double d50, double density) {
   double rate = 0.0;
   for (int a = 0; a < 3; ++a) {
     const double L = w.length(a);
-    if (L > 0)
+    if (w.chamber() >= 0 && a < 2) {  // radial: the chamber's radius rate over its radius
+      rate = std::max(rate, std::abs(w.state(w.chamber()).velocity) / (0.5 * L));
+    } else if (L > 0) {
       rate = std::max(rate, std::abs(w.state(2 * a).velocity - w.state(2 * a + 1).velocity) / L);
+    }
   }
   double p = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
+  if (w.chamber() >= 0) {
+    p = (2.0 * w.lateral_stress() + w.axial_stress()) / 3.0;
+  } else {
+    for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
+  }
   if (!(p > 0.0)) return std::numeric_limits<double>::quiet_NaN();
   return rate * d50 * std::sqrt(density / p);
 }
@@ -161,7 +216,10 @@ PreparationController::PreparationController(const SampleConfig& cfg, double mat
 
 void PreparationController::begin(Simulation& sim) {
   Walls& w = sim.walls();
-  for (int k = 0; k < kNumWalls; ++k) {
+  // The box's six walls, or in a chamber the platens and the chamber's wall.
+  std::vector<int> servo = w.lateral_walls();
+  servo.insert(servo.end(), {4, 5});
+  for (const int k : servo) {
     WallConfig& c = w.config(k);
     c.mode = WallMode::Servo;
     c.target_stress = cfg_.stress;

@@ -5,6 +5,7 @@
 // coefficient. The test stages are controllers of the same kind (experiments/stages.hpp).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -14,6 +15,7 @@
 #include "crushdem/experiments/measurements.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/particles/grading.hpp"
+#include "crushdem/walls/body_config.hpp"
 
 namespace crushdem {
 
@@ -21,12 +23,20 @@ namespace crushdem {
 // Sample preparation
 // ---------------------------------------------------------------------------------------------
 
-/// A cube of grains drawn from a grading curve, compacted by servo walls to `stress` with a
-/// preparation friction lowered step by step until the void ratio reaches `void_ratio`; the
-/// material friction is then restored and the sample brought to equilibrium.
+/// A cube of grains drawn from a grading curve, or a cylinder in a chamber (docs/chamber.md),
+/// compacted by servo walls to `stress` with a preparation friction lowered step by step until
+/// the void ratio reaches `void_ratio`; the material friction is then restored and the sample
+/// brought to equilibrium.
+enum class SampleShape { Cube, Cylinder };
+inline constexpr std::array<Named<SampleShape>, 2> kSampleShapeNames = {
+    {{SampleShape::Cube, "cube"}, {SampleShape::Cylinder, "cylinder"}}};
+
 struct SampleConfig {
   GradingCurve grading = GradingCurve::ne34();
-  double side = 0.0;             // cube side at the target void ratio [m] (0: 4 mm unless count)
+  SampleShape shape = SampleShape::Cube;
+  double side = 0.0;             // cube side, or cylinder diameter, at the target void ratio [m]
+                                 // (0: 4 mm unless count)
+  double height_ratio = 1.0;     // cylinder: height / diameter [-]
   std::uint64_t count = 0;       // approximate number of grains (sets the side) instead of side
   double void_ratio = 0.65;      // target e [-] (STUDY)
   double tolerance = 0.005;      // accepted |e - void_ratio| [-]
@@ -41,7 +51,8 @@ struct SampleConfig {
   std::uint64_t check_interval = 1000;  // steps between checks
   std::uint64_t max_steps = 50000000;   // give up (error) after this many steps
   void validate(const SimulationConfig& sim) const;  // keys "sample.<key>"
-  double cube_side() const;  // the side the sample has at the target void ratio
+  double cube_side() const;  // the side (a cube) or diameter (a cylinder) at the target e
+  double height() const;     // the height at the target void ratio: the side, or the cylinder's
 };
 
 /// The scalar keys of [sample] (core/params.hpp); the grading is its own sub-table.
@@ -79,13 +90,22 @@ class Controller {
 };
 
 /// The place a grain cloud starts from, drawn from the grading (sizes) and placed without
-/// overlap in a loose cube with its lower corner at the origin.
+/// overlap in a loose cube with its lower corner at the origin, or a loose cylinder about the z
+/// axis with its base at z = 0.
 struct LooseCloud {
   std::vector<Vec3> position;
   std::vector<double> radius;
-  double side = 0.0;  // loose cube side [m]
+  double side = 0.0;    // loose cube side, or cylinder diameter [m]
+  double height = 0.0;  // loose height [m]
 };
-LooseCloud make_loose_cloud(const SampleConfig& cfg);
+/// The grains (sizes and places) of the loose cloud; `place = false`: its size only.
+LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place = true);
+
+/// The chamber of a cylindrical sample whose loose cloud is `cloud`: a dilating cylinder_inside
+/// of the cloud's diameter about the z axis, reaching a cloud's height
+/// below and above it (the platens move within it), fixed until a controller sets it, with the
+/// box walls' friction. Named "chamber".
+BodyConfig chamber_body(const LooseCloud& cloud);
 
 class PreparationController final : public Controller {
  public:

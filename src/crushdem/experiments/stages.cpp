@@ -77,7 +77,8 @@ const Row kMaxSteps{"max_steps",  &StageConfig::max_steps,
 const Row kAxial{"axial", enum_choice(&StageConfig::axial, kWallControlNames), "",
                  "the top wall: fixed, or servo-controlled to axial_stress"};
 const Row kLateral{"lateral", enum_choice(&StageConfig::lateral, kWallControlNames), "",
-                   "the four lateral walls: fixed, or servo-controlled to lateral_stress"};
+                   "the four lateral walls (a chamber sample: the chamber's wall): fixed, or "
+                   "servo-controlled to lateral_stress"};
 const Row kAxialStress{"axial_stress",
                        &StageConfig::axial_stress,
                        "Pa",
@@ -142,13 +143,13 @@ void Stage::set_servo(Walls& w, int k, double stress) const {
   c.mode = WallMode::Servo;
   c.target_stress = stress;
   const double rate = cfg_.max_strain_rate > 0.0 ? cfg_.max_strain_rate : automatic_servo_rate();
-  c.max_speed = 0.5 * rate * w.length(wall_axis(k));
+  c.max_speed = 0.5 * rate * w.extent(k);
 }
 
 void Stage::set_held_walls(Walls& w) const {
   if (cfg_.axial == WallControl::Servo) set_servo(w, 5, cfg_.axial_stress);
   if (cfg_.lateral == WallControl::Servo) {
-    for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.lateral_stress);
+    for (const int k : w.lateral_walls()) set_servo(w, k, cfg_.lateral_stress);
   }
 }
 
@@ -170,7 +171,10 @@ void Stage::begin(Simulation& sim) {
   ref_ = StrainReference::from(w);
   start_step_ = sim.step_count();
   start_time_ = sim.time();
-  for (int k = 0; k < kNumWalls; ++k) {
+  // The box's walls and a chamber's: fixed, until the kind sets them.
+  std::vector<int> held = {0, 1, 2, 3, 4, 5};
+  if (w.chamber() >= 0) held.push_back(w.chamber());
+  for (const int k : held) {
     w.config(k).mode = WallMode::Fixed;
     w.config(k).velocity = 0.0;
   }

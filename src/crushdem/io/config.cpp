@@ -246,10 +246,13 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
         "the [box] section");
   }
   if (c.has_sample) {
-    const double L = c.sample.cube_side();
+    // A cylinder's about the z axis, the box's side walls a diameter clear of it.
+    const bool cylinder = c.sample.shape == SampleShape::Cylinder;
+    const double D = c.sample.cube_side();
     for (int a = 0; a < 3; ++a) {
-      c.simulation.walls[static_cast<std::size_t>(2 * a)].position = 0.0;
-      c.simulation.walls[static_cast<std::size_t>(2 * a + 1)].position = L;
+      c.simulation.walls[static_cast<std::size_t>(2 * a)].position = cylinder && a < 2 ? -D : 0.0;
+      c.simulation.walls[static_cast<std::size_t>(2 * a + 1)].position =
+          a < 2 ? D : c.sample.height();
     }
   } else if (!root.count("box")) {
     // The box of a prepared sample is in its file's header.
@@ -461,6 +464,13 @@ void RunConfig::validate() const {
   simulation.validate();
   if (has_sample) {
     sample.validate(simulation);
+    for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
+      if (sample.shape == SampleShape::Cylinder && simulation.bodies[i].name == "chamber") {
+        throw ConfigError(bad_value("body[" + std::to_string(i) + "].name", "\"chamber\"",
+                                    "another name: a cylindrical [sample] makes the body "
+                                    "\"chamber\""));
+      }
+    }
   } else {
     particles.validate(box());
   }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <iterator>
@@ -196,6 +197,104 @@ void write_vtp_box(const std::string& path, const double b[6]) {
           std::vector<std::int64_t>{0, 2, 6, 4, 1, 3, 7, 5, 0, 1, 5, 4,
                                     2, 3, 7, 6, 0, 1, 3, 2, 4, 5, 7, 6});
   vtp.add(Section::Polys, "Int64", "offsets", 1, iota(6, 4, 4));
+  vtp.write(path);
+}
+
+namespace {
+
+/// The surfaces of the bodies as polygons: points, each polygon's point indices, its body and
+/// part.
+struct BodyMesh {
+  std::vector<double> points;
+  std::vector<std::int64_t> connectivity, offsets, body, part;
+
+  std::int64_t point(Vec3 p) {
+    points.insert(points.end(), {p.x, p.y, p.z});
+    return static_cast<std::int64_t>(points.size() / 3 - 1);
+  }
+  void polygon(std::initializer_list<std::int64_t> ids, int k, int j) {
+    connectivity.insert(connectivity.end(), ids);
+    offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
+    body.push_back(k);
+    part.push_back(j);
+  }
+};
+
+/// Two unit vectors normal to the unit vector a and to each other.
+std::pair<Vec3, Vec3> normal_pair(Vec3 a) {
+  const Vec3 t = std::fabs(a.x) < 0.9 ? Vec3{1.0, 0.0, 0.0} : Vec3{0.0, 1.0, 0.0};
+  Vec3 e1 = t - dot(t, a) * a;
+  e1 = (1.0 / norm(e1)) * e1;
+  return {e1, cross(a, e1)};
+}
+
+constexpr int kSegments = 48;  // around a circle
+
+}  // namespace
+
+void write_vtp_bodies(const std::string& path, const Walls& walls) {
+  BodyMesh m;
+  double extent = 0.0;  // an infinite plane is drawn as a square of the box's diagonal
+  for (int a = 0; a < 3; ++a) {
+    const double L = walls.position(2 * a + 1) - walls.position(2 * a);
+    extent += L * L;
+  }
+  extent = std::sqrt(extent);
+  for (int k = kNumWalls; k < walls.size(); ++k) {
+    const BodyShape& b = walls.shape(k);
+    const double q = walls.position(k);
+    for (int j = 0; j < b.parts; ++j) {
+      const BodyPart& s = b.part[j];
+      // Where the degree of freedom has put the part (walls/body_geometry.hpp part_surface).
+      const Vec3 o = b.dilate ? s.origin : s.origin + q * b.motion;
+      const double R = b.dilate ? s.radius + q : s.radius;
+      const auto [e1, e2] = normal_pair(s.axis);
+      const auto ring = [&, e1 = e1, e2 = e2](Vec3 centre, double radius) {
+        const std::int64_t first = static_cast<std::int64_t>(m.points.size() / 3);
+        for (int i = 0; i < kSegments; ++i) {
+          const double phi = 2.0 * kPi * i / kSegments;
+          m.point(centre + radius * (std::cos(phi) * e1 + std::sin(phi) * e2));
+        }
+        return first;
+      };
+      const auto next = [](std::int64_t first, int i) { return first + (i + 1) % kSegments; };
+      switch (s.shape) {
+        case Shape::AxisPlane: break;
+        case Shape::Plane: {
+          const std::int64_t c0 = m.point(o - extent * e1 - extent * e2);
+          const std::int64_t c1 = m.point(o + extent * e1 - extent * e2);
+          const std::int64_t c2 = m.point(o + extent * e1 + extent * e2);
+          const std::int64_t c3 = m.point(o - extent * e1 + extent * e2);
+          m.polygon({c0, c1, c2, c3}, k, j);
+          break;
+        }
+        case Shape::Disk: {
+          const std::int64_t c = m.point(o), r0 = ring(o, R);
+          for (int i = 0; i < kSegments; ++i) m.polygon({c, r0 + i, next(r0, i)}, k, j);
+          break;
+        }
+        case Shape::CylinderInside:
+        case Shape::CylinderOutside: {
+          const std::int64_t r0 = ring(o, R), r1 = ring(o + s.length * s.axis, R);
+          for (int i = 0; i < kSegments; ++i) {
+            m.polygon({r0 + i, next(r0, i), next(r1, i), r1 + i}, k, j);
+          }
+          break;
+        }
+        case Shape::Cone: {
+          const std::int64_t apex = m.point(o), r0 = ring(o + s.length * s.axis, R);
+          for (int i = 0; i < kSegments; ++i) m.polygon({apex, r0 + i, next(r0, i)}, k, j);
+          break;
+        }
+      }
+    }
+  }
+  PolyData vtp(m.points.size() / 3, 0, 0, m.offsets.size());
+  vtp.add(Section::CellData, "Int64", "body", 1, m.body);
+  vtp.add(Section::CellData, "Int64", "part", 1, m.part);
+  vtp.add(Section::Points, "Float64", "Points", 3, m.points);
+  vtp.add(Section::Polys, "Int64", "connectivity", 1, m.connectivity);
+  vtp.add(Section::Polys, "Int64", "offsets", 1, m.offsets);
   vtp.write(path);
 }
 

@@ -5,7 +5,10 @@
 //              velocity, force and every per-grain field (strength, crack length, ...);
 //   contacts:  one line per touching contact from the centre of grain i to the centre of grain
 //              j (to the contact point for a wall); normal force, tangential force, overlap;
-//   box:       the six walls as quadrilaterals.
+//   box:       the six walls as quadrilaterals;
+//   bodies:    the bodies beyond the box as surfaces (48 segments around a circle; an infinite
+//              plane as a square the box's diagonal across), each polygon with its body index
+//              (6 is the first [[body]]) and part (a pile's tip 0, its shaft 1).
 #pragma once
 
 #include <cstdint>
@@ -29,6 +32,9 @@ void write_vtp_contacts(const std::string& path, const ParticleStore& p,
 
 /// The walls at positions `box` (xmin, xmax, ymin, ymax, zmin, zmax).
 void write_vtp_box(const std::string& path, const double box[6]);
+
+/// The bodies of `walls` beyond the box, where their degrees of freedom have put them.
+void write_vtp_bodies(const std::string& path, const Walls& walls);
 
 /// One entry of a .pvd collection: a file (relative to the .pvd) at a time.
 struct PvdEntry {

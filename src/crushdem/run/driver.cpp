@@ -81,17 +81,26 @@ void Driver::snapshot() {
   double b[6];
   for (int w = 0; w < kNumWalls; ++w) b[w] = sim_.walls().position(w);
   write_vtp_box((vtk / ("box_" + k + ".vtp")).string(), b);
+  if (sim_.walls().size() > kNumWalls) {
+    write_vtp_bodies((vtk / ("bodies_" + k + ".vtp")).string(), sim_.walls());
+  }
   snapshots_.push_back(now);
   write_collections();
 }
 
+std::vector<std::string> Driver::snapshot_kinds() const {
+  std::vector<std::string> kinds(std::begin(kSnapshotKinds), std::end(kSnapshotKinds));
+  if (sim_.walls().size() > kNumWalls) kinds.emplace_back("bodies");
+  return kinds;
+}
+
 void Driver::write_collections() const {
-  for (const char* kind : kSnapshotKinds) {
+  for (const std::string& kind : snapshot_kinds()) {
     std::vector<PvdEntry> entries;
     for (const Snapshot& s : snapshots_) {
-      entries.push_back({s.time, std::string(kind) + "_" + step_stamp(s.step) + ".vtp"});
+      entries.push_back({s.time, kind + "_" + step_stamp(s.step) + ".vtp"});
     }
-    write_pvd((dir_ / "vtk" / (std::string(kind) + ".pvd")).string(), entries);
+    write_pvd((dir_ / "vtk" / (kind + ".pvd")).string(), entries);
   }
 }
 

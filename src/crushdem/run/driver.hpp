@@ -97,6 +97,9 @@ class Driver {
   /// Snapshots written, by older releases' checkpoints (legacy .vtk, counted only) included.
   std::size_t snapshots() const { return legacy_snapshots_ + snapshots_.size(); }
   const std::vector<Snapshot>& snapshot_list() const { return snapshots_; }
+  /// The kinds of snapshot file this run writes: kSnapshotKinds, and "bodies" with bodies beyond
+  /// the box.
+  std::vector<std::string> snapshot_kinds() const;
   std::size_t legacy_snapshots() const { return legacy_snapshots_; }
   std::vector<std::string> file_names() const;
 

@@ -207,8 +207,8 @@ void keep_branch_files(const std::filesystem::path& from, const std::filesystem:
     for (const char* kind : {"particles_", "box_"}) keep(kind + ordinal_stamp(k) + ".vtk");
   }
   for (const Snapshot& snap : driver.snapshot_list()) {
-    for (const char* kind : kSnapshotKinds) {
-      keep(std::string(kind) + "_" + step_stamp(snap.step) + ".vtp");
+    for (const std::string& kind : driver.snapshot_kinds()) {
+      keep(kind + "_" + step_stamp(snap.step) + ".vtp");
     }
   }
   driver.write_collections();

@@ -189,14 +189,25 @@ class Run {
   }
 
   // A sample prepared here starts as a loose cloud in a cube of its own size.
+  // A cylindrical one in its chamber about the z axis, between the box's z walls (the box's side
+  // walls stand half a diameter clear of it).
   void make_simulation() {
     SimulationConfig sim_cfg = cfg_.simulation;
+    const bool cylinder = cfg_.has_sample && cfg_.sample.shape == SampleShape::Cylinder;
     if (cfg_.has_sample && !resumed_) {
       cloud_ = make_loose_cloud(cfg_.sample);
       for (int a = 0; a < 3; ++a) {
-        sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = 0.0;
-        sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = cloud_.side;
+        const bool side = cylinder && a < 2;
+        sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = side ? -cloud_.side : 0.0;
+        sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = side    ? cloud_.side
+                                                                      : a < 2 ? cloud_.side
+                                                                              : cloud_.height;
       }
+    }
+    if (cylinder) {
+      // Resumed: the chamber's shape from the cloud's size alone (its place is in the state).
+      sim_cfg.bodies.push_back(
+          chamber_body(resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_));
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
@@ -327,6 +338,9 @@ class Run {
     Packing pk;
     for (int k = 0; k < kNumWalls; ++k) {
       pk.header[Packing::box_header_key(k)] = format_double(sim.walls().position(k));
+    }
+    if (sim.walls().chamber() >= 0) {  // its axis is the z axis
+      pk.header["chamber_radius"] = format_double(sim.walls().chamber_radius());
     }
     pk.header["void_ratio"] = format_double(prep.void_ratio());
     pk.header["preparation_friction"] = format_double(prep.preparation_friction());

@@ -205,6 +205,9 @@ struct BodyShape {
   /// that turns the servo law's outward speed into dq/dt.
   double outward_sign = 1.0;
   double friction = 0.0;  // grain-body friction coefficient
+  /// A chamber sample's (docs/chamber.md): the index of the chamber's cylinder, whose radius sets
+  /// the servo area of the cylinder itself and of the platens (the box's z walls); -1: none.
+  std::int32_t chamber = -1;
 };
 
 /// The nearest surface of body b (degree of freedom q) to a grain centred at c; `part` is set to
@@ -239,6 +242,13 @@ CD_HD inline double body_own_area(const BodyShape& b, double q) {
     }
   }
   return A;
+}
+
+/// The servo area in a chamber sample, radius R between platens at z_bottom and z_top: the
+/// chamber's wall carries its lateral stress over 2 pi R (z_top - z_bottom), a platen its
+/// vertical stress over the cross-section pi R^2.
+CD_HD inline double chamber_area(bool chamber_wall, double R, double z_bottom, double z_top) {
+  return chamber_wall ? 2.0 * kPi * R * (z_top - z_bottom) : kPi * R * R;
 }
 
 /// The load conjugate to a body's degree of freedom, which the servo law holds at its target

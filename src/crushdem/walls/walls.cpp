@@ -81,10 +81,17 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
   }
   area_.assign(kNumWalls, 0.0);
   for (Body& body : bodies) {
+    if (body.chamber) {
+      if (chamber_ >= 0) throw ConfigError("body: a sample has one chamber, not two");
+      chamber_ = static_cast<int>(cfg_.size());
+    }
     cfg_.push_back(body.motion);
     shape_.push_back(body.shape);
     names_.push_back(std::move(body.name));
     area_.push_back(body.area);
+  }
+  if (chamber_ >= 0) {
+    for (const int k : {4, 5, chamber_}) shape_[static_cast<std::size_t>(k)].chamber = chamber_;
   }
   st_.resize(cfg_.size());
   for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
@@ -96,6 +103,9 @@ std::string Walls::name(int k) const {
 }
 
 double Walls::area(int k) const {
+  if (shape(k).chamber >= 0) {
+    return chamber_area(k == chamber_, chamber_radius(), position(4), position(5));
+  }
   if (k < kNumWalls) {
     const int a = wall_axis(k);
     return length((a + 1) % 3) * length((a + 2) % 3);

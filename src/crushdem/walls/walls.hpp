@@ -72,6 +72,9 @@ struct Body {
   BodyShape shape;
   WallConfig motion;
   double area = 0.0;  // [m^2]; 0: the shape's own (a disk's, a cylinder's lateral surface)
+  /// The lateral boundary of a chamber sample (a dilating cylinder_inside about z, the box's z
+  /// walls its platens): the sample's volume, lateral size and stress are then the chamber's.
+  bool chamber = false;
 };
 
 class Walls {
@@ -96,17 +99,43 @@ class Walls {
   const std::vector<double>& given_areas() const { return area_; }
 
   double position(int k) const { return st_[static_cast<std::size_t>(k)].position; }
-  /// Side length of the box along an axis.
-  double length(int axis) const { return position(2 * axis + 1) - position(2 * axis); }
-  double volume() const { return length(0) * length(1) * length(2); }
+  /// The chamber's body (a chamber sample), or -1 (a box sample).
+  int chamber() const { return chamber_; }
+  /// The chamber's current radius (a chamber sample).
+  double chamber_radius() const { return shape(chamber_).part[0].radius + position(chamber_); }
+  /// The sample's size along an axis: the box's side, or in a chamber sample its diameter
+  /// across (x, y) and the platens' distance along z.
+  double length(int axis) const {
+    if (chamber_ >= 0 && axis < 2) return 2.0 * chamber_radius();
+    return position(2 * axis + 1) - position(2 * axis);
+  }
+  /// The sample's volume: the box's, or the chamber's between the platens.
+  double volume() const {
+    if (chamber_ >= 0) return kPi * chamber_radius() * chamber_radius() * length(2);
+    return length(0) * length(1) * length(2);
+  }
+  /// The bodies that hold the sample laterally: the box's four side walls, or the chamber.
+  std::vector<int> lateral_walls() const {
+    return chamber_ >= 0 ? std::vector<int>{chamber_} : std::vector<int>{0, 1, 2, 3};
+  }
+  /// The sample's size across which body k moves (a servo's speed limit is a strain rate of
+  /// it): a box wall's axis length, the chamber's diameter; 0 for other bodies.
+  double extent(int k) const {
+    if (k < kNumWalls) return length(k / 2);
+    return k == chamber_ ? 2.0 * chamber_radius() : 0.0;
+  }
   /// Current area of body k: a box wall's cross-section of the box, or the body's own.
   double area(int k) const;
   /// Compressive normal stress on body k [Pa]: its load (body_load()) over its area.
   double stress(int k) const {
     return body_load(shape(k), state(k).normal_force, state(k).force) / area(k);
   }
-  /// Mean of the two walls of an axis [Pa]; axial is z, lateral the mean of x and y.
-  double axis_stress(int axis) const { return 0.5 * (stress(2 * axis) + stress(2 * axis + 1)); }
+  /// Mean of the two walls of an axis [Pa], or across (x, y) in a chamber sample the chamber's
+  /// radial stress; axial is z, lateral the mean of x and y.
+  double axis_stress(int axis) const {
+    if (chamber_ >= 0 && axis < 2) return stress(chamber_);
+    return 0.5 * (stress(2 * axis) + stress(2 * axis + 1));
+  }
   double axial_stress() const { return axis_stress(2); }
   double lateral_stress() const { return 0.5 * (axis_stress(0) + axis_stress(1)); }
   /// Outward unit normal of box wall k (from the sample into the wall).
@@ -134,6 +163,7 @@ class Walls {
   std::vector<BodyShape> shape_;
   std::vector<std::string> names_;  // of the bodies beyond the box
   std::vector<double> area_;        // configured servo areas (0: the box's or the shape's)
+  int chamber_ = -1;
 };
 
 /// Candidate particle-body contacts (within the skin at the last build), with tangential

@@ -10,7 +10,9 @@ class IsotropicStage final : public Stage {
 
  protected:
   void set_walls(Walls& w) override {
-    for (int k = 0; k < kNumWalls; ++k) set_servo(w, k, cfg_.stress);
+    for (const int k : w.lateral_walls()) set_servo(w, k, cfg_.stress);
+    set_servo(w, 4, cfg_.stress);
+    set_servo(w, 5, cfg_.stress);
   }
   const char* end_reason(Simulation& sim) override {
     return at_equilibrium(sim) ? "equilibrium" : nullptr;
@@ -22,7 +24,9 @@ class IsotropicStage final : public Stage {
 const StageKind& isotropic_stage_kind() {
   static const StageKind kind{
       .name = "isotropic",
-      .description = "all six walls servo-controlled to `stress`, until equilibrium",
+      .description =
+          "all six walls (a chamber's wall and platens) servo-controlled to "
+          "`stress`, until equilibrium",
       .params = stage_table({
           {"stress", &StageConfig::stress, "Pa", "target stress of all six servo walls",
            [](double v) { return v > 0.0; }, "a positive stress in Pa", "-"},

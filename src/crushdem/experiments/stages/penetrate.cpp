@@ -1,10 +1,10 @@
 // The penetrate stage (docs/chamber.md): a [[body]] (a cone, a pile, a flat punch or a bare
 // shaft) driven into the grains at a constant `velocity` until it has travelled `depth`, the
-// box's walls held as `axial` and `lateral` say and every other body as configured (a chamber's
-// servo cylinder keeps its radial stress). Its own files, a row every record_interval steps:
-// penetration.csv (travel, tip position, q_c, f_s, the loads on the tip and the shaft, with the
-// run's measurements) and shaft_profile.csv (the radial and shear stress on the shaft by bins
-// along it: walls/body_probe.hpp).
+// box's walls held as `axial` and `lateral` say and every other body as configured; with
+// `from_top` it starts with its tip level with the top wall (the sample's surface). Its own files,
+// a row every record_interval steps: penetration.csv (travel, tip position, q_c, f_s, the loads on
+// the tip and the shaft, with the run's measurements) and shaft_profile.csv (the radial and shear
+// stress on the shaft by bins along it: walls/body_probe.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -36,6 +36,20 @@ class PenetrateStage final : public Stage {
     Stage::begin(sim);
     Walls& w = sim.walls();
     const int k = body_index(w, cfg_.body);
+    if (cfg_.from_top) {
+      // Down its direction until the tip is level with the top wall: the sample's surface.
+      const BodyShape& b = w.shape(k);
+      const double tip_z = b.part[0].origin.z + w.position(k) * b.motion.z;
+      if (!(b.motion.z < 0.0) || !(tip_z >= w.position(5))) {
+        throw ConfigError(bad_value(
+            "stage '" + cfg_.label() + "'.from_top", "true",
+            "false for this body: from_top lowers a body moving down (direction with z < 0) "
+            "from above the top wall (its tip is at z = " +
+                show_number(tip_z) + " m, the top wall at " + show_number(w.position(5)) + " m)"));
+      }
+      w.state(k).position += (tip_z - w.position(5)) / -b.motion.z;
+      sim.invalidate();  // the wall contacts are found again for the body's new place
+    }
     q_start_ = w.position(k);
     WallConfig& c = w.config(k);
     c.mode = WallMode::Velocity;
@@ -162,6 +176,9 @@ const StageKind& penetrate_stage_kind() {
            [](double v) { return v >= 1.0; }, "> 0 steps"},
           {"bins", &StageConfig::bins, "", "bins along the shaft in shaft_profile.csv",
            [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of bins in [1, 10000]"},
+          {"from_top", &StageConfig::from_top, "",
+           "at the start, lower the body along its direction until its tip is level with the top "
+           "wall (the top of a prepared cube or chamber sample): travel is then depth below it"},
           {"sleeve_length", &StageConfig::sleeve_length, "m",
            "friction sleeve above the tip for f_s; 0 = 3.75 shaft diameters (150 cm^2 on a "
            "35.7 mm cone, ISO 22476-1)",

@@ -18,7 +18,7 @@ class TriaxialStage final : public Stage {
  protected:
   void set_walls(Walls& w) override {
     const double Lz = w.length(2);
-    for (int k = 0; k < 4; ++k) set_servo(w, k, cfg_.sigma_3);
+    for (const int k : w.lateral_walls()) set_servo(w, k, cfg_.sigma_3);
     w.config(4).mode = WallMode::Velocity;
     w.config(4).velocity = 0.5 * cfg_.strain_rate * Lz;
     w.config(5).mode = WallMode::Velocity;
@@ -47,7 +47,7 @@ class TriaxialStage final : public Stage {
   }
 
   void observe_kind(const Walls& w) override {
-    for (int k = 0; k < 4; ++k) {
+    for (const int k : w.lateral_walls()) {
       res_.max_lateral_stress_error =
           std::max(res_.max_lateral_stress_error, std::abs(w.stress(k) / cfg_.sigma_3 - 1.0));
     }

@@ -1,0 +1,119 @@
+// A chamber sample (docs/chamber.md): a cylinder of grains prepared in its chamber to a void
+// ratio and stress (the chamber's servo on its lateral surface between the platens, the platens'
+// on its cross-section), the void ratio from the chamber's volume; a cone lowered to the top
+// and pushed in while the chamber holds its stress; the run stopped during the penetration and
+// resumed writes the files of an uninterrupted one byte for byte; bad input names its key.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <string>
+#include <thread>
+
+#include "crushdem/io/config.hpp"
+#include "crushdem/io/packing.hpp"
+#include "crushdem/io/toml.hpp"
+#include "crushdem/run/runner.hpp"
+#include "crushdem/run/signals.hpp"
+#include "helpers.hpp"
+
+namespace crushdem {
+namespace {
+
+namespace fs = std::filesystem;
+
+RunConfig config(const std::string& text) {
+  return run_config_from_toml(toml::parse(text, "test"), "test", ".");
+}
+
+TEST(Chamber, ACylinderIsPreparedInItsChamberAndAConeIsPushedInAndResumedExactly) {
+  const testing::TempDir temp("chamber");
+  const fs::path& base = temp.path();
+  const RunConfig cfg = config(testing::test_data("chamber_400.toml"));
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (base / "whole").string();
+  run_to_directory(cfg, opt);
+
+  // The prepared sample: every servo at 100 kPa within the tolerance, the void ratio from the
+  // chamber's volume pi R^2 H, every grain inside the chamber.
+  auto prep = testing::read_csv((base / "whole" / "preparation.csv").string());
+  const double R = 0.5 * cfg.sample.cube_side();  // at the target (the loose cloud's is larger)
+  const double R_end = [&] {
+    const Packing pk = read_packing((base / "whole" / "sample.txt").string());
+    return std::stod(pk.header.at("chamber_radius"));
+  }();
+  EXPECT_NEAR(R_end / R, 1.0, 0.02);
+  for (const char* col : {"body_chamber_stress_Pa", "wall_zmin_stress_Pa", "wall_zmax_stress_Pa"}) {
+    EXPECT_NEAR(prep[col].back() / 1e5, 1.0, 0.01) << col;
+  }
+  const Packing pk = read_packing((base / "whole" / "sample.txt").string());
+  double Vs = 0.0, outside = 0.0;
+  for (const PackingRow& row : pk.rows) {
+    const double r = 0.5 * row.diameter;
+    Vs += 4.0 / 3.0 * kPi * r * r * r;
+    outside = std::max(outside, std::hypot(row.position.x, row.position.y) + r - R_end);
+  }
+  EXPECT_LT(outside, 1e-2 * R_end) << "a grain beyond the chamber's wall (more than an overlap)";
+  const double H = std::stod(pk.header.at("box_zmax")) - std::stod(pk.header.at("box_zmin"));
+  const double e = (kPi * R_end * R_end * H - Vs) / Vs;
+  EXPECT_NEAR(e, std::stod(pk.header.at("void_ratio")), 1e-9);
+  EXPECT_NEAR(e, 0.75, cfg.sample.tolerance);
+
+  // The cone: its tip lowered to the top platen at the start, q_c zero until it meets the
+  // grains, positive in them; the chamber held at its stress by its servo meanwhile.
+  auto pen = testing::read_csv((base / "whole" / "penetration.csv").string());
+  ASSERT_GT(pen["travel_m"].size(), 20u);
+  EXPECT_EQ(pen["tip_z_m"].front(), pen["wall_zmax_position_m"].front());
+  EXPECT_EQ(pen["q_c_Pa"].front(), 0.0);
+  EXPECT_GT(pen["q_c_Pa"].back(), 1e5);
+  EXPECT_GE(pen["travel_m"].back(), 0.4e-3 * (1.0 - 1e-12));
+
+  // Stopped as the cone starts (as SIGINT does), then resumed: the same files.
+  opt.out_dir = (base / "stopped").string();
+  std::atomic<bool> done{false};
+  std::thread stopper([&] {
+    while (!done && !fs::exists(base / "stopped" / "penetration.csv")) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    if (!done) request_stop(SIGINT);
+  });
+  bool interrupted = false;
+  try {
+    run_to_directory(cfg, opt);
+  } catch (const Interrupted&) {
+    interrupted = true;
+  }
+  done = true;
+  stopper.join();
+  ASSERT_TRUE(interrupted) << "the run ended before the stop request";
+  resume_directory((base / "stopped").string(), opt);
+  EXPECT_GE(testing::expect_same_run_files(base / "whole", base / "stopped"), 7u);
+}
+
+TEST(Chamber, BadChambersAreRefusedNamingTheKey) {
+  const std::string sample = "[sample]\nshape = \"cylinder\"\ncount = 400\nvoid_ratio = 0.8\n";
+  // (the configuration, the key its error must name)
+  const std::pair<std::string, std::string> cases[] = {
+      {sample + "[[body]]\nname = \"chamber\"\nshape = \"disk\"\nradius = 1e-3\n", "body[0].name"},
+      {sample + "height_ratio = 10.0\n", "sample.height_ratio"},
+      {"[sample]\nshape = \"sphere\"\n", "sample.shape"},
+      {"[sample]\nshape = \"cylinder\"\ncount = 100\nvoid_ratio = 0.9\n",
+       "sample.count"},  // under 5 grains wide
+  };
+  for (const auto& [text, key] : cases) {
+    std::string error;
+    try {
+      config(text);
+    } catch (const ConfigError& e) {
+      error = e.what();
+    }
+    EXPECT_NE(error.find(key), std::string::npos) << text << " -> " << error;
+  }
+}
+
+}  // namespace
+}  // namespace crushdem
