@@ -217,6 +217,26 @@ TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {
               body_load(sim.walls().shape(pile), st.normal_force, st.force), 1e-12 * F_n[0]);
 }
 
+TEST(Bodies, ACylinderShrunkPastZeroStopsTheRunNamingIt) {
+  // A chamber's wall shrinking at 1 m/s: its radius of 1 mm is gone after 1,000 steps of 1 us.
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"chamber\"\nshape = \"cylinder_inside\"\nradius = 1e-3\nlength = 1e-3\n"
+      "motion = \"dilate\"\nmode = \"velocity\"\nvelocity = -1.0\n");
+  Simulation sim(cfg);
+  sim.add_particle({0.01, 0.01, 0.01}, 1e-4);  // far from it
+  sim.set_dt(1e-6);
+  sim.step(999);
+  EXPECT_NEAR(sim.walls().position(kNumWalls), -0.999e-3, 1e-15);
+  try {
+    sim.step(2);
+    ADD_FAILURE() << "a cylinder of negative radius went on";
+  } catch (const RuntimeFailure& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("\"chamber\""), std::string::npos) << what;
+    EXPECT_NE(what.find("inside out"), std::string::npos) << what;
+  }
+}
+
 std::string config_error(const std::string& bodies) {
   try {
     body_config(bodies);

@@ -155,19 +155,20 @@ def test_bodies_are_surfaces_where_their_degrees_of_freedom_put_them(chamber_dir
     last = _read(chamber_dir / "vtk" / entries[-1][1])
     body = vtk_to_numpy(last.GetCellData().GetArray("body"))
     part = vtk_to_numpy(last.GetCellData().GetArray("part"))
-    # The chamber (body 6): 48 quadrilaterals; the cone (body 7): a tip of 48 triangles and a
-    # shaft of 48 quadrilaterals.
+    # The cone (body 6, the configuration's [[body]]): a tip of 48 triangles and a shaft of 48
+    # quadrilaterals; the chamber the sample added (body 7): 48 quadrilaterals.
     assert last.GetNumberOfPolys() == 144
-    assert (body == 6).sum() == 48 and ((body == 7) & (part == 0)).sum() == 48
+    assert ((body == 6) & (part == 0)).sum() == 48 and ((body == 6) & (part == 1)).sum() == 48
+    assert (body == 7).sum() == 48
     points = vtk_to_numpy(last.GetPoints().GetData())
     cells = vtk_to_numpy(last.GetPolys().GetConnectivityArray())
-    offsets = vtk_to_numpy(last.GetPolys().GetOffsetsArray())
-    chamber = np.unique(cells[offsets[0]:offsets[48]])
+    offsets = vtk_to_numpy(last.GetPolys().GetOffsetsArray())  # 0, then each polygon's end
+    chamber = np.unique(cells[offsets[96]:offsets[144]])
     radius = np.hypot(points[chamber, 0], points[chamber, 1])
     np.testing.assert_allclose(radius, radius[0], rtol=1e-12)  # a cylinder about the z axis
     with open(chamber_dir / "penetration.csv") as f:
         header = f.readline().strip().split(",")
         row = dict(zip(header, (float(v) for v in f.readlines()[-1].strip().split(","))))
-    apex = cells[offsets[48]]  # the cone's first triangle starts at its apex
+    apex = cells[offsets[0]]  # the cone's first triangle starts at its apex
     np.testing.assert_allclose(points[apex], [row["tip_x_m"], row["tip_y_m"], row["tip_z_m"]],
                                rtol=0, atol=1e-15)

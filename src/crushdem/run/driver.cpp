@@ -140,6 +140,7 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
     // A device backend brings to the host what comes next reads: the clock, walls and the
     // controllers' scalars always; every grain for a check that reads grains, a row, a snapshot.
     stepper_.sync(sim_, Sync::Clock);
+    sim_.walls().check_radii();  // moved on the device, where nothing throws
     if (to_check == 0 && c.reads_grains(sim_)) stepper_.sync(sim_, Sync::All);
     const std::uint64_t s = sim_.step_count();
     if (to_check == 0) {

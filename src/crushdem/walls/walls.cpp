@@ -135,6 +135,20 @@ void Walls::move(double dt) {
     s.position += s.velocity * dt;
     s.displacement_since_build += std::abs(s.velocity * dt);
   }
+  check_radii();
+}
+
+void Walls::check_radii() const {
+  for (int k = kNumWalls; k < size(); ++k) {
+    const BodyShape& b = shape(k);
+    if (!b.dilate || b.part[0].radius + position(k) > 0.0) continue;
+    throw RuntimeFailure(
+        "body \"" + name(k) + "\": its radius would reach " +
+        show_number(b.part[0].radius + position(k)) + " m (the cylinder would turn inside out): " +
+        (config(k).mode == WallMode::Servo
+             ? "its servo found too little stress; raise its target_stress or lower max_speed"
+             : "its velocity shrinks it past zero; lower the velocity or the duration"));
+  }
 }
 
 double Walls::max_displacement_since_build() const {

@@ -148,8 +148,10 @@ class Walls {
 
   /// Sets body velocities for the next step (fixed, prescribed or servo).
   void update_velocities(double dt);
-  /// Moves the bodies by their velocities.
+  /// Moves the bodies by their velocities (check_radii() after).
   void move(double dt);
+  /// Every dilating cylinder's radius still positive; RuntimeFailure naming the body otherwise.
+  void check_radii() const;
   double max_displacement_since_build() const;
   void reset_displacements();
   /// Modes, targets, positions, velocities and servo state, bit for bit (checkpoints; the box
