@@ -53,7 +53,7 @@ class Result:
     @property
     def timing(self) -> Dict[str, Any]:
         """``timing.json``: wall-clock seconds, threads, particle-steps per second, and
-        ``seconds_by_part`` (integration, neighbor_search, contact_forces, crushing,
+        ``seconds_by_part`` (integration, neighbor_search, contact_forces, wall_forces, crushing,
         ageing_jump, output, other) with the ``dominant_part``."""
         with open(os.path.join(self.directory, "timing.json")) as f:
             return json.load(f)

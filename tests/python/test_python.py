@@ -371,7 +371,7 @@ def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
     timing = tri.timing
     parts = timing["seconds_by_part"]
     assert set(parts) == {"other", "integration", "neighbor_search", "contact_forces",
-                          "crushing", "ageing_jump", "output"}
+                          "wall_forces", "crushing", "ageing_jump", "output"}
     assert sum(parts.values()) == pytest.approx(timing["wall_seconds"], rel=0.1, abs=0.2)
     assert timing["finished"] == 1 and timing["dominant_part"] in parts
     with pytest.raises(crushdem.ConfigError, match="sample.void_ratio"):

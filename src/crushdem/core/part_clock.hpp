@@ -16,7 +16,8 @@ enum class Part : int {
   Other = 0,       // controllers, measurements and whatever is not named below
   Integration,     // velocity Verlet kick-drift, wall motion
   NeighborSearch,  // cell list + Verlet list rebuilds (with the particle sort)
-  ContactForces,   // grain-grain and grain-wall laws, gather, damping
+  ContactForces,   // grain-grain laws, gather, damping
+  WallForces,      // the grain-body laws (the box's walls and every [[body]])
   Crushing,        // the strength check, crack growth, splits and the topology phase
   Ageing,          // off-DEM ageing jumps
   Output,          // CSV rows, VTK snapshots, checkpoints
@@ -24,8 +25,8 @@ enum class Part : int {
 };
 
 inline constexpr std::array<std::string_view, static_cast<std::size_t>(Part::Count)> kPartNames = {
-    "other",    "integration", "neighbor_search", "contact_forces",
-    "crushing", "ageing_jump", "output"};
+    "other",       "integration", "neighbor_search", "contact_forces",
+    "wall_forces", "crushing",    "ageing_jump",     "output"};
 
 class PartClock {
  public:

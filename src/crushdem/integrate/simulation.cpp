@@ -208,8 +208,11 @@ void Simulation::evaluate_forces(double increment_dt, bool kick, bool drift_next
   // The loops are instantiated for every combination of the law's sub-models, so a law without
   // a couple (rolling resistance) carries none of its cost.
   pair_loop_.evaluate(law_, increment_dt, p_, nl_, prune, history_, load, load_factor_);
-  wall_forces(law_, increment_dt, p_, walls_, wc_);
-  if (load) wall_contact_load();
+  {
+    const PartScope walls(part_clock_, Part::WallForces);
+    wall_forces(law_, increment_dt, p_, walls_, wc_);
+    if (load) wall_contact_load();
+  }
   const DriftMaxima next = gather_and_damp(p_, nl_, pair_loop_, wc_, time_step_.value(),
                                            law_.params().spin_scale, cfg_.damping.local_alpha,
                                            cfg_.gravity.g, kick, drift_next, fu_x_, fu_y_, fu_z_);
