@@ -46,17 +46,22 @@ inline void add_jittered_lattice(Simulation& sim, int n, double a, std::uint64_t
 
 }  // namespace crushdem::testing
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/run/runner.hpp"
+#include "crushdem/run/signals.hpp"
 
 namespace crushdem::testing {
 
@@ -182,6 +187,37 @@ inline std::size_t expect_same_run_files(const std::filesystem::path& a,
     ++compared;
   }
   return compared;
+}
+
+/// Runs `cfg` into `stopped` with a stop request (as SIGINT sends) as soon as the file `marker`
+/// appears there (a stage's own file: the stop lands in that stage), resumes it, and expects the
+/// files of `whole`, the same run uninterrupted; returns how many were compared (0: the run
+/// ended before the stop).
+inline std::size_t expect_stopped_run_resumes_exactly(const RunConfig& cfg, RunOptions opt,
+                                                      const std::filesystem::path& whole,
+                                                      const std::filesystem::path& stopped,
+                                                      const std::string& marker) {
+  opt.out_dir = stopped.string();
+  std::atomic<bool> done{false};
+  std::thread stopper([&] {
+    while (!done && !std::filesystem::exists(stopped / marker)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    if (!done) request_stop(SIGINT);
+  });
+  bool interrupted = false;
+  try {
+    run_to_directory(cfg, opt);
+  } catch (const Interrupted&) {
+    interrupted = true;
+  }
+  done = true;
+  stopper.join();
+  EXPECT_TRUE(interrupted) << "the run ended before the stop request";
+  if (!interrupted) return 0;
+  EXPECT_TRUE(std::filesystem::exists(stopped / "checkpoint.bin"));
+  resume_directory(stopped.string(), opt);
+  return expect_same_run_files(whole, stopped);
 }
 
 /// A number from a flat "key": value in a JSON text (the n-th occurrence).

@@ -5,19 +5,15 @@
 // resumed writes the files of an uninterrupted one byte for byte; bad input names its key.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <chrono>
+#include <algorithm>
 #include <cmath>
-#include <csignal>
 #include <filesystem>
 #include <string>
-#include <thread>
 
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/run/runner.hpp"
-#include "crushdem/run/signals.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -73,25 +69,53 @@ TEST(Chamber, ACylinderIsPreparedInItsChamberAndAConeIsPushedInAndResumedExactly
   EXPECT_GE(pen["travel_m"].back(), 0.4e-3 * (1.0 - 1e-12));
 
   // Stopped as the cone starts (as SIGINT does), then resumed: the same files.
-  opt.out_dir = (base / "stopped").string();
-  std::atomic<bool> done{false};
-  std::thread stopper([&] {
-    while (!done && !fs::exists(base / "stopped" / "penetration.csv")) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    if (!done) request_stop(SIGINT);
-  });
-  bool interrupted = false;
-  try {
-    run_to_directory(cfg, opt);
-  } catch (const Interrupted&) {
-    interrupted = true;
+  EXPECT_GE(testing::expect_stopped_run_resumes_exactly(cfg, opt, base / "whole", base / "stopped",
+                                                        "penetration.csv"),
+            7u);
+}
+
+TEST(Chamber, AQuarterBetweenSymmetryPlanesIsPreparedAndPenetratedOnItsAxis) {
+  // The sample of chamber_400.toml as a quarter (sector = 90): 400 grains in the quadrant
+  // x, y > 0 between the frictionless planes x = 0 and y = 0, the cone on the z axis.
+  std::string text = testing::test_data("chamber_400.toml");
+  const std::string at = "shape = \"cylinder\"\n";
+  text.replace(text.find(at), at.size(), at + "sector = 90.0\n");
+  const RunConfig cfg = config(text);
+  const testing::TempDir temp("chamber");
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (temp.path() / "run").string();
+  run_to_directory(cfg, opt);
+  const Packing pk = read_packing((temp.path() / "run" / "sample.txt").string());
+  const double R = std::stod(pk.header.at("chamber_radius"));
+  const double H = std::stod(pk.header.at("box_zmax")) - std::stod(pk.header.at("box_zmin"));
+  double Vs = 0.0, beyond = 0.0;
+  for (const PackingRow& row : pk.rows) {
+    const double r = 0.5 * row.diameter;
+    Vs += 4.0 / 3.0 * kPi * r * r * r;
+    beyond = std::max({beyond, r - row.position.x, r - row.position.y,
+                       std::hypot(row.position.x, row.position.y) + r - R});
   }
-  done = true;
-  stopper.join();
-  ASSERT_TRUE(interrupted) << "the run ended before the stop request";
-  resume_directory((base / "stopped").string(), opt);
-  EXPECT_GE(testing::expect_same_run_files(base / "whole", base / "stopped"), 7u);
+  EXPECT_LT(beyond, 1e-2 * R) << "a grain beyond a symmetry plane or the chamber";
+  // The void ratio from the quarter's volume pi R^2 H / 4.
+  EXPECT_NEAR((0.25 * kPi * R * R * H - Vs) / Vs, std::stod(pk.header.at("void_ratio")), 1e-9);
+  // The servos' stresses on the quarter's areas agree with the grains' own (Love) mean stress,
+  // which takes the quarter's volume: a wrong area would put them a factor apart.
+  auto prep = testing::read_csv((temp.path() / "run" / "preparation.csv").string());
+  EXPECT_NEAR(prep["love_mean_stress_Pa"].back() / prep["mean_stress_Pa"].back(), 1.0, 0.02);
+  EXPECT_NEAR(prep["body_chamber_stress_Pa"].back() / 1e5, 1.0, 0.01);
+  auto pen = testing::read_csv((temp.path() / "run" / "penetration.csv").string());
+  EXPECT_EQ(pen["q_c_Pa"].front(), 0.0);
+  EXPECT_GT(pen["q_c_Pa"].back(), 1e5);
+  // A cone off the axis of a sector is refused.
+  text.replace(text.find("origin = [0.0, 0.0, 0.01]"), 25, "origin = [1e-4, 0.0, 0.01]");
+  opt.out_dir = (temp.path() / "off_axis").string();
+  try {
+    run_to_directory(config(text), opt);
+    ADD_FAILURE() << "a cone off the axis of a quarter ran";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(".body"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Chamber, BadChambersAreRefusedNamingTheKey) {
@@ -101,6 +125,9 @@ TEST(Chamber, BadChambersAreRefusedNamingTheKey) {
       {sample + "[[body]]\nname = \"chamber\"\nshape = \"disk\"\nradius = 1e-3\n", "body[0].name"},
       {sample + "height_ratio = 10.0\n", "sample.height_ratio"},
       {"[sample]\nshape = \"sphere\"\n", "sample.shape"},
+      {sample + "sector = 45.0\n", "sample.sector"},
+      {"[sample]\nsector = 90.0\n", "sample.sector"},  // a cube has none
+      {sample + "[[body]]\nname = \"symmetry_x\"\n", "body[0].name"},
       {"[sample]\nshape = \"cylinder\"\ncount = 100\nvoid_ratio = 0.9\n",
        "sample.count"},  // under 5 grains wide
   };

@@ -4,19 +4,14 @@
 // uninterrupted one byte for byte; bad input names its key.
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <chrono>
-#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/run/runner.hpp"
-#include "crushdem/run/signals.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -92,27 +87,8 @@ TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) 
   run_to_directory(cfg, opt);
 
   // Stopped (as SIGINT does) as soon as the cone has begun to move, then resumed.
-  opt.out_dir = (base / "stopped").string();
-  std::atomic<bool> done{false};
-  std::thread stopper([&] {
-    while (!done && !fs::exists(base / "stopped" / "penetration.csv")) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    if (!done) request_stop(SIGINT);
-  });
-  bool interrupted = false;
-  try {
-    run_to_directory(cfg, opt);
-  } catch (const Interrupted&) {
-    interrupted = true;
-  }
-  done = true;
-  stopper.join();
-  ASSERT_TRUE(interrupted) << "the run ended before the stop request";
-  ASSERT_TRUE(fs::exists(base / "stopped" / "checkpoint.bin"));
-  resume_directory((base / "stopped").string(), opt);
-
-  const std::size_t compared = testing::expect_same_run_files(base / "whole", base / "stopped");
+  const std::size_t compared = testing::expect_stopped_run_resumes_exactly(
+      cfg, opt, base / "whole", base / "stopped", "penetration.csv");
   EXPECT_GE(compared, 6u);  // config, timeseries, summary, penetration, shaft profile, snapshots
 }
 

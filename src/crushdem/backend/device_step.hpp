@@ -384,7 +384,7 @@ CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum)
     double area = 0.0;
     if (const int ch = v.shape[k].chamber; ch >= 0) {  // a chamber sample's platen or wall
       area = chamber_area(k == ch, v.shape[ch].part[0].radius + W[ch].position, W[4].position,
-                          W[5].position);
+                          W[5].position, v.shape[ch].sector);
     } else if (k < kNumWalls) {  // a box wall: the box's cross-section (Walls::area)
       const int a1 = (wall_axis(k) + 1) % 3, a2 = (wall_axis(k) + 2) % 3;
       area = (W[2 * a1 + 1].position - W[2 * a1].position) *

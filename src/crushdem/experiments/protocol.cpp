@@ -26,8 +26,10 @@ double SampleConfig::cube_side() const {
   if (side > 0.0) return side;
   if (count > 0) {
     const double V = static_cast<double>(count) * grading.mean_grain_volume() * (1.0 + void_ratio);
-    // A cylinder: V = pi D^2 H / 4 with H = height_ratio D.
-    return shape == SampleShape::Cube ? std::cbrt(V) : std::cbrt(4.0 * V / (kPi * height_ratio));
+    // A cylinder's sector: V = f pi D^2 H / 4 with H = height_ratio D.
+    return shape == SampleShape::Cube
+               ? std::cbrt(V)
+               : std::cbrt(4.0 * V / (kPi * height_ratio * sector_fraction()));
   }
   return 4e-3;
 }
@@ -63,6 +65,16 @@ const ParamTable<SampleConfig>& sample_params() {
           "a cylinder's height / diameter",
           [](double v) { return v >= 0.2 && v <= 5.0; },
           "a ratio in [0.2, 5]",
+          {},
+          [](const SampleConfig& c) { return c.shape == SampleShape::Cylinder; }},
+      Row{"sector",
+          &SampleConfig::sector,
+          "deg",
+          "the part of a cylinder simulated: 360, or a half (180) or a quarter (90) between "
+          "frictionless symmetry planes through the axis (bodies symmetry_x, symmetry_y; "
+          "docs/chamber.md)",
+          [](double v) { return v == 360.0 || v == 180.0 || v == 90.0; },
+          "360, 180 or 90",
           {},
           [](const SampleConfig& c) { return c.shape == SampleShape::Cylinder; }},
       Row{"count",
@@ -115,6 +127,10 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
         "many grains), not both");
   }
   validate_params(*this, sample_params(), "sample");
+  if (shape == SampleShape::Cube && sector != 360.0) {
+    throw ConfigError(bad_value("sample.sector", show_number(sector),
+                                "360 for a cube (a sector is a cylinder's: shape = \"cylinder\")"));
+  }
   // The wall effect of the narrower of the cylinder's diameter and height.
   const double e_min = densest_void_ratio(grading, std::min(cube_side(), height()));
   if (void_ratio < e_min) {
@@ -138,8 +154,9 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
                                     show_number(5.0 * d_max) + " m; this gives " + show_number(L) +
                                     " m)"));
   }
-  const double V =
-      shape == SampleShape::Cube ? L * L * L : kPi / 4.0 * cube_side() * cube_side() * height();
+  const double V = shape == SampleShape::Cube
+                       ? L * L * L
+                       : sector_fraction() * kPi / 4.0 * cube_side() * cube_side() * height();
   const double n = V / (1.0 + void_ratio) / grading.mean_grain_volume();
   if (n > 5e7) {
     throw ConfigError(bad_value(
@@ -151,23 +168,31 @@ void SampleConfig::validate(const SimulationConfig& sim) const {
 
 LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place) {
   const bool cylinder = cfg.shape == SampleShape::Cylinder;
+  const double f = cfg.sector_fraction();
   const double L = cfg.cube_side();
-  const double V = cylinder ? kPi / 4.0 * L * L * cfg.height() : L * L * L;
+  const double V = cylinder ? f * kPi / 4.0 * L * L * cfg.height() : L * L * L;
   const std::vector<double> d = draw_diameters(cfg.grading, V / (1.0 + cfg.void_ratio), cfg.seed);
   double vol = 0.0;
   for (double x : d) vol += kPi / 6.0 * x * x * x;
   LooseCloud c;
   const double V_loose = vol / cfg.placement_fraction;
-  c.side = cylinder ? std::cbrt(4.0 * V_loose / (kPi * cfg.height_ratio)) : std::cbrt(V_loose);
+  c.side = cylinder ? std::cbrt(4.0 * V_loose / (kPi * cfg.height_ratio * f)) : std::cbrt(V_loose);
   c.height = cylinder ? cfg.height_ratio * c.side : c.side;
+  c.sector = f;
   if (!place) return c;
   std::vector<double> radii(d.size());
   for (std::size_t i = 0; i < d.size(); ++i) radii[i] = 0.5 * d[i];
-  // A cube with its lower corner at the origin; a cylinder about the z axis, its base at z = 0.
-  const double lo = cylinder ? -0.5 * c.side : 0.0;
-  const std::array<double, 6> box{lo, lo + c.side, lo, lo + c.side, 0.0, c.height};
+  // A cube with its lower corner at the origin; a cylinder about the z axis, its base at z = 0,
+  // a half at x > 0, a quarter at x, y > 0.
+  std::array<double, 6> box{0.0, c.side, 0.0, c.side, 0.0, c.height};
+  PlaceTest in_cylinder;
+  if (cylinder) {
+    const double R = 0.5 * c.side;
+    box = {f < 1.0 ? 0.0 : -R, R, f < 0.5 ? 0.0 : -R, R, 0.0, c.height};
+    in_cylinder = [R](Vec3 p, double r) { return std::hypot(p.x, p.y) <= R - r; };
+  }
   for (const PlacedSphere& s :
-       random_sequential_addition(radii, box, cfg.seed, 100000, cylinder ? 0.5 * c.side : 0.0)) {
+       random_sequential_addition(radii, box, cfg.seed, 100000, in_cylinder)) {
     c.position.push_back(s.position);
     c.radius.push_back(s.radius);
   }
@@ -184,7 +209,22 @@ BodyConfig chamber_body(const LooseCloud& cloud) {
   b.length = 3.0 * cloud.height;
   b.motion = BodyMotion::Dilate;
   b.chamber = true;
+  b.sector = cloud.sector;
   return b;
+}
+
+std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud) {
+  std::vector<BodyConfig> planes;
+  for (int a = 0; a < 2; ++a) {
+    if (cloud.sector > (a == 0 ? 0.5 : 0.25)) continue;  // x = 0 from a half, y = 0 a quarter
+    BodyConfig b;
+    b.name = a == 0 ? "symmetry_x" : "symmetry_y";
+    b.kind = BodyKind::Plane;
+    b.axis = a == 0 ? Vec3{-1.0, 0.0, 0.0} : Vec3{0.0, -1.0, 0.0};  // into the body: x, y < 0
+    b.friction = 0.0;  // a plane of symmetry carries no shear
+    planes.push_back(b);
+  }
+  return planes;
 }
 
 // ---------------------------------------------------------------------------------------------

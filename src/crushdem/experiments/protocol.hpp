@@ -37,6 +37,7 @@ struct SampleConfig {
   double side = 0.0;             // cube side, or cylinder diameter, at the target void ratio [m]
                                  // (0: 4 mm unless count)
   double height_ratio = 1.0;     // cylinder: height / diameter [-]
+  double sector = 360.0;         // cylinder: 360, or 180 / 90 between symmetry planes [deg]
   std::uint64_t count = 0;       // approximate number of grains (sets the side) instead of side
   double void_ratio = 0.65;      // target e [-] (STUDY)
   double tolerance = 0.005;      // accepted |e - void_ratio| [-]
@@ -53,6 +54,8 @@ struct SampleConfig {
   void validate(const SimulationConfig& sim) const;  // keys "sample.<key>"
   double cube_side() const;  // the side (a cube) or diameter (a cylinder) at the target e
   double height() const;     // the height at the target void ratio: the side, or the cylinder's
+  /// The fraction of the circle a cylinder fills (sector / 360); 1 for a cube.
+  double sector_fraction() const { return shape == SampleShape::Cylinder ? sector / 360.0 : 1.0; }
 };
 
 /// The scalar keys of [sample] (core/params.hpp); the grading is its own sub-table.
@@ -97,6 +100,7 @@ struct LooseCloud {
   std::vector<double> radius;
   double side = 0.0;    // loose cube side, or cylinder diameter [m]
   double height = 0.0;  // loose height [m]
+  double sector = 1.0;  // the fraction of the circle a cylinder fills
 };
 /// The grains (sizes and places) of the loose cloud; `place = false`: its size only.
 LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place = true);
@@ -106,6 +110,10 @@ LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place = true);
 /// below and above it (the platens move within it), fixed until a controller sets it, with the
 /// box walls' friction. Named "chamber".
 BodyConfig chamber_body(const LooseCloud& cloud);
+
+/// The frictionless symmetry planes of a sector: x = 0 for a half ("symmetry_x", the grains at
+/// x > 0), and y = 0 too for a quarter ("symmetry_y"); none for a whole cylinder.
+std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud);
 
 class PreparationController final : public Controller {
  public:

@@ -465,10 +465,12 @@ void RunConfig::validate() const {
   if (has_sample) {
     sample.validate(simulation);
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
-      if (sample.shape == SampleShape::Cylinder && simulation.bodies[i].name == "chamber") {
-        throw ConfigError(bad_value("body[" + std::to_string(i) + "].name", "\"chamber\"",
-                                    "another name: a cylindrical [sample] makes the body "
-                                    "\"chamber\""));
+      const std::string& n = simulation.bodies[i].name;
+      if (sample.shape == SampleShape::Cylinder &&
+          (n == "chamber" || n == "symmetry_x" || n == "symmetry_y")) {
+        throw ConfigError(bad_value("body[" + std::to_string(i) + "].name", "\"" + n + "\"",
+                                    "another name: a cylindrical [sample] makes the bodies "
+                                    "\"chamber\", \"symmetry_x\" and \"symmetry_y\""));
       }
     }
   } else {

@@ -13,7 +13,7 @@ namespace crushdem {
 std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
                                                      const std::array<double, 6>& box,
                                                      std::uint64_t seed, std::uint64_t max_attempts,
-                                                     double cylinder_radius) {
+                                                     const PlaceTest& inside) {
   std::sort(radii.begin(), radii.end(), std::greater<>());
   std::vector<PlacedSphere> out;
   if (radii.empty()) return out;
@@ -34,11 +34,7 @@ std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
     for (std::uint64_t attempt = 0; attempt < max_attempts && !placed; ++attempt) {
       Vec3 p{rng.uniform(box[0] + r, box[1] - r), rng.uniform(box[2] + r, box[3] - r),
              rng.uniform(box[4] + r, box[5] - r)};
-      if (cylinder_radius > 0.0) {
-        const double dx = p.x - 0.5 * (box[0] + box[1]), dy = p.y - 0.5 * (box[2] + box[3]);
-        const double room = cylinder_radius - r;
-        if (dx * dx + dy * dy > room * room) continue;
-      }
+      if (inside && !inside(p, r)) continue;
       const long ci = cell(p.x, 0), cj = cell(p.y, 1), ck = cell(p.z, 2);
       bool ok = true;
       for (long a = ci - 1; a <= ci + 1 && ok; ++a) {

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "crushdem/core/types.hpp"
@@ -16,14 +17,17 @@ struct PlacedSphere {
   double radius = 0.0;
 };
 
+/// Where a sphere of radius r centred at p may go besides the box (a cylinder's inside).
+using PlaceTest = std::function<bool(Vec3 p, double r)>;
+
 /// Places spheres with the given radii (largest first) in box [xmin,xmax,ymin,ymax,zmin,zmax],
-/// or with cylinder_radius > 0 in the cylinder of that radius about the box's vertical centre
-/// line (a place drawn in the box outside it counts as a failed try). Throws ConfigError when a
-/// sphere cannot be placed after `max_attempts` tries.
+/// and where `inside` holds when it is given (a place drawn in the box where it does not counts
+/// as a failed try). Throws ConfigError when a sphere cannot be placed after `max_attempts`
+/// tries.
 std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
                                                      const std::array<double, 6>& box,
                                                      std::uint64_t seed,
                                                      std::uint64_t max_attempts = 100000,
-                                                     double cylinder_radius = 0.0);
+                                                     const PlaceTest& inside = {});
 
 }  // namespace crushdem

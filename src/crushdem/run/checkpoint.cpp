@@ -1,5 +1,6 @@
 #include "crushdem/run/checkpoint.hpp"
 
+#include <array>
 #include <cstring>
 
 #include "crushdem/core/error.hpp"
@@ -40,7 +41,23 @@ int checkpoint_version(const std::string& format) {
 void RunPosition::state(StateArchive& a) {
   a.section("progress");
   a(part, begun, to_check, wall_seconds);
-  a.since(2, part_seconds, particle_steps);
+  // Saved as the format's seven parts, the wall loop's seconds within contact_forces (timing.json
+  // splits them again from the resumed process on).
+  constexpr auto kWalls = static_cast<std::size_t>(Part::WallForces);
+  std::array<double, PartClock::kParts - 1> saved{};
+  for (std::size_t k = 0, j = 0; k < PartClock::kParts; ++k) {
+    if (k == kWalls) {
+      saved[kWalls - 1] += part_seconds[k];
+    } else {
+      saved[j++] += part_seconds[k];
+    }
+  }
+  a.since(2, saved, particle_steps);
+  if (a.loading()) {
+    for (std::size_t k = 0, j = 0; k < PartClock::kParts; ++k) {
+      part_seconds[k] = k == kWalls ? 0.0 : saved[j++];
+    }
+  }
   a(has_sample_json);
   json_state(a, sample_json);
   const auto n = a.value<std::uint64_t>(stage_results.size());

@@ -206,8 +206,9 @@ class Run {
     }
     if (cylinder) {
       // Resumed: the chamber's shape from the cloud's size alone (its place is in the state).
-      sim_cfg.bodies.push_back(
-          chamber_body(resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_));
+      const LooseCloud size = resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_;
+      sim_cfg.bodies.push_back(chamber_body(size));
+      for (const BodyConfig& plane : symmetry_planes(size)) sim_cfg.bodies.push_back(plane);
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);

@@ -145,6 +145,7 @@ Body BodyConfig::make(double wall_friction) const {
   b.motion.position = 0.0;
   b.area = area;
   b.chamber = chamber;
+  b.sector = sector;
   BodyShape& s = b.shape;
   const Vec3 a = unit(axis);
   s.friction = friction < 0.0 ? wall_friction : friction;

@@ -208,6 +208,9 @@ struct BodyShape {
   /// A chamber sample's (docs/chamber.md): the index of the chamber's cylinder, whose radius sets
   /// the servo area of the cylinder itself and of the platens (the box's z walls); -1: none.
   std::int32_t chamber = -1;
+  /// The fraction of the circle a chamber sample fills (1; a half or a quarter between
+  /// symmetry planes): it scales the chamber's servo areas.
+  double sector = 1.0;
 };
 
 /// The nearest surface of body b (degree of freedom q) to a grain centred at c; `part` is set to
@@ -244,11 +247,12 @@ CD_HD inline double body_own_area(const BodyShape& b, double q) {
   return A;
 }
 
-/// The servo area in a chamber sample, radius R between platens at z_bottom and z_top: the
-/// chamber's wall carries its lateral stress over 2 pi R (z_top - z_bottom), a platen its
-/// vertical stress over the cross-section pi R^2.
-CD_HD inline double chamber_area(bool chamber_wall, double R, double z_bottom, double z_top) {
-  return chamber_wall ? 2.0 * kPi * R * (z_top - z_bottom) : kPi * R * R;
+/// The servo area in a chamber sample, radius R between platens at z_bottom and z_top, filling
+/// the fraction `sector` of the circle: the chamber's wall carries its lateral stress over
+/// sector 2 pi R (z_top - z_bottom), a platen its vertical stress over sector pi R^2.
+CD_HD inline double chamber_area(bool chamber_wall, double R, double z_bottom, double z_top,
+                                 double sector) {
+  return sector * (chamber_wall ? 2.0 * kPi * R * (z_top - z_bottom) : kPi * R * R);
 }
 
 /// The load conjugate to a body's degree of freedom, which the servo law holds at its target

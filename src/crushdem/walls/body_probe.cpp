@@ -41,11 +41,11 @@ void check_bodies_clear(const Walls& walls, const ParticleStore& p) {
 }
 
 double BodyProbe::q_c() const {
-  return has_tip ? tip_load / (kPi * radius * radius) : 0.0;
+  return has_tip ? tip_load / (sector * kPi * radius * radius) : 0.0;
 }
 
 double BodyProbe::f_s() const {
-  return sleeve_length > 0.0 ? sleeve_load / (2.0 * kPi * radius * sleeve_length) : 0.0;
+  return sleeve_length > 0.0 ? sleeve_load / (sector * 2.0 * kPi * radius * sleeve_length) : 0.0;
 }
 
 BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
@@ -65,6 +65,7 @@ BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const Pa
   out.tip = first.origin + q * b.motion;
   out.radius = first.radius;
   out.has_tip = is_tip(first.shape);
+  out.sector = walls.sector();
   Vec3 shaft_origin;
   double dh = 0.0;
   if (shaft != nullptr) {
@@ -101,7 +102,7 @@ BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const Pa
     ++out.bin_contacts[bin];
   }
   if (shaft != nullptr) {
-    const double A_bin = 2.0 * kPi * shaft->radius * dh;
+    const double A_bin = out.sector * 2.0 * kPi * shaft->radius * dh;
     for (std::size_t j = 0; j < out.sigma_r.size(); ++j) {
       out.sigma_r[j] /= A_bin;
       out.tau[j] /= A_bin;

@@ -46,8 +46,9 @@ struct BodyProbe {
   std::vector<double> sigma_r, tau;                    // by bin, from the shaft's start up [Pa]
   std::vector<std::uint64_t> bin_contacts;
 
-  double q_c() const;  // F_tip / (pi R^2) [Pa]; 0 without a tip
-  double f_s() const;  // F_sleeve / (2 pi R L_s) [Pa]; 0 without a shaft
+  double sector = 1.0;  // the fraction of the body's circumference the grains reach
+  double q_c() const;   // F_tip / (sector pi R^2) [Pa]; 0 without a tip
+  double f_s() const;   // F_sleeve / (sector 2 pi R L_s) [Pa]; 0 without a shaft
 };
 
 /// Every body beyond the box clear of every grain (no grain overlaps its surface or lies inside
@@ -57,6 +58,8 @@ void check_bodies_clear(const Walls& walls, const ParticleStore& p);
 
 /// Body k of `walls` as the last force evaluation left it (probe_supports() must hold).
 /// sleeve_length: L_s (clamped to the shaft's length); bins: the number of bins along the shaft.
+/// In a chamber sample of a sector (Walls::sector() < 1) the body lies on the axis and the
+/// grains touch that sector of it: every area above is taken over the sector.
 BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
                      double sleeve_length, int bins);
 

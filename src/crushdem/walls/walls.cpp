@@ -80,10 +80,12 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
     shape_.push_back(b);
   }
   area_.assign(kNumWalls, 0.0);
+  double chamber_sector = 1.0;
   for (Body& body : bodies) {
     if (body.chamber) {
       if (chamber_ >= 0) throw ConfigError("body: a sample has one chamber, not two");
       chamber_ = static_cast<int>(cfg_.size());
+      chamber_sector = body.sector;
     }
     cfg_.push_back(body.motion);
     shape_.push_back(body.shape);
@@ -91,7 +93,10 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
     area_.push_back(body.area);
   }
   if (chamber_ >= 0) {
-    for (const int k : {4, 5, chamber_}) shape_[static_cast<std::size_t>(k)].chamber = chamber_;
+    for (const int k : {4, 5, chamber_}) {
+      shape_[static_cast<std::size_t>(k)].chamber = chamber_;
+      shape_[static_cast<std::size_t>(k)].sector = chamber_sector;
+    }
   }
   st_.resize(cfg_.size());
   for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
@@ -104,7 +109,7 @@ std::string Walls::name(int k) const {
 
 double Walls::area(int k) const {
   if (shape(k).chamber >= 0) {
-    return chamber_area(k == chamber_, chamber_radius(), position(4), position(5));
+    return chamber_area(k == chamber_, chamber_radius(), position(4), position(5), sector());
   }
   if (k < kNumWalls) {
     const int a = wall_axis(k);

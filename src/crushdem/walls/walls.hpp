@@ -75,6 +75,7 @@ struct Body {
   /// The lateral boundary of a chamber sample (a dilating cylinder_inside about z, the box's z
   /// walls its platens): the sample's volume, lateral size and stress are then the chamber's.
   bool chamber = false;
+  double sector = 1.0;  // the chamber's: the fraction of the circle the sample fills
 };
 
 class Walls {
@@ -101,6 +102,8 @@ class Walls {
   double position(int k) const { return st_[static_cast<std::size_t>(k)].position; }
   /// The chamber's body (a chamber sample), or -1 (a box sample).
   int chamber() const { return chamber_; }
+  /// The fraction of the circle a chamber sample fills (1 without symmetry planes); 1 for a box.
+  double sector() const { return chamber_ >= 0 ? shape(chamber_).sector : 1.0; }
   /// The chamber's current radius (a chamber sample).
   double chamber_radius() const { return shape(chamber_).part[0].radius + position(chamber_); }
   /// The sample's size along an axis: the box's side, or in a chamber sample its diameter
@@ -111,7 +114,7 @@ class Walls {
   }
   /// The sample's volume: the box's, or the chamber's between the platens.
   double volume() const {
-    if (chamber_ >= 0) return kPi * chamber_radius() * chamber_radius() * length(2);
+    if (chamber_ >= 0) return sector() * kPi * chamber_radius() * chamber_radius() * length(2);
     return length(0) * length(1) * length(2);
   }
   /// The bodies that hold the sample laterally: the box's four side walls, or the chamber.

@@ -24,9 +24,7 @@ class IsotropicStage final : public Stage {
 const StageKind& isotropic_stage_kind() {
   static const StageKind kind{
       .name = "isotropic",
-      .description =
-          "all six walls (a chamber's wall and platens) servo-controlled to "
-          "`stress`, until equilibrium",
+      .description = "all walls (a chamber's too) servo-controlled to `stress`, until equilibrium",
       .params = stage_table({
           {"stress", &StageConfig::stress, "Pa", "target stress of all six servo walls",
            [](double v) { return v > 0.0; }, "a positive stress in Pa", "-"},
