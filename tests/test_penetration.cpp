@@ -28,15 +28,18 @@ RunConfig config(std::string text = "") {
   return run_config_from_toml(toml::parse(text, "test"), "test", ".");
 }
 
-TEST(Penetration, AConeRecordsTipResistanceFromTheSurfaceOnAndStopsAtItsDepth) {
+// The run of config() on `backend`: the cone records q_c from the top of the sample on, lands
+// on its depth and stays there.
+void expect_cone_recorded_and_stopped(const std::string& backend) {
   const testing::TempDir temp("penetrate");
   RunOptions opt;
   opt.progress = false;
+  opt.backend = backend;
   opt.out_dir = (temp.path() / "run").string();
   run_to_directory(config(), opt);
   auto pen = testing::read_csv((temp.path() / "run" / "penetration.csv").string());
   const std::vector<double>& travel = pen["travel_m"];
-  ASSERT_GE(travel.size(), 60u);
+  ASSERT_GE(travel.size(), 60u) << backend;
   // Every record_interval (500) steps of the stage, and at its start and end.
   const double depth = 0.45e-3, v = 2.0;
   EXPECT_EQ(travel.front(), 0.0);
@@ -75,6 +78,16 @@ TEST(Penetration, AConeRecordsTipResistanceFromTheSurfaceOnAndStopsAtItsDepth) {
   EXPECT_EQ(ts["body_cone_position_m"].back(), travel.back());
   const std::string summary = testing::read_file(temp.path() / "run" / "summary.json");
   EXPECT_NE(summary.find("\"depth reached\""), std::string::npos) << summary;
+}
+
+TEST(Penetration, AConeRecordsTipResistanceFromTheSurfaceOnAndStopsAtItsDepth) {
+  expect_cone_recorded_and_stopped("cpu");
+}
+
+// The device step (its host emulation): the records bring the grains and their contacts with
+// the cone back from the device (Stage::reads_grains) at every record_interval.
+TEST(Penetration, OnTheDeviceTooTheConeRecordsAndStops) {
+  expect_cone_recorded_and_stopped("emulated");
 }
 
 TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) {
