@@ -110,8 +110,7 @@ void expect_saved_simulation_continues_bit_for_bit(const RunConfig& cfg) {
 }
 
 TEST(Checkpoint, ASavedSimulationContinuesBitForBit) {
-  expect_saved_simulation_continues_bit_for_bit(
-      config(testing::TempDir("sim").path()));
+  expect_saved_simulation_continues_bit_for_bit(config(testing::TempDir("sim").path()));
 }
 
 TEST(Checkpoint, ASavedSimulationWithRollingResistanceContinuesBitForBit) {

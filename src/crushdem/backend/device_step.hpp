@@ -103,50 +103,52 @@ enum class When { Always, Load, Crushing };
 // host array (an expression on `s`, the Simulation, and `crusher`, the run's Crusher; expanded
 // by host code only). The View's members and backend/device_stepper.cpp's transfer list both
 // come from these rows; the contact history the law declares comes on top (View::ph).
-#define CD_DEVICE_FIELDS(X)                                                                        \
-  /* per grain: position, velocity, spin, force, torque; the resultant before damping */           \
-  CD_GRAIN_XYZ(X, )                                                                                \
-  CD_GRAIN_XYZ(X, v)                                                                               \
-  CD_GRAIN_XYZ(X, w) CD_GRAIN_XYZ(X, f) CD_GRAIN_XYZ(X, t)                                         \
-      X(fux, double, Grains, true, Always, false, s.resultant_force(0))                            \
-          X(fuy, double, Grains, true, Always, false, s.resultant_force(1))                        \
-              X(fuz, double, Grains, true, Always, false, s.resultant_force(2))                    \
-                  X(radius, double, Grains, false, Always, true, s.particles().radius)             \
-                      X(mass, double, Grains, false, Always, true, s.particles().mass) X(          \
-                          inv_mass, double, Grains, false, Always, true, s.particles().inv_mass)   \
-                          X(inv_inertia, double, Grains, false, Always, false,                     \
-                            s.particles().inv_inertia) /* the positions at the last list build */  \
-      X(x0, double, Grains, false, Always, false, s.neighbors().x_ref())                           \
-          X(y0, double, Grains, false, Always, false, s.neighbors().y_ref())                       \
-              X(z0, double, Grains, false, Always, false,                                          \
-                s.neighbors().z_ref()) /* the half list and its touching flags */                  \
-      X(owner, Index, Entries, false, Always, false, s.neighbors().owner)                          \
-          X(nb, Index, Entries, false, Always, false, s.neighbors().neighbors)                     \
-              X(touch, std::uint8_t, Entries, true, Always, false,                                 \
-                s.history().touching) /* wall entries: grain and body; tangential history and the  \
-                                         results of the last pass */                               \
-      X(wp, Index, WallEntries, false, Always, false, s.wall_contacts().particle)                  \
-          X(ww, std::uint8_t, WallEntries, false, Always, false, s.wall_contacts().wall)           \
-              CD_WALL_XYZ(X, wft, ft_) CD_WALL_XYZ(X, wf, f) CD_WALL_XYZ(X, wt, t)                 \
-                  X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n)          \
-                      X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n) X(   \
-                          wdelta, double, WallEntries, true, Always, false,                        \
-                          s.wall_contacts()                                                        \
-                              .delta) /* the bodies' shapes and the servo areas they were given */ \
-      X(shape, BodyShape, Bodies, false, Always, false, s.walls().shapes())                        \
-          X(body_area, double, Bodies, false, Always, false,                                       \
-            s.walls().given_areas()) /* the contact load per grain (both ways: the host's forces   \
-                                        fill it too) */                                            \
-      X(LS, double, Grains, true, Load, false, s.contact_load().sigma)                             \
-          X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max)                       \
-              X(LNX, double, Grains, true, Load, false, s.contact_load().nx)                       \
-                  X(LNY, double, Grains, true, Load, false, s.contact_load().ny)                   \
-                      X(LNZ, double, Grains, true, Load, false,                                    \
-                        s.contact_load().nz) /* crushing: strengths and crack half-lengths */      \
-      X(sigma_lim, double, Grains, false, Crushing, false,                                         \
-        s.particles().field(crusher->strength_field()))                                            \
-          X(crack_a, double, Grains, true, Crushing, false,                                        \
-            s.particles().field(crusher->crack_field()))
+// clang-format off
+#define CD_DEVICE_FIELDS(X) \
+  /* per grain: position, velocity, spin, force, torque; the resultant before damping */ \
+  CD_GRAIN_XYZ(X, ) \
+  CD_GRAIN_XYZ(X, v) \
+  CD_GRAIN_XYZ(X, w) \
+  CD_GRAIN_XYZ(X, f) \
+  CD_GRAIN_XYZ(X, t) \
+  X(fux, double, Grains, true, Always, false, s.resultant_force(0)) \
+  X(fuy, double, Grains, true, Always, false, s.resultant_force(1)) \
+  X(fuz, double, Grains, true, Always, false, s.resultant_force(2)) \
+  X(radius, double, Grains, false, Always, true, s.particles().radius) \
+  X(mass, double, Grains, false, Always, true, s.particles().mass) \
+  X(inv_mass, double, Grains, false, Always, true, s.particles().inv_mass) \
+  X(inv_inertia, double, Grains, false, Always, false, s.particles().inv_inertia) \
+  /* the positions at the last list build */ \
+  X(x0, double, Grains, false, Always, false, s.neighbors().x_ref()) \
+  X(y0, double, Grains, false, Always, false, s.neighbors().y_ref()) \
+  X(z0, double, Grains, false, Always, false, s.neighbors().z_ref()) \
+  /* the half list and its touching flags */ \
+  X(owner, Index, Entries, false, Always, false, s.neighbors().owner) \
+  X(nb, Index, Entries, false, Always, false, s.neighbors().neighbors) \
+  X(touch, std::uint8_t, Entries, true, Always, false, s.history().touching) \
+  /* wall entries: grain and body; tangential history and the results of the last pass */ \
+  X(wp, Index, WallEntries, false, Always, false, s.wall_contacts().particle) \
+  X(ww, std::uint8_t, WallEntries, false, Always, false, s.wall_contacts().wall) \
+  CD_WALL_XYZ(X, wft, ft_) \
+  CD_WALL_XYZ(X, wf, f) \
+  CD_WALL_XYZ(X, wt, t) \
+  X(wFn, double, WallEntries, true, Always, false, s.wall_contacts().F_n) \
+  X(wkn, double, WallEntries, true, Always, false, s.wall_contacts().k_n) \
+  X(wdelta, double, WallEntries, true, Always, false, s.wall_contacts().delta) \
+  /* the bodies' shapes and the servo areas they were given */ \
+  X(shape, BodyShape, Bodies, false, Always, false, s.walls().shapes()) \
+  X(body_area, double, Bodies, false, Always, false, s.walls().given_areas()) \
+  /* the contact load per grain (both ways: the host's forces fill it too) */ \
+  X(LS, double, Grains, true, Load, false, s.contact_load().sigma) \
+  X(LF, double, Grains, true, Load, false, s.contact_load().F_n_max) \
+  X(LNX, double, Grains, true, Load, false, s.contact_load().nx) \
+  X(LNY, double, Grains, true, Load, false, s.contact_load().ny) \
+  X(LNZ, double, Grains, true, Load, false, s.contact_load().nz) \
+  /* crushing: strengths and crack half-lengths */ \
+  X(sigma_lim, double, Grains, false, Crushing, false, \
+    s.particles().field(crusher->strength_field())) \
+  X(crack_a, double, Grains, true, Crushing, false, s.particles().field(crusher->crack_field()))
+// clang-format on
 
 // The three components of a grain vector of the store (prefix p: x, vx, wx, fx, tx ...), both
 // ways, and of a wall entry's vector (the device's prefix, the host's).

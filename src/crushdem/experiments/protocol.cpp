@@ -201,7 +201,7 @@ LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place) {
 
 BodyConfig chamber_body(const LooseCloud& cloud) {
   BodyConfig b;
-  b.name = "chamber";
+  b.name = kSampleBodyNames[0];
   b.kind = BodyKind::CylinderInside;
   b.origin = {0.0, 0.0, -cloud.height};
   b.axis = {0.0, 0.0, 1.0};
@@ -218,7 +218,7 @@ std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud) {
   for (int a = 0; a < 2; ++a) {
     if (cloud.sector > (a == 0 ? 0.5 : 0.25)) continue;  // x = 0 from a half, y = 0 a quarter
     BodyConfig b;
-    b.name = a == 0 ? "symmetry_x" : "symmetry_y";
+    b.name = kSampleBodyNames[static_cast<std::size_t>(1 + a)];
     b.kind = BodyKind::Plane;
     b.axis = a == 0 ? Vec3{-1.0, 0.0, 0.0} : Vec3{0.0, -1.0, 0.0};  // into the body: x, y < 0
     b.friction = 0.0;  // a plane of symmetry carries no shear
@@ -256,10 +256,8 @@ PreparationController::PreparationController(const SampleConfig& cfg, double mat
 
 void PreparationController::begin(Simulation& sim) {
   Walls& w = sim.walls();
-  // The box's six walls, or in a chamber the platens and the chamber's wall.
-  std::vector<int> servo = w.lateral_walls();
-  servo.insert(servo.end(), {4, 5});
-  for (const int k : servo) {
+  // The box's six walls, or in a chamber the chamber's wall and the platens.
+  for (const int k : w.sample_walls()) {
     WallConfig& c = w.config(k);
     c.mode = WallMode::Servo;
     c.target_stress = cfg_.stress;

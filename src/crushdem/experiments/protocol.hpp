@@ -111,6 +111,11 @@ LooseCloud make_loose_cloud(const SampleConfig& cfg, bool place = true);
 /// box walls' friction. Named "chamber".
 BodyConfig chamber_body(const LooseCloud& cloud);
 
+/// The names of the bodies a cylindrical sample adds: the chamber, the symmetry planes x = 0 and
+/// y = 0 (no [[body]] may take them).
+inline constexpr std::array<const char*, 3> kSampleBodyNames = {"chamber", "symmetry_x",
+                                                                "symmetry_y"};
+
 /// The frictionless symmetry planes of a sector: x = 0 for a half ("symmetry_x", the grains at
 /// x > 0), and y = 0 too for a quarter ("symmetry_y"); none for a whole cylinder.
 std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud);

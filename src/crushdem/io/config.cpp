@@ -466,8 +466,9 @@ void RunConfig::validate() const {
     sample.validate(simulation);
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
       const std::string& n = simulation.bodies[i].name;
-      if (sample.shape == SampleShape::Cylinder &&
-          (n == "chamber" || n == "symmetry_x" || n == "symmetry_y")) {
+      if (sample.shape != SampleShape::Cylinder) continue;
+      for (const char* made : kSampleBodyNames) {
+        if (n != made) continue;
         throw ConfigError(bad_value("body[" + std::to_string(i) + "].name", "\"" + n + "\"",
                                     "another name: a cylindrical [sample] makes the bodies "
                                     "\"chamber\", \"symmetry_x\" and \"symmetry_y\""));

@@ -244,10 +244,9 @@ void write_vtp_bodies(const std::string& path, const Walls& walls) {
     const BodyShape& b = walls.shape(k);
     const double q = walls.position(k);
     for (int j = 0; j < b.parts; ++j) {
-      const BodyPart& s = b.part[j];
-      // Where the degree of freedom has put the part (walls/body_geometry.hpp part_surface).
-      const Vec3 o = b.dilate ? s.origin : s.origin + q * b.motion;
-      const double R = b.dilate ? s.radius + q : s.radius;
+      const BodyPart s = placed_part(b.part[j], q, b.motion, b.dilate);
+      const Vec3 o = s.origin;
+      const double R = s.radius;
       const auto [e1, e2] = normal_pair(s.axis);
       const auto ring = [&, e1 = e1, e2 = e2](Vec3 centre, double radius) {
         const std::int64_t first = static_cast<std::int64_t>(m.points.size() / 3);

@@ -113,8 +113,19 @@ CD_HD inline AxialPosition axial_position(Vec3 c, Vec3 origin, Vec3 axis) {
 
 }  // namespace detail
 
-/// The surface of one part for a grain centred at c, the part moved by q along `motion` (a unit
-/// vector; zero for a part that moves by dilation, whose radius is then radius + q).
+/// Part s where the degree of freedom q has put it: moved by q along `motion` (a unit vector),
+/// or with `dilate` its radius grown by q.
+CD_HD_INLINE BodyPart placed_part(const BodyPart& s, double q, Vec3 motion, bool dilate) {
+  BodyPart p = s;
+  if (dilate) {
+    p.radius = s.radius + q;
+  } else {
+    p.origin = s.origin + q * motion;
+  }
+  return p;
+}
+
+/// The surface of one part for a grain centred at c, the part placed by q (placed_part()).
 CD_HD_INLINE SurfacePoint part_surface(const BodyPart& s, double q, Vec3 motion, bool dilate,
                                        Vec3 c) {
   SurfacePoint out;
@@ -123,8 +134,9 @@ CD_HD_INLINE SurfacePoint part_surface(const BodyPart& s, double q, Vec3 motion,
     out.n = wall_outward_normal(s.wall);
     return out;
   }
-  const Vec3 origin = dilate ? s.origin : s.origin + q * motion;
-  const double radius = dilate ? s.radius + q : s.radius;
+  const BodyPart placed = placed_part(s, q, motion, dilate);
+  const Vec3 origin = placed.origin;
+  const double radius = placed.radius;
   switch (s.shape) {
     case Shape::AxisPlane:  // above
       break;

@@ -62,14 +62,14 @@ BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const Pa
     }
   }
   const BodyPart& first = b.part[0];
-  out.tip = first.origin + q * b.motion;
+  out.tip = placed_part(first, q, b.motion, b.dilate).origin;
   out.radius = first.radius;
   out.has_tip = is_tip(first.shape);
   out.sector = walls.sector();
   Vec3 shaft_origin;
   double dh = 0.0;
   if (shaft != nullptr) {
-    shaft_origin = shaft->origin + q * b.motion;
+    shaft_origin = placed_part(*shaft, q, b.motion, b.dilate).origin;
     out.sleeve_length = std::min(sleeve_length, shaft->length);
     bins = std::max(bins, 1);
     dh = shaft->length / bins;

@@ -121,6 +121,12 @@ class Walls {
   std::vector<int> lateral_walls() const {
     return chamber_ >= 0 ? std::vector<int>{chamber_} : std::vector<int>{0, 1, 2, 3};
   }
+  /// Every body that holds the sample: the lateral walls, then the platens (z walls).
+  std::vector<int> sample_walls() const {
+    std::vector<int> k = lateral_walls();
+    k.insert(k.end(), {4, 5});
+    return k;
+  }
   /// The sample's size across which body k moves (a servo's speed limit is a strain rate of
   /// it): a box wall's axis length, the chamber's diameter; 0 for other bodies.
   double extent(int k) const {

@@ -10,9 +10,7 @@ class IsotropicStage final : public Stage {
 
  protected:
   void set_walls(Walls& w) override {
-    for (const int k : w.lateral_walls()) set_servo(w, k, cfg_.stress);
-    set_servo(w, 4, cfg_.stress);
-    set_servo(w, 5, cfg_.stress);
+    for (const int k : w.sample_walls()) set_servo(w, k, cfg_.stress);
   }
   const char* end_reason(Simulation& sim) override {
     return at_equilibrium(sim) ? "equilibrium" : nullptr;

@@ -47,7 +47,7 @@ class PenetrateStage final : public Stage {
     if (cfg_.from_top) {
       // Down its direction until the tip is level with the top wall: the sample's surface.
       const BodyShape& b = w.shape(k);
-      const double tip_z = b.part[0].origin.z + w.position(k) * b.motion.z;
+      const double tip_z = placed_part(b.part[0], w.position(k), b.motion, b.dilate).origin.z;
       if (!(b.motion.z < 0.0) || !(tip_z >= w.position(5))) {
         throw ConfigError(bad_value(
             "stage '" + cfg_.label() + "'.from_top", "true",
