@@ -132,7 +132,7 @@ void Crusher::begin(Simulation& sim) {
   crack_field_ = p.add_field("crack_a", std::numeric_limits<double>::quiet_NaN());
   initial_d_ = p.diameters();
   d50_ = diameter_at_fraction(initial_d_, 0.5);
-  d0_ = cfg_.d0 > 0.0 ? cfg_.d0 : d50_;
+  d0_ = (cfg_.d0 > 0.0 ? cfg_.d0 : d50_) * cfg_.d0_factor;
   d_c_ = cfg_.dc_ratio * d50_;
   d_ref_ = initial_d_.empty() ? 0.0 : *std::min_element(initial_d_.begin(), initial_d_.end());
   rho_ = sim.config().material.density;

@@ -52,7 +52,10 @@ struct CrushingConfig {
   bool crack_growth = false;  // time-dependent failure by crack growth
   double v0 = 0.1;            // reference crack velocity [m/s] (STUDY)
   double n = 60.0;            // stress-corrosion index [-] (STUDY)
-  void validate() const;      // keys "crushing.<key>"
+  // Not a key: set by particle upscaling ([upscaling], io/config.hpp). The reference diameter in
+  // use is d0_factor times d0 (or times the initial d50 when d0 = 0).
+  double d0_factor = 1.0;
+  void validate() const;  // keys "crushing.<key>"
   double r_prime_factor() const { return r_prime == "2R_star" ? 2.0 : 1.0; }
 };
 

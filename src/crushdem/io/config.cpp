@@ -172,6 +172,18 @@ void read_stage(Section& s, StageConfig& c) {
   s.finish();
 }
 
+// A sample's box: a cube of its side, or a cylinder's about the z axis with the box's side
+// walls a diameter clear of it.
+void place_sample_box(RunConfig& c) {
+  const bool cylinder = c.sample.shape == SampleShape::Cylinder;
+  const double D = c.sample.cube_side();
+  for (int a = 0; a < 3; ++a) {
+    c.simulation.walls[static_cast<std::size_t>(2 * a)].position = cylinder && a < 2 ? -D : 0.0;
+    c.simulation.walls[static_cast<std::size_t>(2 * a + 1)].position =
+        a < 2 ? D : c.sample.height();
+  }
+}
+
 }  // namespace
 
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
@@ -227,6 +239,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     }
     s.finish();
   }
+  read_section(r, "upscaling", c.upscaling, upscaling_params());
   {
     auto stages = r.table_array("stage");
     for (Section& s : stages) {
@@ -246,14 +259,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
         "the [box] section");
   }
   if (c.has_sample) {
-    // A cylinder's about the z axis, the box's side walls a diameter clear of it.
-    const bool cylinder = c.sample.shape == SampleShape::Cylinder;
-    const double D = c.sample.cube_side();
-    for (int a = 0; a < 3; ++a) {
-      c.simulation.walls[static_cast<std::size_t>(2 * a)].position = cylinder && a < 2 ? -D : 0.0;
-      c.simulation.walls[static_cast<std::size_t>(2 * a + 1)].position =
-          a < 2 ? D : c.sample.height();
-    }
+    place_sample_box(c);
   } else if (!root.count("box")) {
     // The box of a prepared sample is in its file's header.
     if (c.particles.file.empty()) {
@@ -319,6 +325,7 @@ std::vector<std::pair<std::string, std::vector<param_io::ParamRow>>> section_tab
       {"neighbor", param_rows(neighbor_params())},
       {"gravity", param_rows(gravity_params())},
       {"crushing", param_rows(crushing_params())},
+      {"upscaling", param_rows(upscaling_params())},
       {"output", param_rows(output_params())},
       {"walls.NAME", param_rows(wall_params())},
       {"body", param_rows(body_params())},
@@ -460,8 +467,48 @@ const ParamTable<OutputConfig>& output_params() {
   return table;
 }
 
+const ParamTable<UpscalingConfig>& upscaling_params() {
+  using U = UpscalingConfig;
+  static const ParamTable<U> table = {
+      {"factor", &U::factor, "-",
+       "N: each grain stands for a real grain N times smaller; the grading (or the generated "
+       "diameters), `contact.roughness_Sq`, `crushing.d0` (when given), `crushing.d_min` and "
+       "`crushing.v0` are multiplied by N for the run (docs/chamber.md, Particle upscaling)",
+       [](double v) { return v >= 1.0 && v <= 1e4; }, "a factor from 1 to 1e4"},
+      {"strength", enum_choice(&U::strength, kUpscaledStrengthNames), "",
+       "the strength's size effect: `\"similar\"` gives a grain the strength of the real grain "
+       "it stands for, sigma_lim0 (d / (N d0))^(-3/m) (CHOICE, Ciantia et al. 2015); "
+       "`\"weibull\"` applies the size effect at the upscaled size (N^(-3/m) weaker)"},
+  };
+  return table;
+}
+
+RunConfig upscaled(const RunConfig& c) {
+  const double N = c.upscaling.factor;
+  if (N == 1.0) return c;
+  RunConfig u = c;
+  for (double& d : u.sample.grading.diameter) d *= N;
+  u.particles.generate.diameter_min *= N;
+  u.particles.generate.diameter_max *= N;
+  u.simulation.contact.roughness_Sq *= N;
+  CrushingConfig& k = u.crushing;
+  k.d_min *= N;
+  k.v0 *= N;
+  // d0 in use: the real reference diameter N d0 at the simulated scale ("similar"), or the real
+  // d0 itself ("weibull"); with d0 = 0 the initial d50, which is already the simulated grains'.
+  const bool similar = c.upscaling.strength == UpscaledStrength::Similar;
+  if (k.d0 > 0.0) {
+    k.d0_factor = similar ? N : 1.0;
+  } else {
+    k.d0_factor = similar ? 1.0 : 1.0 / N;
+  }
+  if (u.has_sample) place_sample_box(u);
+  return u;
+}
+
 void RunConfig::validate() const {
   simulation.validate();
+  validate_params(upscaling, upscaling_params(), "upscaling");
   if (has_sample) {
     sample.validate(simulation);
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
@@ -585,6 +632,10 @@ toml::Table to_toml(const RunConfig& c) {
     Table ct = write_params(k, crushing_params());
     if (!k.pattern.empty()) ct["pattern"] = Value::make_string(k.pattern);
     t["crushing"] = Value::make_table(ct);
+  }
+  // Written only when on: a run without upscaling keeps the configuration text it had.
+  if (c.upscaling.factor != 1.0) {
+    t["upscaling"] = Value::make_table(write_params(c.upscaling, upscaling_params()));
   }
   if (c.has_sample || !c.stages.empty()) {
     t["output"] = Value::make_table(output_table(c.output));

@@ -58,6 +58,26 @@ std::vector<std::pair<std::string, std::vector<param_io::ParamRow>>> parameter_t
 /// test checks it).
 std::vector<std::pair<std::string, std::string>> parameter_reference();
 
+/// Particle upscaling (docs/chamber.md): each simulated grain stands for a real grain `factor`
+/// times smaller, and every length that belongs to a grain is multiplied by the factor for the
+/// run (upscaled()): the grading (or the generated diameters), the rough law's S_q, crushing's
+/// d0 (when given) and d_min, and the crack velocity v0 (a crack crosses a grain N times larger
+/// in the same time). `strength` is the rule for the strength's size effect.
+enum class UpscaledStrength {
+  Similar,  // sigma_lim0 (d / (N d0))^(-3/m): the real grain's strength (Ciantia et al.)
+  Weibull   // sigma_lim0 (d / d0)^(-3/m) at the upscaled size: N^(-3/m) weaker
+};
+inline constexpr std::array<Named<UpscaledStrength>, 2> kUpscaledStrengthNames = {
+    {{UpscaledStrength::Similar, "similar"}, {UpscaledStrength::Weibull, "weibull"}}};
+
+struct UpscalingConfig {
+  double factor = 1.0;  // N >= 1 [-]
+  UpscaledStrength strength = UpscaledStrength::Similar;
+};
+
+/// The keys of [upscaling] (core/params.hpp).
+const ParamTable<UpscalingConfig>& upscaling_params();
+
 struct RunConfig {
   SimulationConfig simulation;
   ParticlesConfig particles;  // unless has_sample
@@ -65,6 +85,7 @@ struct RunConfig {
   SampleConfig sample;
   std::vector<StageConfig> stages;  // [[stage]]: a laboratory test, stage after stage
   CrushingConfig crushing;          // [crushing]: grains break (during the test, not preparation)
+  UpscalingConfig upscaling;        // [upscaling]: grains larger than the real ones
   OutputConfig output;
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)
@@ -82,6 +103,11 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
                                const std::string& base_dir);
 RunConfig load_run_config(const std::string& path);
+
+/// The configuration a run uses: `c` with the grain lengths multiplied by the upscaling factor
+/// and the strength rule set (UpscalingConfig); `c` itself when the factor is 1. The run's
+/// config.toml keeps `c` (the real sizes and the factor).
+RunConfig upscaled(const RunConfig& c);
 
 /// The resolved configuration (every key, defaults filled in) as TOML.
 toml::Table to_toml(const SimulationConfig& c);

@@ -22,6 +22,11 @@
 
 namespace crushdem {
 
+namespace {
+// The sample file's header key for the upscaling factor it was prepared with (none: 1).
+constexpr const char* kUpscalingHeader = "upscaling_factor";
+}  // namespace
+
 void add_packing_particles(Simulation& sim, const Packing& pk) {
   for (const PackingRow& r : pk.rows) {
     NewParticle np;
@@ -37,6 +42,17 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
   const auto box = cfg.box();
   if (!cfg.particles.file.empty()) {
     const Packing pk = read_packing(cfg.particles.file);
+    // Upscaled grains carry lengths (S_q, d_min, v0) that a run at another factor would give
+    // the wrong sizes.
+    const auto up = pk.header.find(kUpscalingHeader);
+    const double made_at =
+        up == pk.header.end() ? 1.0 : pk.header_number(kUpscalingHeader, cfg.particles.file);
+    if (made_at != cfg.upscaling.factor) {
+      throw ConfigError(bad_value("upscaling.factor", show_number(cfg.upscaling.factor),
+                                  show_number(made_at) + ", the factor " + cfg.particles.file +
+                                      " was prepared with (its '# " + kUpscalingHeader +
+                                      "=' header; none: 1)"));
+    }
     for (const PackingRow& r : pk.rows) {
       const double rad = 0.5 * r.diameter;
       const double c[3] = {r.position.x, r.position.y, r.position.z};
@@ -111,7 +127,7 @@ class RunFiles final : public StageOutputs {
 class Run {
  public:
   Run(const RunConfig& cfg, const RunOptions& opt)
-      : cfg_(cfg),
+      : cfg_(upscaled(cfg)),
         opt_(opt),
         dir_(opt.out_dir),
         stepper_(make_stepper(opt.backend)),
@@ -347,6 +363,9 @@ class Run {
     pk.header["preparation_friction"] = format_double(prep.preparation_friction());
     pk.header["stress_Pa"] = format_double(cfg_.sample.stress);
     pk.header["seed"] = std::to_string(cfg_.sample.seed);
+    if (cfg_.upscaling.factor != 1.0) {
+      pk.header[kUpscalingHeader] = format_double(cfg_.upscaling.factor);
+    }
     const ParticleStore& p = sim.particles();
     for (std::size_t i = 0; i < p.size(); ++i) {
       pk.rows.push_back({p.id[i], {p.x[i], p.y[i], p.z[i]}, 2.0 * p.radius[i]});
@@ -480,7 +499,7 @@ class Run {
     return r;
   }
 
-  const RunConfig& cfg_;
+  const RunConfig cfg_;  // upscaled(): the sizes the run simulates
   const RunOptions& opt_;
   const fs::path dir_;
   std::unique_ptr<Stepper> stepper_;  // what advances the simulation (opt.backend)
