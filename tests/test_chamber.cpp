@@ -118,6 +118,56 @@ TEST(Chamber, AQuarterBetweenSymmetryPlanesIsPreparedAndPenetratedOnItsAxis) {
   }
 }
 
+TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) {
+  // A chamber sample prepared without gravity (400 grains, e = 0.75, 20 kPa), then read back by
+  // a test (particles.file: the chamber rebuilt at the file's chamber_radius) and held at rest
+  // under 1,000 g (a centrifuge model's gravity, so that the weight W is comparable with the
+  // platens' loads), the chamber fixed (no lateral strain) and the top platen at 20 kPa. With
+  // the force F_z of the grains on the chamber's wall, the base carries
+  //   N_bottom = N_top + W + F_z,
+  // all of W without wall friction (F_z = 0); with it the wall takes a share (a silo's).
+  const testing::TempDir temp("chamber_gravity");
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (temp.path() / "sample").string();
+  run_to_directory(config("[contact]\nrotation = \"blocked\"\n[sample]\nshape = \"cylinder\"\n"
+                          "count = 400\nvoid_ratio = 0.75\nstress = 20e3\nseed = 4\n"),
+                   opt);
+  const std::string file = (temp.path() / "sample" / "sample.txt").string();
+  const Packing pk = read_packing(file);
+  const double R = pk.header_number("chamber_radius", file);
+  double W = 0.0;
+  for (const PackingRow& row : pk.rows) {
+    W += 2650.0 * kPi / 6.0 * std::pow(row.diameter, 3) * 9810.0;
+  }
+  for (const double mu_w : {0.0, 0.275}) {
+    const std::string text =
+        "[gravity]\ng = [0.0, 0.0, -9810.0]\n[contact]\nrotation = \"blocked\"\nwall_friction = " +
+        std::to_string(mu_w) + "\n[particles]\nfile = \"" + file +
+        "\"\n[[stage]]\ntype = \"hold\"\naxial = \"servo\"\naxial_stress = 20e3\nlateral = "
+        "\"fixed\"\nsteps = 50000\nmax_strain_rate = 100.0\n[output]\ninterval = 2000\n"
+        "progress_seconds = 0\n";
+    opt.out_dir = (temp.path() / ("rest_" + std::to_string(mu_w))).string();
+    run_to_directory(config(text), opt);
+    auto ts = testing::read_csv(opt.out_dir + "/timeseries.csv");
+    // The file's chamber: its radius, its stress and the sample's void ratio at the start.
+    EXPECT_EQ(ts["body_chamber_position_m"].front(), 0.0);
+    EXPECT_NEAR(ts["body_chamber_stress_Pa"].front() / 20e3, 1.0, 0.01);
+    EXPECT_NEAR(ts["void_ratio"].front(), pk.header_number("void_ratio", file), 1e-9);
+    const double A = kPi * R * R;
+    const double N_bottom = ts["wall_zmin_stress_Pa"].back() * A;
+    const double N_top = ts["wall_zmax_stress_Pa"].back() * A;
+    const double F_z = ts["body_chamber_force_z_N"].back();
+    EXPECT_LT(ts["unbalanced_force_ratio"].back(), 1e-3) << "mu_w " << mu_w;
+    EXPECT_NEAR((N_bottom - N_top - F_z) / W, 1.0, 0.01) << "mu_w " << mu_w;
+    if (mu_w == 0.0) {
+      EXPECT_EQ(F_z, 0.0);
+    } else {
+      EXPECT_LT(F_z, -0.1 * W) << "the rough wall carries none of the weight";
+    }
+  }
+}
+
 TEST(Chamber, BadChambersAreRefusedNamingTheKey) {
   const std::string sample = "[sample]\nshape = \"cylinder\"\ncount = 400\nvoid_ratio = 0.8\n";
   // (the configuration, the key its error must name)

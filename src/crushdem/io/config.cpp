@@ -283,6 +283,13 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
       c.simulation.walls[static_cast<std::size_t>(k)].position = box[static_cast<std::size_t>(k)];
     }
   }
+  if (!c.has_sample && !c.particles.file.empty() && std::filesystem::exists(c.particles.file)) {
+    const Packing pk = read_packing(c.particles.file);
+    if (pk.header.count("chamber_radius")) {
+      c.file_chamber_radius = pk.header_number("chamber_radius", c.particles.file);
+      if (pk.header.count("sector")) c.file_sector = pk.header_number("sector", c.particles.file);
+    }
+  }
   {
     Section s = r.sub("run");
     if (root.count("run") && (c.has_sample || !c.stages.empty())) {
@@ -511,19 +518,20 @@ void RunConfig::validate() const {
   validate_params(upscaling, upscaling_params(), "upscaling");
   if (has_sample) {
     sample.validate(simulation);
+  }
+  if (has_sample || file_chamber_radius > 0.0) {
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
       const std::string& n = simulation.bodies[i].name;
-      if (sample.shape != SampleShape::Cylinder) continue;
+      if (has_sample && sample.shape != SampleShape::Cylinder) continue;
       for (const char* made : kSampleBodyNames) {
         if (n != made) continue;
         throw ConfigError(bad_value("body[" + std::to_string(i) + "].name", "\"" + n + "\"",
-                                    "another name: a cylindrical [sample] makes the bodies "
+                                    "another name: a cylindrical sample makes the bodies "
                                     "\"chamber\", \"symmetry_x\" and \"symmetry_y\""));
       }
     }
-  } else {
-    particles.validate(box());
   }
+  if (!has_sample) particles.validate(box());
   for (std::size_t i = 0; i < stages.size(); ++i) {
     // A kind that cannot run here is said first, whatever its keys.
     if (stages[i].kind->needs_crack_growth && !(crushing.enabled && crushing.crack_growth)) {

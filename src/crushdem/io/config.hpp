@@ -86,6 +86,10 @@ struct RunConfig {
   std::vector<StageConfig> stages;  // [[stage]]: a laboratory test, stage after stage
   CrushingConfig crushing;          // [crushing]: grains break (during the test, not preparation)
   UpscalingConfig upscaling;        // [upscaling]: grains larger than the real ones
+  // A chamber sample read from particles.file (its header's chamber_radius and sector): the run
+  // rebuilds its chamber as [sample] made it. Not keys.
+  double file_chamber_radius = 0.0;  // [m]; 0: not a chamber sample
+  double file_sector = 360.0;        // [deg]
   OutputConfig output;
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)

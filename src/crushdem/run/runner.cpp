@@ -220,10 +220,19 @@ class Run {
                                                                               : cloud_.height;
       }
     }
+    LooseCloud size;  // the chamber's shape (its place, when resumed, is in the state)
     if (cylinder) {
-      // Resumed: the chamber's shape from the cloud's size alone (its place is in the state).
-      const LooseCloud size = resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_;
-      sim_cfg.bodies.push_back(chamber_body(size));
+      size = resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_;
+    } else if (cfg_.file_chamber_radius > 0.0) {
+      // A chamber sample from its file: the chamber at the radius it was prepared to.
+      size.side = 2.0 * cfg_.file_chamber_radius;
+      size.height = sim_cfg.walls[5].position - sim_cfg.walls[4].position;
+      size.sector = cfg_.file_sector / 360.0;
+    }
+    if (size.side > 0.0) {
+      BodyConfig chamber = chamber_body(size);
+      if (!cylinder) chamber.origin.z += sim_cfg.walls[4].position;  // about the file's box
+      sim_cfg.bodies.push_back(chamber);
       for (const BodyConfig& plane : symmetry_planes(size)) sim_cfg.bodies.push_back(plane);
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
@@ -320,7 +329,8 @@ class Run {
       prepare_sample();
     } else if (!cfg_.has_sample && !resumed_) {
       add_configured_particles(*sim_, cfg_);
-      check_bodies_clear(sim_->walls(), sim_->particles());
+      check_bodies_clear(sim_->walls(), sim_->particles(),
+                         static_cast<int>(cfg_.simulation.bodies.size()));
       sim_->compute_forces();
       driver_->snapshot();
     }
@@ -358,6 +368,7 @@ class Run {
     }
     if (sim.walls().chamber() >= 0) {  // its axis is the z axis
       pk.header["chamber_radius"] = format_double(sim.walls().chamber_radius());
+      if (cfg_.sample.sector != 360.0) pk.header["sector"] = format_double(cfg_.sample.sector);
     }
     pk.header["void_ratio"] = format_double(prep.void_ratio());
     pk.header["preparation_friction"] = format_double(prep.preparation_friction());

@@ -24,8 +24,9 @@ bool probe_supports(const BodyShape& b) {
   return true;
 }
 
-void check_bodies_clear(const Walls& walls, const ParticleStore& p) {
-  for (int k = kNumWalls; k < walls.size(); ++k) {
+void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies) {
+  const int end = bodies < 0 ? walls.size() : std::min(walls.size(), kNumWalls + bodies);
+  for (int k = kNumWalls; k < end; ++k) {
     for (std::size_t i = 0; i < p.size(); ++i) {
       const Vec3 c{p.x[i], p.y[i], p.z[i]};
       if (walls.surface(k, c).dist >= p.radius[i]) continue;

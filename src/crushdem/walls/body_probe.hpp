@@ -54,7 +54,9 @@ struct BodyProbe {
 /// Every body beyond the box clear of every grain (no grain overlaps its surface or lies inside
 /// it): a body placed into the grains would start with an explosive overlap. ConfigError naming
 /// body[i].origin, the body, the grain and its position otherwise.
-void check_bodies_clear(const Walls& walls, const ParticleStore& p);
+/// Only the first `bodies` [[body]] tables are checked (all: -1): the bodies a chamber sample
+/// brings (its chamber and symmetry planes, after them) hold grains pressed against them.
+void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies = -1);
 
 /// Body k of `walls` as the last force evaluation left it (probe_supports() must hold).
 /// sleeve_length: L_s (clamped to the shaft's length); bins: the number of bins along the shaft.
