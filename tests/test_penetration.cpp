@@ -105,6 +105,51 @@ TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) 
   EXPECT_GE(compared, 6u);  // config, timeseries, summary, penetration, shaft profile, snapshots
 }
 
+TEST(Penetration, AJackedConeAdvancesInStrokesAndStandsStillBetweenThem) {
+  // The cone of config() jacked in strokes of 0.1 mm with pauses of 20 us: 0.1, 0.2, 0.3 and
+  // 0.4 mm, each followed by a pause, then the last 0.05 mm to the depth.
+  std::string text = testing::test_data("grains_300.toml") +
+                     testing::test_data("penetration_300.toml");
+  const std::string at = "depth = 0.45e-3\n";
+  text.replace(text.find(at), at.size(), at + "stroke = 0.1e-3\npause = 20e-6\n");
+  const RunConfig cfg = config(text);
+  const testing::TempDir temp("jacked");
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (temp.path() / "whole").string();
+  run_to_directory(cfg, opt);
+  auto pen = testing::read_csv((temp.path() / "whole" / "penetration.csv").string());
+  const std::vector<double>& travel = pen["travel_m"];
+  const std::vector<double>& time = pen["time_s"];
+  const std::size_t n = travel.size();
+  const double v = 2.0, dt = (time[1] - time[0]) / 500.0;  // the first rows: 500 steps apart
+  EXPECT_EQ(pen["strokes"].back(), 4.0);
+  EXPECT_GE(travel.back(), 0.45e-3 * (1.0 - 1e-12));
+  EXPECT_LT(travel.back() - 0.45e-3, v * dt * 1.01);
+  // Each pause: it begins on its stroke's end, the cone stands still through it, and it lasts
+  // `pause` (to a step).
+  int pauses = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(pen["moving"][i] == 0.0 && pen["moving"][i - 1] == 1.0) || i + 1 == n) continue;
+    ++pauses;
+    EXPECT_NEAR(travel[i], 1e-4 * pauses, v * dt * 1.01) << "stroke " << pauses;
+    std::size_t j = i;
+    while (j + 1 < n && pen["moving"][j + 1] == 0.0) {
+      ++j;
+      EXPECT_EQ(travel[j], travel[i]) << "the cone moved during pause " << pauses;
+    }
+    ASSERT_LT(j + 1, n);
+    const double held = time[j + 1] - time[i];  // to the row where it moves again
+    EXPECT_GE(held, 20e-6 * (1.0 - 1e-9)) << "pause " << pauses;
+    EXPECT_LT(held, 20e-6 + 1.01 * dt) << "pause " << pauses;
+  }
+  EXPECT_EQ(pauses, 4);
+  // Resumed in the middle of the jacking, the run writes the files of an uninterrupted one.
+  const std::size_t compared = testing::expect_stopped_run_resumes_exactly(
+      cfg, opt, temp.path() / "whole", temp.path() / "stopped", "penetration.csv");
+  EXPECT_GE(compared, 6u);
+}
+
 std::string config_error(const std::string& text) {
   try {
     const RunConfig cfg = config(text);

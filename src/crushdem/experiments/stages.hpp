@@ -56,6 +56,8 @@ struct StageConfig {
   std::uint64_t bins = 20;                   // penetrate: bins along the shaft
   double sleeve_length = 0.0;                // penetrate [m]; 0 = 3.75 shaft diameters
   bool from_top = false;                     // penetrate: start with the tip at the top wall
+  double stroke = 0.0;                       // penetrate: jacking stroke [m]; 0 = continuous
+  double pause = 0.0;                        // penetrate: the body held still between strokes [s]
   // Equilibrium (isotropic, servo oedometric) and limits: every kind.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this

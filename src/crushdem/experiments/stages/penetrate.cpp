@@ -4,7 +4,9 @@
 // `from_top` it starts with its tip level with the top wall (the sample's surface). Its own files,
 // a row every record_interval steps: penetration.csv (travel, tip position, q_c, f_s, the loads on
 // the tip and the shaft, with the run's measurements) and shaft_profile.csv (the radial and shear
-// stress on the shaft by bins along it: walls/body_probe.hpp).
+// stress on the shaft by bins along it: walls/body_probe.hpp). With `stroke` the body is jacked:
+// it advances `stroke` at `velocity`, stands still for `pause` (held where it is, as a jack that
+// grips it), and so on until `depth`.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -59,10 +61,8 @@ class PenetrateStage final : public Stage {
       sim.invalidate();  // the wall contacts are found again for the body's new place
     }
     q_start_ = w.position(k);
-    WallConfig& c = w.config(k);
-    c.mode = WallMode::Velocity;
-    c.velocity = cfg_.velocity;
-    w.update_velocities(sim.current_dt());
+    next_stop_ = cfg_.stroke > 0.0 ? std::min(cfg_.stroke, cfg_.depth) : cfg_.depth;
+    move(sim, true);
     record(sim);
   }
 
@@ -75,14 +75,17 @@ class PenetrateStage final : public Stage {
   /// A record reads the grains' positions and their contacts with the body.
   bool reads_grains(const Simulation& sim) const override {
     const Walls& w = sim.walls();
+    // (at every record, at a stroke's end, at a pause's end and at the depth)
     return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
-           w.position(body_index(w, cfg_.body)) - q_start_ >= cfg_.depth * (1.0 - 1e-12);
+           (!pausing_ &&
+            w.position(body_index(w, cfg_.body)) - q_start_ >= next_stop_ * (1.0 - 1e-12)) ||
+           (pausing_ && sim.time() >= pause_end_ * (1.0 - 1e-15));
   }
 
   void state(StateArchive& a) override {
     Stage::state(a);
     a.section("penetration");
-    a(q_start_, travel_, q_c_);
+    a(q_start_, travel_, q_c_, next_stop_, pause_end_, pausing_, strokes_);
   }
 
  protected:
@@ -93,20 +96,31 @@ class PenetrateStage final : public Stage {
     const int k = body_index(w, cfg_.body);
     travel_ = w.position(k) - q_start_;
     const bool done = travel_ >= cfg_.depth * (1.0 - 1e-12);
-    if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || done) record(sim);
+    bool event = done;
+    if (pausing_ && sim.time() >= pause_end_ * (1.0 - 1e-15)) {  // the next stroke
+      pausing_ = false;
+      next_stop_ = std::min(next_stop_ + cfg_.stroke, cfg_.depth);
+      move(sim, true);
+      event = true;
+    } else if (!pausing_ && !done && travel_ >= next_stop_ * (1.0 - 1e-12)) {  // a stroke's end
+      pausing_ = true;
+      ++strokes_;
+      pause_end_ = sim.time() + cfg_.pause;
+      move(sim, false);
+      event = true;
+    }
+    if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || event) record(sim);
     if (!done) return nullptr;
-    // The body stops where it is; the next stage finds it still.
-    w.config(k).mode = WallMode::Fixed;
-    w.config(k).velocity = 0.0;
-    w.update_velocities(sim.current_dt());
+    move(sim, false);  // the body stops where it is; the next stage finds it still
     return "depth reached";
   }
 
   std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override {
     const std::uint64_t done = sim.step_count() - start_step_;
     n = std::min(n, cfg_.record_interval - done % cfg_.record_interval);
-    // The last steps land on the depth.
-    const double left = std::ceil((cfg_.depth - travel_) / (cfg_.velocity * sim.dt()));
+    // The last steps land on the stroke's end or the depth, or on the end of a pause.
+    const double left = pausing_ ? std::ceil((pause_end_ - sim.time()) / sim.dt())
+                                 : std::ceil((next_stop_ - travel_) / (cfg_.velocity * sim.dt()));
     return std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
   }
 
@@ -135,6 +149,8 @@ class PenetrateStage final : public Stage {
     m.emplace_back("sleeve_load_N", p.sleeve_load);
     m.emplace_back("tip_contacts", static_cast<double>(p.tip_contacts));
     m.emplace_back("shaft_contacts", static_cast<double>(p.shaft_contacts));
+    m.emplace_back("moving", pausing_ || travel_ >= cfg_.depth * (1.0 - 1e-12) ? 0.0 : 1.0);
+    m.emplace_back("strokes", static_cast<double>(strokes_));
     for (auto& kv : out->measure(sim)) m.push_back(kv);  // time_s, step, the walls, crushing
     out->write("penetration.csv", m);
     for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
@@ -151,9 +167,22 @@ class PenetrateStage final : public Stage {
     }
   }
 
-  double q_start_ = 0.0;  // the body's degree of freedom at the start [m]
-  double travel_ = 0.0;   // since the start [m]
-  double q_c_ = 0.0;      // at the last record [Pa]
+  // The body driven at `velocity` (moving) or held still where it is.
+  void move(Simulation& sim, bool moving) {
+    Walls& w = sim.walls();
+    WallConfig& c = w.config(body_index(w, cfg_.body));
+    c.mode = moving ? WallMode::Velocity : WallMode::Fixed;
+    c.velocity = moving ? cfg_.velocity : 0.0;
+    w.update_velocities(sim.current_dt());
+  }
+
+  double q_start_ = 0.0;       // the body's degree of freedom at the start [m]
+  double next_stop_ = 0.0;     // the travel where the body next stops: a stroke's end or depth [m]
+  double pause_end_ = 0.0;     // the time a pause ends [s]
+  bool pausing_ = false;       // between strokes
+  std::uint64_t strokes_ = 0;  // strokes completed
+  double travel_ = 0.0;        // since the start [m]
+  double q_c_ = 0.0;           // at the last record [Pa]
 };
 
 }  // namespace
@@ -187,6 +216,14 @@ const StageKind& penetrate_stage_kind() {
           {"from_top", &StageConfig::from_top, "",
            "at the start, lower the body along its direction until its tip is level with the top "
            "wall (the top of a prepared cube or chamber sample): travel is then depth below it"},
+          {"stroke", &StageConfig::stroke, "m",
+           "jacking: the body advances `stroke`, stands still for `pause`, and again, until "
+           "`depth` (the mini-piles of calibration chambers are jacked in strokes); 0 = one "
+           "continuous push",
+           [](double v) { return v >= 0.0; }, "a stroke length >= 0 in m"},
+          {"pause", &StageConfig::pause, "s",
+           "how long the body is held still (where it is, not unloaded) between strokes",
+           [](double v) { return v >= 0.0; }, "a time >= 0 in s"},
           {"sleeve_length", &StageConfig::sleeve_length, "m",
            "friction sleeve above the tip for f_s; 0 = 3.75 shaft diameters (150 cm^2 on a "
            "35.7 mm cone, ISO 22476-1)",
