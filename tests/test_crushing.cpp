@@ -98,6 +98,10 @@ TEST(Crushing, GrainBetweenWallsBreaksAtTheHertzForce) {
   EXPECT_GE(F, 1.0);
   EXPECT_LT(F, 1.0 + 1e-3);
   EXPECT_EQ(ev[0].fragments.size(), 14u);
+  // Where it broke (breakage.csv's x_m, y_m, z_m): its centre, halfway between the walls.
+  EXPECT_EQ(ev[0].position.x, 0.0);
+  EXPECT_EQ(ev[0].position.y, 0.0);
+  EXPECT_NEAR(ev[0].position.z, 0.5 * sim.walls().position(5), 1e-3 * R);
   EXPECT_EQ(sim.particles().size(), 14u);
   // Force from sigma: F = sigma pi R delta, delta from Hertz: compare with the closed form.
   const double delta =

@@ -91,6 +91,8 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithCrushing) {
   EXPECT_GE(compare_thread_counts(config, base), 9u);  // + breakage.csv, grading.csv
   const std::string log = slurp(base / "t1" / "breakage.csv");
   EXPECT_GE(std::count(log.begin(), log.end(), '\n'), 6);  // header + at least 5 breakages
+  EXPECT_EQ(log.substr(0, log.find('\n')).substr(log.find("fragment_ids")),
+            "fragment_ids,x_m,y_m,z_m");
 #endif
 }
 

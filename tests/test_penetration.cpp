@@ -108,8 +108,8 @@ TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) 
 TEST(Penetration, AJackedConeAdvancesInStrokesAndStandsStillBetweenThem) {
   // The cone of config() jacked in strokes of 0.1 mm with pauses of 20 us: 0.1, 0.2, 0.3 and
   // 0.4 mm, each followed by a pause, then the last 0.05 mm to the depth.
-  std::string text = testing::test_data("grains_300.toml") +
-                     testing::test_data("penetration_300.toml");
+  std::string text =
+      testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
   const std::string at = "depth = 0.45e-3\n";
   text.replace(text.find(at), at.size(), at + "stroke = 0.1e-3\npause = 20e-6\n");
   const RunConfig cfg = config(text);

@@ -85,6 +85,8 @@ Penetration ("penetrate" stages; drawn only when DIR/penetration.csv exists):
                               the body's travel [mm], downwards
 * ``shaft_stress.png``        radial stress on the shaft [kPa] against the height above its
                               start [mm], at four travels of the last penetrate stage
+* ``breakage_field.png``      where grains broke around the body (with [crushing]): distance
+                              from its axis [mm] against z [mm], coloured by the travel
 
 A day of ageing is a few milliseconds of DEM time, so the figures against time (stress_time,
 coordination, kinetic_energy) draw the stages before the age stages against DEM time and the age

@@ -196,6 +196,24 @@ def read_grading(run_dir: PathLike) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     return np.asarray([size for size, _ in cols]), passing
 
 
+def read_breakage_positions(run_dir: PathLike) -> Optional[Columns]:
+    """``time_s``, ``diameter_m`` and the centre ``x_m``, ``y_m``, ``z_m`` of every breakage in
+    DIR/breakage.csv, as arrays; None when the file is missing or has no positions (runs begun
+    by a version that did not write them)."""
+    path = os.path.join(run_dir, "breakage.csv")
+    keys = ("time_s", "diameter_m", "x_m", "y_m", "z_m")
+    try:
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            if not reader.fieldnames or "x_m" not in reader.fieldnames:
+                return None
+            rows = [[float(row[k]) for k in keys] for row in reader]
+    except (OSError, ValueError, KeyError, TypeError, csv.Error):
+        return None
+    table = np.asarray(rows, dtype=float).reshape(-1, len(keys))
+    return {k: table[:, j] for j, k in enumerate(keys)}
+
+
 def read_breakage(run_dir: PathLike) -> List[Tuple[float, str]]:
     """(diameter [m], cause) of every breakage in DIR/breakage.csv; [] when there is none."""
     path = os.path.join(run_dir, "breakage.csv")
@@ -232,6 +250,7 @@ class RunData:
     breakage: List[Tuple[float, str]] = field(default_factory=list)
     penetration: Optional[Columns] = None
     shaft_profile: Optional[Columns] = None
+    breakage_positions: Optional[Columns] = None
 
     @property
     def title(self) -> str:
@@ -251,4 +270,5 @@ def read_run(run_dir: PathLike) -> RunData:
     return RunData(directory=run_dir, timeseries=d, summary=summary, finished=finished,
                    events=read_events(run_dir), grading=read_grading(run_dir),
                    breakage=read_breakage(run_dir), penetration=read_penetration(run_dir),
-                   shaft_profile=read_shaft_profile(run_dir))
+                   shaft_profile=read_shaft_profile(run_dir),
+                   breakage_positions=read_breakage_positions(run_dir))

@@ -310,7 +310,8 @@ def _crushing_run(path, breakages=True):
             for _ in range(count):
                 dia = d50 * math.exp(rng.normal(0.0, 0.25)) * (0.5 if cause == "crack" else 1.0)
                 broken.append([t, int(t * 1e8), len(broken), dia, cause, 4e9, 3.8e9, 14, 3,
-                               " ".join(str(n_part + k) for k in range(14))])
+                               " ".join(str(n_part + k) for k in range(14)), 1e-3, 2e-3,
+                               3e-3])
         n_inst += new_inst
         n_crack += new_crack
         n_part += 11 * (new_inst + new_crack)
@@ -343,7 +344,7 @@ def _crushing_run(path, breakages=True):
     with open(os.path.join(run, "breakage.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
-                    "fragments", "removed_fragments", "fragment_ids"])
+                    "fragments", "removed_fragments", "fragment_ids", "x_m", "y_m", "z_m"])
         if breakages:
             w.writerows(broken)
     return run
@@ -789,9 +790,11 @@ def _penetration_run(path):
     q_c = np.where(travel > 0.2e-3, 2e7 * (travel - 0.2e-3), 0.0)
     with open(os.path.join(run, "penetration.csv"), "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["stage", "travel_m", "q_c_Pa", "f_s_Pa", "time_s"])
+        w.writerow(["stage", "travel_m", "q_c_Pa", "f_s_Pa", "time_s", "tip_x_m", "tip_y_m",
+                    "tip_z_m", "wall_zmax_position_m"])
         for t, q in zip(travel, q_c):
-            w.writerow([1, float(t), float(q), float(0.01 * q), float(t / 2.0)])
+            w.writerow([1, float(t), float(q), float(0.01 * q), float(t / 2.0), 1e-3, 0.0,
+                        float(1.2e-3 - t), 1.0e-3])
     with open(os.path.join(run, "shaft_profile.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["stage", "travel_m", "bin", "height_m", "sigma_r_Pa", "tau_Pa", "contacts"])
@@ -821,6 +824,37 @@ def test_penetration_run_draws_q_c_f_s_and_the_shaft_stress(tmp_path):
     assert_drawn(lines[-1], [100.0, 200.0, 300.0], (np.arange(3) + 0.5) * 1e-4 * 1e3)
     assert len(lines) == 4
     _close(fig)
+
+
+def test_breakage_around_the_cone_is_drawn_by_distance_from_its_axis(tmp_path):
+    run, travel, _ = _penetration_run(tmp_path / "cpt")
+    # Three grains broke during the push (time = travel / 2: the first at its start), one after
+    # the stage ended (not drawn).
+    events = [(0.0, 2e-4, 1e-3 + 3e-4, 0.0, 0.9e-3), (2e-4, 1e-4, 1e-3, 4e-4, 0.7e-3),
+              (3.5e-4, 2e-4, 1e-3, 0.0, 0.5e-3), (1.0, 2e-4, 1e-3, 0.0, 0.1e-3)]
+    with open(os.path.join(run, "breakage.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
+                    "fragments", "removed_fragments", "fragment_ids", "x_m", "y_m", "z_m"])
+        for k, (t, d, x, y, z) in enumerate(events):
+            w.writerow([t, k, k, d, "instant", 1e9, 1e9, 14, 0, "1 2", x, y, z])
+    assert "breakage_field.png" in _plots(run)
+    data = rundir.read_run(run)
+    assert data.breakage_positions["x_m"].size == 4
+    fig = figures.figure_breakage_field(data)
+    ax = fig.axes[0]
+    offsets = ax.collections[0].get_offsets()
+    # r from the axis through the tip's last x, y (1 mm, 0), z as written, in mm.
+    np.testing.assert_allclose(offsets[:, 0], [0.3, 0.4, 0.0], atol=1e-12)
+    np.testing.assert_allclose(offsets[:, 1], [0.9, 0.7, 0.5], atol=1e-12)
+    np.testing.assert_allclose(ax.collections[0].get_array(), [0.0, 0.4, 0.7], atol=1e-12)
+    assert "3 breakages" in ax.get_title()
+    _close(fig)
+    # A breakage.csv without positions (a run begun by an older version): no field figure.
+    with open(os.path.join(run, "breakage.csv"), "w", newline="") as f:
+        csv.writer(f).writerow(["time_s", "step", "id", "diameter_m", "cause"])
+    assert rundir.read_breakage_positions(run) is None
+    assert "breakage_field.png" not in _plots(run, tmp_path / "again")
 
 
 def test_a_run_without_penetration_has_no_penetration_figures(tmp_path):

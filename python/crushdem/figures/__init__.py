@@ -36,7 +36,7 @@ from .laboratory import (figure_inertial_number, figure_oedometer, figure_prepar
                          figure_void_ratio, oedometer_label)
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
-from .penetration import figure_penetration, figure_shaft_stress
+from .penetration import figure_breakage_field, figure_penetration, figure_shaft_stress
 from .time_series import figure_coordination, figure_kinetic_energy, figure_stress_time
 
 # The functions of the modules below (FIGURES and the constants of figures.common are
@@ -51,6 +51,7 @@ __all__ = [
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",
     "figure_force_statistics", "figure_penetration", "figure_shaft_stress",
+    "figure_breakage_field",
     "draw_all", "display_available", "use_file_backend_without_display",
 ]
 
@@ -75,6 +76,7 @@ FIGURES: Dict[str, Callable[[Run], Any]] = {
     "relaxation_breakage.png": figure_relaxation_breakage,
     "penetration.png": figure_penetration,
     "shaft_stress.png": figure_shaft_stress,
+    "breakage_field.png": figure_breakage_field,
 }
 
 

@@ -249,6 +249,7 @@ std::vector<BreakageEvent> Crusher::split(Simulation& sim,
     ev.step = sim.step_count();
     ev.id = p.id[i];
     ev.diameter = 2.0 * R;
+    ev.position = {p.x[i], p.y[i], p.z[i]};
     ev.cause = cause;
     ev.sigma = have_load ? load.sigma[i] : 0.0;
     ev.sigma_lim = p.field(strength_field_)[i];

@@ -73,6 +73,7 @@ struct BreakageEvent {
   std::uint64_t step = 0;
   ParticleId id = 0;
   double diameter = 0.0;
+  Vec3 position;  // the grain's centre when it broke [m]
   BreakCause cause = BreakCause::Instant;
   double sigma = 0.0, sigma_lim = 0.0;  // [Pa] at failure
   std::vector<ParticleId> fragments;    // retained fragments

@@ -111,7 +111,7 @@ void Driver::attach_crusher(Crusher* crusher, bool resumed) {
   if (!resumed) {
     file("breakage.csv")
         .start({"time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
-                "fragments", "removed_fragments", "fragment_ids"});
+                "fragments", "removed_fragments", "fragment_ids", "x_m", "y_m", "z_m"});
   }
 }
 
@@ -233,6 +233,9 @@ void Driver::progress(const std::string& label, const std::function<double()>& f
 
 void Driver::log(const std::vector<BreakageEvent>& events) {
   CsvWriter& out = file("breakage.csv");
+  // The grain's centre: in the files of runs begun by a version that wrote it.
+  const std::vector<std::string>& cols = out.columns();
+  const bool positions = std::find(cols.begin(), cols.end(), "x_m") != cols.end();
   for (const BreakageEvent& e : events) {
     std::string line = format_double(e.time) + "," + std::to_string(e.step) + "," +
                        std::to_string(e.id) + "," + format_double(e.diameter) + "," +
@@ -242,6 +245,12 @@ void Driver::log(const std::vector<BreakageEvent>& events) {
     for (std::size_t k = 0; k < e.fragments.size(); ++k) {
       if (k) line += ' ';
       line += std::to_string(e.fragments[k]);
+    }
+    if (positions) {
+      for (const double c : {e.position.x, e.position.y, e.position.z}) {
+        line += ',';
+        line += format_double(c);
+      }
     }
     out.write_line(line);  // flushed: finished work is on disk
   }
