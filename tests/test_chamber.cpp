@@ -88,6 +88,7 @@ TEST(Chamber, AQuarterBetweenSymmetryPlanesIsPreparedAndPenetratedOnItsAxis) {
   run_to_directory(cfg, opt);
   const Packing pk = read_packing((temp.path() / "run" / "sample.txt").string());
   const double R = std::stod(pk.header.at("chamber_radius"));
+  EXPECT_EQ(pk.header.at("sector"), "90");  // read back by a test, the planes are rebuilt
   const double H = std::stod(pk.header.at("box_zmax")) - std::stod(pk.header.at("box_zmin"));
   double Vs = 0.0, beyond = 0.0;
   for (const PackingRow& row : pk.rows) {

@@ -516,9 +516,8 @@ RunConfig upscaled(const RunConfig& c) {
 void RunConfig::validate() const {
   simulation.validate();
   validate_params(upscaling, upscaling_params(), "upscaling");
-  if (has_sample) {
-    sample.validate(simulation);
-  }
+  // The sample as the run makes it: with upscaled grains.
+  if (has_sample) upscaled(*this).sample.validate(simulation);
   if (has_sample || file_chamber_radius > 0.0) {
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
       const std::string& n = simulation.bodies[i].name;
