@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "crushdem/io/config.hpp"
@@ -108,6 +109,21 @@ TEST(Chamber, AQuarterBetweenSymmetryPlanesIsPreparedAndPenetratedOnItsAxis) {
   auto pen = testing::read_csv((temp.path() / "run" / "penetration.csv").string());
   EXPECT_EQ(pen["q_c_Pa"].front(), 0.0);
   EXPECT_GT(pen["q_c_Pa"].back(), 1e5);
+  // Read back, a quarter's file without its sector line (as files written before it had one)
+  // is refused: it would be taken for a full chamber.
+  {
+    std::string file = testing::read_file(temp.path() / "run" / "sample.txt");
+    const std::string line = "# sector=90\n";
+    file.erase(file.find(line), line.size());
+    const fs::path old_file = temp.path() / "old_sample.txt";
+    std::ofstream(old_file) << file;
+    try {
+      config("[particles]\nfile = \"" + old_file.string() + "\"\n[run]\nsteps = 1\n");
+      ADD_FAILURE() << "a quarter without its sector was read as a full chamber";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("sector=90"), std::string::npos) << e.what();
+    }
+  }
   // A cone off the axis of a sector is refused.
   text.replace(text.find("origin = [0.0, 0.0, 0.01]"), 25, "origin = [1e-4, 0.0, 0.01]");
   opt.out_dir = (temp.path() / "off_axis").string();
