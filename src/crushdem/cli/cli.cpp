@@ -38,6 +38,7 @@ constexpr const char* kPythonCommands =
     "  sensitivity --out DIR --sample FILE       q_max under each uncertain choice\n"
     "  sweep SWEEP.toml --out DIR                many variants of one configuration on Dask\n"
     "  calibrate CALIBRATION.toml --out DIR      fit parameters to targets with sweep runs\n"
+    "  pile CONFIG --out DIR                     a pile aged and load-tested at each ageing time\n"
     "Each command has its own --help.\n";
 
 constexpr const char* kBackendHelp =

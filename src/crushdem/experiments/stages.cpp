@@ -5,6 +5,8 @@
 #include <cstdio>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/walls/body_config.hpp"
+#include "crushdem/walls/body_probe.hpp"
 
 namespace crushdem {
 
@@ -35,6 +37,8 @@ using Row = Param<StageConfig>;
 
 constexpr std::array<Named<WallControl>, 2> kWallControlNames = {
     {{WallControl::Fixed, "fixed"}, {WallControl::Servo, "servo"}}};
+constexpr std::array<Named<HeadControl>, 2> kHeadControlNames = {
+    {{HeadControl::Held, "held"}, {HeadControl::Load, "load"}}};
 
 bool positive(double v) {
   return v > 0.0;
@@ -113,6 +117,69 @@ ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<Stage
   return t;
 }
 
+ParamTable<StageConfig> pile_head_rows() {
+  return {
+      {"body", &StageConfig::body, "",
+       "a pile (a [[body]]'s name) held as `head` says; in an age stage its shaft and the grains "
+       "about it are recorded at every ageing event (pile_ageing.csv, pile_shaft.csv, "
+       "pile_rings.csv); empty = none"},
+      {"head", enum_choice(&StageConfig::head, kHeadControlNames), "",
+       "the pile's head: held where it is, or servo-controlled to head_load (0: the load taken "
+       "off, the pile free to rebound)"},
+      {"head_load", &StageConfig::head_load, "N",
+       "the whole pile's head load with head = \"load\" (a quarter chamber's pile carries its "
+       "quarter)",
+       [](double v) { return v >= 0.0; }, "a load >= 0 in N", "",
+       [](const StageConfig& c) { return c.head == HeadControl::Load; }},
+  };
+}
+
+ParamTable<StageConfig> with_pile_head(ParamTable<StageConfig> table) {
+  const ParamTable<StageConfig> head = pile_head_rows();
+  table.insert(table.begin() + 4, head.begin(), head.end());  // after axial ... lateral_stress
+  return table;
+}
+
+void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,
+                       const std::string& prefix) {
+  if (c.body.empty()) return;
+  for (const BodyConfig& b : bodies) {
+    if (b.name != c.body) continue;
+    const Body made = b.make(0.0);
+    if (!probe_supports(made.shape)) {
+      throw ConfigError(
+          bad_value(prefix + ".body", "\"" + c.body + "\"",
+                    "a translating cone, pile, disk or cylinder_outside (this body is a " +
+                        std::string(to_string(b.kind)) +
+                        (b.motion == BodyMotion::Dilate ? " that dilates)" : ")")));
+    }
+    return;
+  }
+  std::string names;
+  for (const BodyConfig& b : bodies) names += (names.empty() ? "\"" : ", \"") + b.name + "\"";
+  throw ConfigError(
+      bad_value(prefix + ".body", "\"" + c.body + "\"",
+                "the name of a [[body]]" +
+                    (names.empty() ? std::string(" (there is none)") : " (" + names + ")")));
+}
+
+BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c) {
+  // The standard friction sleeve: 150 cm^2 on a 35.7 mm cone (ISO 22476-1), 133.7 mm long.
+  constexpr double kSleeveDiameters = 0.1337 / 0.0357;
+  const Walls& w = sim.walls();
+  const int k = stage_body_index(w, c);
+  const double R = w.shape(k).part[0].radius;
+  const double sleeve = c.sleeve_length > 0.0 ? c.sleeve_length : kSleeveDiameters * 2 * R;
+  return probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(c.bins));
+}
+
+int stage_body_index(const Walls& w, const StageConfig& c) {
+  for (int k = kNumWalls; k < w.size(); ++k) {
+    if (w.name(k) == c.body) return k;
+  }
+  throw ConfigError("stage '" + c.label() + "': no [[body]] named \"" + c.body + "\"");
+}
+
 void StageConfig::validate(const std::string& prefix) const {
   validate_params(*this, kind->params, prefix);
   if (kind->check) kind->check(*this, prefix);
@@ -151,6 +218,22 @@ void Stage::set_held_walls(Walls& w) const {
   if (cfg_.lateral == WallControl::Servo) {
     for (const int k : w.lateral_walls()) set_servo(w, k, cfg_.lateral_stress);
   }
+}
+
+void Stage::set_head(Walls& w) const {
+  if (cfg_.body.empty()) return;
+  const int k = stage_body_index(w, cfg_);
+  WallConfig& c = w.config(k);
+  c.velocity = 0.0;
+  if (cfg_.head == HeadControl::Held) {
+    c.mode = WallMode::Fixed;
+    return;
+  }
+  // The servo holds the sector's share of the load over the body's own area, at most as fast
+  // as the top platen's servo may move (max_strain_rate x the sample's height / 2).
+  set_servo(w, k, cfg_.head_load * w.sector() / w.area(k));
+  const double rate = cfg_.max_strain_rate > 0.0 ? cfg_.max_strain_rate : automatic_servo_rate();
+  c.max_speed = 0.5 * rate * w.length(2);
 }
 
 bool Stage::at_equilibrium(const Simulation& sim) const {

@@ -20,6 +20,7 @@
 
 #include "crushdem/core/params.hpp"
 #include "crushdem/experiments/protocol.hpp"
+#include "crushdem/walls/body_probe.hpp"
 
 namespace crushdem {
 
@@ -30,6 +31,10 @@ struct BodyConfig;
 
 /// How the walls of an axis are held during a hold or age stage.
 enum class WallControl { Fixed, Servo };
+/// How a pile's head is held while it ages: where it is, or at a head load (0: taken off).
+enum class HeadControl { Held, Load };
+/// Which way a load test moves the pile: on along its direction, or back out of the grains.
+enum class LoadDirection { Compression, Tension };
 
 /// The keys of one [[stage]] table. Every kind reads, writes and checks only the rows of its own
 /// table (StageKind::params); the members are shared so that the tables stay plain rows.
@@ -47,17 +52,24 @@ struct StageConfig {
   double lateral_stress = 0.0;               // [Pa] for lateral = servo
   std::uint64_t steps = 0;                   // hold
   double duration = 0.0;                     // hold [s of DEM time], age [s of ageing time]
-  std::uint64_t min_cycles = 150000;         // age: steps per dynamic phase (STUDY)
-  std::uint64_t n_break = 30;                // age: grains brought to failure per jump (STUDY)
-  std::uint64_t record_interval = 1000;      // age, penetrate: steps between rows of its files
-  std::string body;                          // penetrate: the [[body]] driven
-  double velocity = 0.0;                     // penetrate [m/s]
-  double depth = 0.0;                        // penetrate: travel [m]
-  std::uint64_t bins = 20;                   // penetrate: bins along the shaft
-  double sleeve_length = 0.0;                // penetrate [m]; 0 = 3.75 shaft diameters
-  bool from_top = false;                     // penetrate: start with the tip at the top wall
-  double stroke = 0.0;                       // penetrate: jacking stroke [m]; 0 = continuous
-  double pause = 0.0;                        // penetrate: the body held still between strokes [s]
+  double until = 0.0;                 // age: the run's ageing clock to reach [s]; 0 = use duration
+  std::uint64_t min_cycles = 150000;  // age: steps per dynamic phase (STUDY)
+  std::uint64_t n_break = 30;         // age: grains brought to failure per jump (STUDY)
+  std::uint64_t record_interval = 1000;  // age, penetrate: steps between rows of its files
+  std::string body;                      // penetrate: the [[body]] driven
+  double velocity = 0.0;                 // penetrate [m/s]
+  double depth = 0.0;                    // penetrate: travel [m]
+  std::uint64_t bins = 20;               // penetrate: bins along the shaft
+  double sleeve_length = 0.0;            // penetrate [m]; 0 = 3.75 shaft diameters
+  bool from_top = false;                 // penetrate: start with the tip at the top wall
+  double stroke = 0.0;                   // penetrate: jacking stroke [m]; 0 = continuous
+  double pause = 0.0;                    // penetrate: the body held still between strokes [s]
+  HeadControl head = HeadControl::Held;  // hold, age: the pile named by `body`
+  double head_load = 0.0;                // [N] the whole pile's, with head = "load"
+  std::uint64_t rings = 6;               // age: rings of grains about the pile
+  double field_radius = 8.0;             // age: the outer ring's radius [shaft radii]
+  LoadDirection direction = LoadDirection::Compression;  // load_test
+  double displacement = 0.0;                             // load_test: head travel [m]
   // Equilibrium (isotropic, servo oedometric) and limits: every kind.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this
@@ -94,11 +106,13 @@ const StageKind& triaxial_stage_kind();
 const StageKind& hold_stage_kind();
 const StageKind& age_stage_kind();
 const StageKind& penetrate_stage_kind();
+const StageKind& load_test_stage_kind();
 
 inline const std::vector<const StageKind*>& stage_kinds() {
   static const std::vector<const StageKind*> kinds = {
       &isotropic_stage_kind(), &oedometric_stage_kind(), &triaxial_stage_kind(),
       &hold_stage_kind(),      &age_stage_kind(),        &penetrate_stage_kind(),
+      &load_test_stage_kind(),
   };
   return kinds;
 }
@@ -114,6 +128,20 @@ ParamTable<StageConfig> stage_table(std::initializer_list<Param<StageConfig>> ow
 /// The same, with the rows of walls held fixed or by servo first (axial, lateral and their
 /// servo targets), as a hold or age stage has them.
 ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<StageConfig>> own);
+/// The rows of a pile held while the sand rests (hold, age): `body` (optional), `head`,
+/// `head_load`.
+ParamTable<StageConfig> pile_head_rows();
+/// `table` with the pile head's rows after its held walls' rows (hold, age).
+ParamTable<StageConfig> with_pile_head(ParamTable<StageConfig> table);
+/// StageKind::check_bodies of a stage that names a [[body]] it probes (penetrate, load_test; hold
+/// and age when they name one): the body exists and probe_supports() it.
+void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,
+                       const std::string& prefix);
+/// The body a stage names, probed (walls/body_probe.hpp) with the stage's `bins` and
+/// `sleeve_length` (0: the standard sleeve, 3.75 shaft diameters).
+BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c);
+/// Index of the body named `name` in `w` (ConfigError naming the stage's body key otherwise).
+int stage_body_index(const Walls& w, const StageConfig& c);
 
 /// Results of one stage, for summary.json.
 struct StageResult {
@@ -126,7 +154,10 @@ struct StageResult {
   double max_lateral_stress_error = 0.0;  // triaxial: max |sigma_lateral / sigma_3 - 1|
   double max_lateral_strain = 0.0;        // oedometric: max |lateral strain|
   std::uint64_t dynamic_phases = 0;       // age
-  double ageing_time = 0.0;               // age: the ageing clock at the end [s]
+  double ageing_time = 0.0;               // age: the ageing this stage added [s]
+  // load_test (whole pile, positive in the test's direction; at the largest head load Q):
+  double capacity = 0.0, shaft_at_capacity = 0.0, base_at_capacity = 0.0;  // [N]
+  double displacement_at_capacity = 0.0;                                   // [m]
 };
 
 /// The run's result files as a stage sees them: the runner attaches every stage to one of these
@@ -153,6 +184,8 @@ class Stage : public Controller {
   Stage(const StageConfig& cfg, double d50);
   /// The run's files, and the index of this stage in the run (the `stage` column).
   void attach(StageOutputs& outputs, std::size_t index);
+  /// The run's ageing clock at this stage's start: the ageing of the age stages before it [s].
+  void set_ageing_clock(double t) { ageing_clock_ = t; }
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
@@ -187,6 +220,8 @@ class Stage : public Controller {
   void set_servo(Walls& w, int k, double stress) const;
   /// The top and the lateral walls as `axial` and `lateral` say (hold, age).
   void set_held_walls(Walls& w) const;
+  /// The pile named by `body` held as `head` says (nothing without a body).
+  void set_head(Walls& w) const;
   /// Every servo wall within tolerance of its target and the unbalanced-force ratio below
   /// `unbalanced`.
   bool at_equilibrium(const Simulation& sim) const;
@@ -200,6 +235,7 @@ class Stage : public Controller {
   StrainReference ref_;
   std::uint64_t start_step_ = 0;
   double start_time_ = 0.0;
+  double ageing_clock_ = 0.0;  // the run's ageing clock at the start [s]
 
  private:
   double d50_;

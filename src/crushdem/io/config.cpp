@@ -530,6 +530,58 @@ RunConfig upscaled(const RunConfig& c) {
   return u;
 }
 
+void RunConfig::validate_stage_sequence() const {
+  // The ageing clock runs on through the age stages: each `until` beyond the clock before it.
+  double clock = 0.0;
+  for (std::size_t i = 0; i < stages.size(); ++i) {
+    const StageConfig& s = stages[i];
+    if (s.kind != &age_stage_kind()) continue;
+    if (s.until > 0.0 && !(s.until > clock)) {
+      throw ConfigError(bad_value("stage[" + std::to_string(i) + "].until", show_number(s.until),
+                                  "an ageing time after the one the age stages before it reach (" +
+                                      show_number(clock) + " s)"));
+    }
+    clock = s.until > 0.0 ? s.until : clock + s.duration;
+  }
+  // A body's travel into the sample: penetrate stages, then compression load tests; a load test
+  // comes after its body's installation, and no body ends inside the bottom platen.
+  const std::array<double, 6> b = upscaled(*this).box();
+  const double height = b[5] - b[4];
+  for (const BodyConfig& body : simulation.bodies) {
+    double travel = 0.0;  // below the sample's top, when the first push starts there
+    bool installed = false, from_top = false;
+    for (std::size_t i = 0; i < stages.size(); ++i) {
+      const StageConfig& s = stages[i];
+      if (s.body != body.name) continue;
+      const std::string prefix = "stage[" + std::to_string(i) + "]";
+      if (s.kind == &penetrate_stage_kind()) {
+        if (!installed) from_top = s.from_top;
+        installed = true;
+        travel += s.depth;
+      } else if (s.kind == &load_test_stage_kind()) {
+        if (!installed) {
+          throw ConfigError(bad_value(prefix + ".body", "\"" + s.body + "\"",
+                                      "a body a penetrate stage before it has installed (a load "
+                                      "test comes after the installation)"));
+        }
+        travel += s.direction == LoadDirection::Compression ? s.displacement : -s.displacement;
+      } else {
+        continue;
+      }
+      if (from_top && height > 0.0 && travel >= height) {
+        throw ConfigError(
+            bad_value(prefix + (s.kind == &penetrate_stage_kind() ? ".depth" : ".displacement"),
+                      show_number(s.kind == &penetrate_stage_kind() ? s.depth : s.displacement),
+                      "a travel that keeps body \"" + body.name +
+                          "\"'s tip above the bottom platen: it "
+                          "would reach " +
+                          show_number(travel) + " m below the sample's top, and the sample is " +
+                          show_number(height) + " m high"));
+      }
+    }
+  }
+}
+
 void RunConfig::validate() const {
   simulation.validate();
   validate_params(upscaling, upscaling_params(), "upscaling");
@@ -561,6 +613,7 @@ void RunConfig::validate() const {
       stages[i].kind->check_bodies(stages[i], simulation.bodies, prefix);
     }
   }
+  validate_stage_sequence();
   validate_params(output, output_params(), "output");
   if (crushing.enabled) {
     crushing.validate();

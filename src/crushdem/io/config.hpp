@@ -94,6 +94,9 @@ struct RunConfig {
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)
   void validate() const;
+  /// The checks across stages: the ageing clock's `until`s in order, a load test after its
+  /// body's installation, no body pushed into the bottom platen; errors name stage[i].key.
+  void validate_stage_sequence() const;
   /// Box as [xmin, xmax, ymin, ymax, zmin, zmax] from the wall positions.
   std::array<double, 6> box() const;
 };

@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -139,6 +140,16 @@ void JsonObject::numbers(const std::string& key, const std::vector<double>& v) {
     o += (k ? ", " : "") + (std::isfinite(v[k]) ? format_double(v[k]) : std::string("null"));
   }
   fields.emplace_back(key, o + "]");
+}
+
+double JsonObject::number_value(const std::string& key) const {
+  for (const auto& [k, v] : fields) {
+    if (k != key) continue;
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    return end != v.c_str() && *end == '\0' ? x : std::nan("");
+  }
+  return std::nan("");
 }
 
 std::string JsonObject::dump(int indent) const {

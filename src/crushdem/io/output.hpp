@@ -49,6 +49,8 @@ struct JsonObject {
   void array(const std::string& key, const std::vector<JsonObject>& v);
   void numbers(const std::string& key, const std::vector<double>& v);
   std::string dump(int indent = 0) const;
+  /// The number written under `key` (NaN when there is none or it is not a number).
+  double number_value(const std::string& key) const;
 };
 void write_text_file(const std::string& path, const std::string& text);
 /// The whole file as bytes (ConfigError naming the path when it cannot be read).

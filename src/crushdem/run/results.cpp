@@ -32,6 +32,12 @@ JsonObject stage_json(const StageResult& r) {
   for (const auto& [key, member] : kPeak) o.number(key, r.*member);
   o.integer("dynamic_phases", static_cast<long long>(r.dynamic_phases));
   o.number("ageing_time_s", r.ageing_time);
+  if (r.kind == "load_test") {
+    o.number("capacity_N", r.capacity);
+    o.number("shaft_at_capacity_N", r.shaft_at_capacity);
+    o.number("base_at_capacity_N", r.base_at_capacity);
+    o.number("displacement_at_capacity_m", r.displacement_at_capacity);
+  }
   o.string("warning", r.warning);
   return o;
 }

@@ -448,6 +448,13 @@ class Run {
     Stage& stage = *made;
     RunFiles files(*driver_, pos_.ref, crusher_.get());
     stage.attach(files, k);
+    // The ageing clock runs on through the age stages: theirs before this one, summed.
+    double clock = 0.0;
+    for (const JsonObject& r : pos_.stage_results) {
+      const double t = r.number_value("ageing_time_s");
+      if (std::isfinite(t)) clock += t;
+    }
+    stage.set_ageing_clock(clock);
     if (cont) load_state(stage, *in_);
     driver_->drive(
         stage, driver_->file("timeseries.csv"),

@@ -1,15 +1,20 @@
 // The age stage, off-DEM ageing (docs/model.md 3.1; needs [crushing] crack_growth): dynamic
 // phases of min_cycles steps (walls as `axial` / `lateral` say) alternate with ageing jumps
 // (ageing/ageing_jump.hpp) that grow every crack at its frozen velocity until n_break grains
-// would fail, until the ageing clock reaches `duration` (ageing time, not DEM time). Its own
-// files: events.csv (a row at the end of every dynamic phase) and phases.csv (a row every
-// record_interval cycles of each phase).
+// would fail, until the ageing clock has advanced `duration` or reached `until` (ageing time, not
+// DEM time; the clock runs on from the age stages before). Its own files: events.csv (a row at
+// the end of every dynamic phase) and phases.csv (a row every record_interval cycles of each
+// phase). With a `body` (a pile, held as `head` says), at the end of every dynamic phase:
+// pile_ageing.csv (its loads and the contact forces near it), pile_shaft.csv (the radial and shear
+// stress on its shaft by bin) and pile_rings.csv (the stress in rings of grains about it,
+// experiments/pile_field.hpp).
 #include <algorithm>
 #include <cstdio>
 #include <string>
 
 #include "crushdem/ageing/ageing_jump.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/experiments/pile_field.hpp"
 #include "crushdem/experiments/stages.hpp"
 #include "crushdem/fracture/crushing.hpp"
 
@@ -28,7 +33,7 @@ class AgeStage final : public Stage {
   }
 
   void begin(Simulation& sim) override {
-    ageing_time_ = 0.0;
+    ageing_time_ = ageing_clock_;
     Stage::begin(sim);
     start_phase(sim);
   }
@@ -37,13 +42,15 @@ class AgeStage final : public Stage {
   std::string progress_note() const override {
     char b[128];
     std::snprintf(b, sizeof b, "phase %llu  ageing time %.4g s of %.4g s",
-                  static_cast<unsigned long long>(res_.dynamic_phases), ageing_time_,
-                  cfg_.duration);
+                  static_cast<unsigned long long>(res_.dynamic_phases), ageing_time_, target());
     return b;
   }
 
  protected:
-  void set_walls(Walls& w) override { set_held_walls(w); }
+  void set_walls(Walls& w) override {
+    set_held_walls(w);
+    set_head(w);
+  }
 
   const char* end_reason(Simulation& sim) override {
     const std::uint64_t cycle = sim.step_count() - phase_start_;
@@ -52,11 +59,11 @@ class AgeStage final : public Stage {
     // End of a dynamic phase: record it, then jump the ageing clock (walls still).
     ++res_.dynamic_phases;
     record_event(sim, res_.dynamic_phases - 1);
-    res_.ageing_time = ageing_time_;
-    if (ageing_time_ >= cfg_.duration) return "target ageing time";
-    const double left = cfg_.duration - ageing_time_;
+    res_.ageing_time = ageing_time_ - ageing_clock_;
+    if (ageing_time_ >= target()) return "target ageing time";
+    const double left = target() - ageing_time_;
     const AgeingJump j = ageing_jump(sim, *crusher_, cfg_.n_break, left);
-    ageing_time_ = j.dt >= left ? cfg_.duration : ageing_time_ + j.dt;
+    ageing_time_ = j.dt >= left ? target() : ageing_time_ + j.dt;
     start_phase(sim);
     return nullptr;
   }
@@ -122,8 +129,65 @@ class AgeStage final : public Stage {
     m.emplace_back("dynamic_phase", static_cast<double>(phase));
     for (auto& kv : out->measure(sim)) m.push_back(kv);
     out->write("events.csv", m);
+    if (!cfg_.body.empty()) record_pile(sim, phase, *out);
     out->request_checkpoint();
   }
+
+  // The pile's rows at the end of a dynamic phase (pile_ageing.csv, pile_shaft.csv,
+  // pile_rings.csv): its loads as the whole pile's (a sector's divided by its fraction).
+  void record_pile(const Simulation& sim, std::uint64_t phase, StageOutputs& out) const {
+    const BodyProbe p = probe_stage_body(sim, cfg_);
+    const int k = stage_body_index(sim.walls(), cfg_);
+    const PileField f = measure_pile_field(sim, k, static_cast<int>(cfg_.rings), cfg_.field_radius,
+                                           static_cast<int>(cfg_.bins));
+    auto head = [&](Measurement& m) {
+      m.emplace_back("ageing_time_s", ageing_time_);
+      m.emplace_back("stage", static_cast<double>(index()));
+      m.emplace_back("dynamic_phase", static_cast<double>(phase));
+    };
+    Measurement m;
+    head(m);
+    m.emplace_back("head_position_m", sim.walls().position(k));
+    m.emplace_back("head_load_N", (p.tip_load + p.shaft_load) / p.sector);
+    m.emplace_back("shaft_load_N", p.shaft_load / p.sector);
+    m.emplace_back("base_load_N", p.tip_load / p.sector);
+    m.emplace_back("shaft_contacts", static_cast<double>(p.shaft_contacts));
+    m.emplace_back("near_contacts", static_cast<double>(f.near_contacts));
+    m.emplace_back("mean_Fn_near_N", f.mean_Fn);
+    m.emplace_back("std_Fn_near_N", f.std_Fn);
+    m.emplace_back("mean_Ft_near_N", f.mean_Ft);
+    m.emplace_back("std_Ft_near_N", f.std_Ft);
+    for (auto& kv : out.measure(sim)) m.push_back(kv);
+    out.write("pile_ageing.csv", m);
+    for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
+      Measurement b;
+      head(b);
+      b.emplace_back("bin", static_cast<double>(j));
+      b.emplace_back("height_m", (static_cast<double>(j) + 0.5) * p.bin_height);
+      b.emplace_back("sigma_r_Pa", p.sigma_r[j]);
+      b.emplace_back("tau_Pa", p.tau[j]);
+      b.emplace_back("contacts", static_cast<double>(p.bin_contacts[j]));
+      out.write("pile_shaft.csv", b);
+    }
+    for (const RingStress& r : f.rings) {
+      Measurement b;
+      head(b);
+      b.emplace_back("ring", static_cast<double>(r.ring));
+      b.emplace_back("bin", static_cast<double>(r.bin));
+      b.emplace_back("r_in_m", r.r_in);
+      b.emplace_back("r_out_m", r.r_out);
+      b.emplace_back("height_m", r.height);
+      b.emplace_back("sigma_rr_Pa", r.sigma_rr);
+      b.emplace_back("sigma_tt_Pa", r.sigma_tt);
+      b.emplace_back("sigma_zz_Pa", r.sigma_zz);
+      b.emplace_back("tau_rz_Pa", r.tau_rz);
+      b.emplace_back("grains", static_cast<double>(r.grains));
+      out.write("pile_rings.csv", b);
+    }
+  }
+
+  /// The ageing clock this stage ages to [s].
+  double target() const { return cfg_.until > 0.0 ? cfg_.until : ageing_clock_ + cfg_.duration; }
 
   Crusher* crusher_;
   double ageing_time_ = 0.0;
@@ -141,11 +205,17 @@ const StageKind& age_stage_kind() {
           "off-DEM ageing (docs/model.md 3.1; needs [crushing] with crack_growth): "
           "dynamic phases of `min_cycles` steps alternate with ageing jumps until the "
           "ageing clock reaches `duration`",
-      .params = held_walls_stage_table({
+      .params = with_pile_head(held_walls_stage_table({
           {"duration", &StageConfig::duration, "s",
-           "target ageing time (the relaxation clock; DEM time is reported apart)",
+           "ageing time this stage adds (the relaxation clock; DEM time is reported apart); or "
+           "give until",
            [](double v) { return v > 0.0; }, "a positive ageing time in s (the relaxation clock)",
-           "-"},
+           "-", [](const StageConfig& c) { return !(c.until > 0.0); }},
+          {"until", &StageConfig::until, "s",
+           "the run's ageing clock (summed over its age stages) this stage ages to; or give "
+           "duration (a pile aged to 1 h, 1 day, 1 week, each load-tested by a branch)",
+           [](double v) { return v > 0.0; }, "a positive ageing time in s", "-",
+           [](const StageConfig& c) { return c.until > 0.0; }},
           {"min_cycles", &StageConfig::min_cycles, "", "steps of each dynamic phase (STUDY)",
            [](double v) { return v >= 1.0; }, "> 0 steps"},
           {"n_break", &StageConfig::n_break, "",
@@ -154,8 +224,31 @@ const StageKind& age_stage_kind() {
           {"record_interval", &StageConfig::record_interval, "",
            "steps between rows of phases.csv within each dynamic phase (the study's Figure 2)",
            [](double v) { return v >= 1.0; }, "> 0 steps"},
-      }),
+          {"bins", &StageConfig::bins, "",
+           "with a body: slices along the shaft (pile_shaft.csv) and from its tip to the top "
+           "wall (pile_rings.csv)",
+           [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of bins in [1, 10000]", "",
+           [](const StageConfig& c) { return !c.body.empty(); }},
+          {"rings", &StageConfig::rings, "",
+           "with a body: rings of grains about it (pile_rings.csv)",
+           [](double v) { return v >= 1.0 && v <= 1e3; }, "a number of rings in [1, 1000]", "",
+           [](const StageConfig& c) { return !c.body.empty(); }},
+          {"field_radius", &StageConfig::field_radius, "-",
+           "with a body: the outer ring's radius in shaft radii (rings geometric from the shaft); "
+           "also the reach of the near-field contact statistics",
+           [](double v) { return v > 1.0 && v <= 1e3; }, "a radius in (1, 1000] shaft radii", "",
+           [](const StageConfig& c) { return !c.body.empty(); }},
+      })),
       .make = make_stage_of<AgeStage>,
+      .check =
+          [](const StageConfig& c, const std::string& prefix) {
+            if ((c.duration > 0.0) == (c.until > 0.0)) {
+              throw ConfigError(prefix + ": an age stage needs exactly one of '" + prefix +
+                                ".duration' (the ageing it adds, > 0 s) or '" + prefix +
+                                ".until' (the run's ageing clock to reach, > 0 s)");
+            }
+          },
+      .check_bodies = check_probed_body,
       .needs_crack_growth = true,
   };
   return kind;

@@ -1,5 +1,6 @@
 // The hold stage: the walls keep still or are servo-controlled (`axial`, `lateral`), for `steps`
-// or `duration` of DEM time.
+// or `duration` of DEM time; a pile named by `body` held as `head` says (its head load taken off
+// after installation, say).
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -15,7 +16,10 @@ class HoldStage final : public Stage {
   using Stage::Stage;
 
  protected:
-  void set_walls(Walls& w) override { set_held_walls(w); }
+  void set_walls(Walls& w) override {
+    set_held_walls(w);
+    set_head(w);
+  }
 
   const char* end_reason(Simulation& sim) override {
     if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return "duration";
@@ -42,7 +46,7 @@ const StageKind& hold_stage_kind() {
   static const StageKind kind{
       .name = "hold",
       .description = "the walls fixed or servo-controlled, for `steps` or `duration` (exactly one)",
-      .params = held_walls_stage_table({
+      .params = with_pile_head(held_walls_stage_table({
           {"steps",
            &StageConfig::steps,
            "",
@@ -54,7 +58,7 @@ const StageKind& hold_stage_kind() {
           {"duration", &StageConfig::duration, "s",
            "length of the hold in DEM time (or give steps)", [](double v) { return v >= 0.0; },
            "a time in s", "-", [](const StageConfig& c) { return c.duration > 0.0; }},
-      }),
+      })),
       .make = make_stage_of<HoldStage>,
       .check =
           [](const StageConfig& c, const std::string& prefix) {
@@ -63,6 +67,7 @@ const StageKind& hold_stage_kind() {
                                 ".steps' (> 0) or '" + prefix + ".duration' (> 0 s)");
             }
           },
+      .check_bodies = check_probed_body,
   };
   return kind;
 }

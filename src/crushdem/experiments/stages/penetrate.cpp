@@ -6,8 +6,10 @@
 // the tip and the shaft, with the run's measurements) and shaft_profile.csv (the radial and shear
 // stress on the shaft by bins along it: walls/body_probe.hpp). With `stroke` the body is jacked:
 // it advances `stroke` at `velocity`, stands still for `pause` (held where it is, as a jack that
-// grips it), and so on until `depth`.
+// grips it), and so on until `depth`. The load_test kind (a pile's static load test) is here too:
+// it drives a body the same way.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -20,14 +22,25 @@
 namespace crushdem {
 namespace {
 
-/// The standard friction sleeve: 150 cm^2 on a 35.7 mm cone (ISO 22476-1), 133.7 mm long.
-constexpr double kSleeveDiameters = 0.1337 / 0.0357;
+constexpr std::array<Named<LoadDirection>, 2> kLoadDirectionNames = {
+    {{LoadDirection::Compression, "compression"}, {LoadDirection::Tension, "tension"}}};
 
-int body_index(const Walls& w, const std::string& name) {
-  for (int k = kNumWalls; k < w.size(); ++k) {
-    if (w.name(k) == name) return k;
+/// A driven body must be named (hold and age name one only when they hold a pile).
+void check_driven_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,
+                       const std::string& prefix) {
+  if (c.body.empty()) {
+    throw ConfigError(bad_value(prefix + ".body", "\"\"", "the name of the [[body]] it drives"));
   }
-  throw ConfigError("penetrate stage: no [[body]] named \"" + name + "\"");
+  check_probed_body(c, bodies, prefix);
+}
+
+/// Body `c.body` driven at `velocity` along its direction (0: held still where it is).
+void drive_body(Simulation& sim, const StageConfig& c, double velocity) {
+  Walls& w = sim.walls();
+  WallConfig& b = w.config(stage_body_index(w, c));
+  b.mode = velocity != 0.0 ? WallMode::Velocity : WallMode::Fixed;
+  b.velocity = velocity;
+  w.update_velocities(sim.current_dt());
 }
 
 class PenetrateStage final : public Stage {
@@ -37,7 +50,7 @@ class PenetrateStage final : public Stage {
   void begin(Simulation& sim) override {
     Stage::begin(sim);
     Walls& w = sim.walls();
-    const int k = body_index(w, cfg_.body);
+    const int k = stage_body_index(w, cfg_);
     if (w.sector() < 1.0) {  // a sector: the body on its axis, the z axis
       const BodyPart& tip = w.shape(k).part[0];
       if (tip.origin.x != 0.0 || tip.origin.y != 0.0 || tip.axis.x != 0.0 || tip.axis.y != 0.0) {
@@ -60,6 +73,18 @@ class PenetrateStage final : public Stage {
       w.state(k).position += (tip_z - w.position(5)) / -b.motion.z;
       sim.invalidate();  // the wall contacts are found again for the body's new place
     }
+    {  // the tip must end above the bottom platen
+      const BodyShape& b = w.shape(k);
+      const double tip_z = placed_part(b.part[0], w.position(k), b.motion, b.dilate).origin.z;
+      const double end_z = tip_z + cfg_.depth * b.motion.z;
+      if (b.motion.z < 0.0 && end_z <= w.position(4)) {
+        throw ConfigError(bad_value("stage '" + cfg_.label() + "'.depth", show_number(cfg_.depth),
+                                    "a travel that keeps the tip above the bottom platen (it "
+                                    "would end at z = " +
+                                        show_number(end_z) + " m, the platen is at " +
+                                        show_number(w.position(4)) + " m)"));
+      }
+    }
     q_start_ = w.position(k);
     next_stop_ = cfg_.stroke > 0.0 ? std::min(cfg_.stroke, cfg_.depth) : cfg_.depth;
     move(sim, true);
@@ -78,7 +103,7 @@ class PenetrateStage final : public Stage {
     // (at every record, at a stroke's end, at a pause's end and at the depth)
     return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
            (!pausing_ &&
-            w.position(body_index(w, cfg_.body)) - q_start_ >= next_stop_ * (1.0 - 1e-12)) ||
+            w.position(stage_body_index(w, cfg_)) - q_start_ >= next_stop_ * (1.0 - 1e-12)) ||
            (pausing_ && sim.time() >= pause_end_ * (1.0 - 1e-15));
   }
 
@@ -93,7 +118,7 @@ class PenetrateStage final : public Stage {
 
   const char* end_reason(Simulation& sim) override {
     Walls& w = sim.walls();
-    const int k = body_index(w, cfg_.body);
+    const int k = stage_body_index(w, cfg_);
     travel_ = w.position(k) - q_start_;
     const bool done = travel_ >= cfg_.depth * (1.0 - 1e-12);
     bool event = done;
@@ -126,13 +151,8 @@ class PenetrateStage final : public Stage {
 
  private:
   void record(const Simulation& sim) {
-    const Walls& w = sim.walls();
-    const int k = body_index(w, cfg_.body);
-    travel_ = w.position(k) - q_start_;
-    const double R = w.shape(k).part[0].radius;
-    const double sleeve = cfg_.sleeve_length > 0.0 ? cfg_.sleeve_length : kSleeveDiameters * 2 * R;
-    const BodyProbe p =
-        probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(cfg_.bins));
+    travel_ = sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_;
+    const BodyProbe p = probe_stage_body(sim, cfg_);
     q_c_ = p.q_c();
     StageOutputs* out = outputs();
     if (!out) return;
@@ -168,13 +188,7 @@ class PenetrateStage final : public Stage {
   }
 
   // The body driven at `velocity` (moving) or held still where it is.
-  void move(Simulation& sim, bool moving) {
-    Walls& w = sim.walls();
-    WallConfig& c = w.config(body_index(w, cfg_.body));
-    c.mode = moving ? WallMode::Velocity : WallMode::Fixed;
-    c.velocity = moving ? cfg_.velocity : 0.0;
-    w.update_velocities(sim.current_dt());
-  }
+  void move(Simulation& sim, bool moving) { drive_body(sim, cfg_, moving ? cfg_.velocity : 0.0); }
 
   double q_start_ = 0.0;       // the body's degree of freedom at the start [m]
   double next_stop_ = 0.0;     // the travel where the body next stops: a stroke's end or depth [m]
@@ -183,6 +197,101 @@ class PenetrateStage final : public Stage {
   std::uint64_t strokes_ = 0;  // strokes completed
   double travel_ = 0.0;        // since the start [m]
   double q_c_ = 0.0;           // at the last record [Pa]
+};
+
+// The load test (docs/pile.md): the pile driven at `velocity` on into the grains (compression)
+// or back out of them (tension) until its head has travelled `displacement`, the box's walls
+// held as `axial` and `lateral` say. load_test.csv gets a row every record_interval steps: the
+// head displacement and the whole pile's head, shaft and base loads, positive in the test's
+// direction (a sector's loads divided by its fraction of the circle). The capacity is the
+// largest head load of those rows, with the shaft and base loads of that row (summary.json).
+class LoadTestStage final : public Stage {
+ public:
+  using Stage::Stage;
+
+  void begin(Simulation& sim) override {
+    Stage::begin(sim);
+    q_start_ = sim.walls().position(stage_body_index(sim.walls(), cfg_));
+    drive_body(sim, cfg_, sign() * cfg_.velocity);
+    record(sim);
+  }
+
+  std::string progress_note() const override {
+    char b[128];
+    std::snprintf(b, sizeof b, "head %.4g m of %.4g m  Q %.4g N (max %.4g N)", travel_,
+                  cfg_.displacement, load_, res_.capacity);
+    return b;
+  }
+
+  bool reads_grains(const Simulation& sim) const override {
+    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
+           head_travel(sim) >= cfg_.displacement * (1.0 - 1e-12);
+  }
+
+  void state(StateArchive& a) override {
+    Stage::state(a);
+    a.section("load_test");
+    a(q_start_, travel_, load_, res_.capacity, res_.shaft_at_capacity, res_.base_at_capacity,
+      res_.displacement_at_capacity);
+  }
+
+ protected:
+  void set_walls(Walls& w) override { set_held_walls(w); }
+
+  const char* end_reason(Simulation& sim) override {
+    travel_ = head_travel(sim);
+    const bool done = travel_ >= cfg_.displacement * (1.0 - 1e-12);
+    if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || done) record(sim);
+    if (!done) return nullptr;
+    drive_body(sim, cfg_, 0.0);  // held where the test left it
+    return "displacement reached";
+  }
+
+  std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override {
+    const std::uint64_t done = sim.step_count() - start_step_;
+    n = std::min(n, cfg_.record_interval - done % cfg_.record_interval);
+    const double left =
+        std::ceil((cfg_.displacement - head_travel(sim)) / (cfg_.velocity * sim.dt()));
+    return std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
+  }
+
+ private:
+  double sign() const { return cfg_.direction == LoadDirection::Compression ? 1.0 : -1.0; }
+  double head_travel(const Simulation& sim) const {
+    return sign() * (sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_);
+  }
+
+  void record(const Simulation& sim) {
+    travel_ = head_travel(sim);
+    const BodyProbe p = probe_stage_body(sim, cfg_);
+    const double whole = sign() / p.sector;  // the whole pile's, in the test's direction
+    const double base = whole * p.tip_load, shaft = whole * p.shaft_load;
+    load_ = base + shaft;
+    if (load_ > res_.capacity) {
+      res_.capacity = load_;
+      res_.shaft_at_capacity = shaft;
+      res_.base_at_capacity = base;
+      res_.displacement_at_capacity = travel_;
+    }
+    StageOutputs* out = outputs();
+    if (!out) return;
+    Measurement m;
+    m.emplace_back("stage", static_cast<double>(index()));
+    m.emplace_back("ageing_time_s", ageing_clock_);
+    m.emplace_back("direction", sign());
+    m.emplace_back("head_displacement_m", travel_);
+    m.emplace_back("head_load_N", load_);
+    m.emplace_back("shaft_load_N", shaft);
+    m.emplace_back("base_load_N", base);
+    m.emplace_back("tip_contacts", static_cast<double>(p.tip_contacts));
+    m.emplace_back("shaft_contacts", static_cast<double>(p.shaft_contacts));
+    for (auto& kv : out->measure(sim)) m.push_back(kv);
+    out->write("load_test.csv", m);
+  }
+
+  double q_start_ = 0.0;  // the body's degree of freedom at the start [m]
+  double travel_ = 0.0;   // the head's, in the test's direction [m]
+  double load_ = 0.0;     // the head load at the last record [N]
 };
 
 }  // namespace
@@ -230,29 +339,34 @@ const StageKind& penetrate_stage_kind() {
            [](double v) { return v >= 0.0; }, "a length >= 0 in m"},
       }),
       .make = make_stage_of<PenetrateStage>,
-      .check_bodies =
-          [](const StageConfig& c, const std::vector<BodyConfig>& bodies,
-             const std::string& prefix) {
-            for (const BodyConfig& b : bodies) {
-              if (b.name != c.body) continue;
-              const Body made = b.make(0.0);
-              if (!probe_supports(made.shape)) {
-                throw ConfigError(bad_value(
-                    prefix + ".body", "\"" + c.body + "\"",
-                    "a translating cone, pile, disk or cylinder_outside (this body is a " +
-                        std::string(to_string(b.kind)) +
-                        (b.motion == BodyMotion::Dilate ? " that dilates)" : ")")));
-              }
-              return;
-            }
-            std::string names;
-            for (const BodyConfig& b : bodies)
-              names += (names.empty() ? "\"" : ", \"") + b.name + "\"";
-            throw ConfigError(bad_value(
-                prefix + ".body", "\"" + c.body + "\"",
-                "the name of a [[body]]" +
-                    (names.empty() ? std::string(" (there is none)") : " (" + names + ")")));
-          },
+      .check_bodies = check_driven_body,
+  };
+  return kind;
+}
+
+const StageKind& load_test_stage_kind() {
+  static const StageKind kind{
+      .name = "load_test",
+      .description =
+          "a static load test of a pile: the [[body]] driven at `velocity` on (compression) or "
+          "out (tension) until its head has moved `displacement`; head, shaft and base loads "
+          "recorded (load_test.csv) and the capacity in summary.json",
+      .params = held_walls_stage_table({
+          {"body", &StageConfig::body, "", "the pile (a [[body]]'s name)", nullptr, {}, "-"},
+          {"direction", enum_choice(&StageConfig::direction, kLoadDirectionNames), "",
+           "compression pushes the pile on along its direction, tension pulls it back out"},
+          {"velocity", &StageConfig::velocity, "m/s",
+           "head displacement rate (displacement-controlled, as a static load test's jack)",
+           [](double v) { return v > 0.0; }, "a positive velocity in m/s", "-"},
+          {"displacement", &StageConfig::displacement, "m",
+           "how far the head moves (the capacity is the largest head load on the way; 10 % of "
+           "the pile's diameter is the usual failure criterion in compression)",
+           [](double v) { return v > 0.0; }, "a positive head displacement in m", "-"},
+          {"record_interval", &StageConfig::record_interval, "",
+           "steps between rows of load_test.csv", [](double v) { return v >= 1.0; }, "> 0 steps"},
+      }),
+      .make = make_stage_of<LoadTestStage>,
+      .check_bodies = check_driven_body,
   };
   return kind;
 }
