@@ -285,6 +285,9 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
   }
   if (!c.has_sample && !c.particles.file.empty() && std::filesystem::exists(c.particles.file)) {
     const Packing pk = read_packing(c.particles.file);
+    if (pk.header.count(kUpscalingHeader)) {
+      c.file_upscaling_factor = pk.header_number(kUpscalingHeader, c.particles.file);
+    }
     if (pk.header.count("chamber_radius")) {
       c.file_chamber_radius = pk.header_number("chamber_radius", c.particles.file);
       if (pk.header.count("sector")) {
@@ -600,6 +603,14 @@ void RunConfig::validate() const {
     }
   }
   if (!has_sample) particles.validate(box());
+  // Upscaled grains carry lengths (S_q, d_min, v0) that a run at another factor would give the
+  // wrong sizes.
+  if (!has_sample && !particles.file.empty() && file_upscaling_factor != upscaling.factor) {
+    throw ConfigError(bad_value("upscaling.factor", show_number(upscaling.factor),
+                                show_number(file_upscaling_factor) + ", the factor " +
+                                    particles.file + " was prepared with (its '# " +
+                                    kUpscalingHeader + "=' header; none: 1)"));
+  }
   for (std::size_t i = 0; i < stages.size(); ++i) {
     // A kind that cannot run here is said first, whatever its keys.
     if (stages[i].kind->needs_crack_growth && !(crushing.enabled && crushing.crack_growth)) {

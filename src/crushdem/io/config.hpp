@@ -18,6 +18,9 @@
 
 namespace crushdem {
 
+/// A sample file's header key for the upscaling factor it was prepared with (none: 1).
+inline constexpr const char* kUpscalingHeader = "upscaling_factor";
+
 /// Grains placed at random without overlap (random sequential addition) inside the box.
 struct GenerateConfig {
   std::uint64_t count = 0;
@@ -88,8 +91,9 @@ struct RunConfig {
   UpscalingConfig upscaling;        // [upscaling]: grains larger than the real ones
   // A chamber sample read from particles.file (its header's chamber_radius and sector): the run
   // rebuilds its chamber as [sample] made it. Not keys.
-  double file_chamber_radius = 0.0;  // [m]; 0: not a chamber sample
-  double file_sector = 360.0;        // [deg]
+  double file_upscaling_factor = 1.0;  // the factor the sample file was prepared with
+  double file_chamber_radius = 0.0;    // [m]; 0: not a chamber sample
+  double file_sector = 360.0;          // [deg]
   OutputConfig output;
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)

@@ -22,11 +22,6 @@
 
 namespace crushdem {
 
-namespace {
-// The sample file's header key for the upscaling factor it was prepared with (none: 1).
-constexpr const char* kUpscalingHeader = "upscaling_factor";
-}  // namespace
-
 void add_packing_particles(Simulation& sim, const Packing& pk) {
   for (const PackingRow& r : pk.rows) {
     NewParticle np;
@@ -42,17 +37,6 @@ void add_configured_particles(Simulation& sim, const RunConfig& cfg) {
   const auto box = cfg.box();
   if (!cfg.particles.file.empty()) {
     const Packing pk = read_packing(cfg.particles.file);
-    // Upscaled grains carry lengths (S_q, d_min, v0) that a run at another factor would give
-    // the wrong sizes.
-    const auto up = pk.header.find(kUpscalingHeader);
-    const double made_at =
-        up == pk.header.end() ? 1.0 : pk.header_number(kUpscalingHeader, cfg.particles.file);
-    if (made_at != cfg.upscaling.factor) {
-      throw ConfigError(bad_value("upscaling.factor", show_number(cfg.upscaling.factor),
-                                  show_number(made_at) + ", the factor " + cfg.particles.file +
-                                      " was prepared with (its '# " + kUpscalingHeader +
-                                      "=' header; none: 1)"));
-    }
     for (const PackingRow& r : pk.rows) {
       const double rad = 0.5 * r.diameter;
       const double c[3] = {r.position.x, r.position.y, r.position.z};
