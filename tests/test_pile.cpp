@@ -110,22 +110,29 @@ TEST(Pile, APileIsInstalledAgedAndLoadTestedAndEachPhaseResumesExactly) {
   EXPECT_NEAR(rings["r_out_m"].back(), 4.0 * 0.2e-3, 1e-15);
 
   // The load test: the head pushed 0.04 mm at the ageing time of 1 day, head = shaft + base in
-  // every row; the capacity its largest head load, above the load it started from.
+  // every row; the capacity the largest median of 5 rows in a row (capacity_window), above the
+  // load it started from.
   auto load = testing::read_csv((whole / "load_test.csv").string());
   const std::vector<double>& u = load["head_displacement_m"];
   ASSERT_GT(u.size(), 10u);
   EXPECT_EQ(u.front(), 0.0);
   EXPECT_GE(u.back(), 0.04e-3 * (1.0 - 1e-12));
   EXPECT_LT(u.back(), 0.041e-3);
-  double q_max = 0.0;
+  double q_max = 0.0, median_max = 0.0;
   for (std::size_t i = 0; i < u.size(); ++i) {
     EXPECT_EQ(load["ageing_time_s"][i], 86400.0);
     EXPECT_NEAR(load["head_load_N"][i], load["shaft_load_N"][i] + load["base_load_N"][i],
                 1e-12 * installed);
     q_max = std::max(q_max, load["head_load_N"][i]);
+    if (i + 1 < 5) continue;
+    std::vector<double> last5(load["head_load_N"].begin() + static_cast<long>(i) - 4,
+                              load["head_load_N"].begin() + static_cast<long>(i) + 1);
+    std::nth_element(last5.begin(), last5.begin() + 2, last5.end());
+    median_max = std::max(median_max, last5[2]);
   }
-  EXPECT_EQ(last_capacity(whole), q_max);
-  EXPECT_GT(q_max, 2.0 * load["head_load_N"].front());
+  EXPECT_EQ(last_capacity(whole), median_max);
+  EXPECT_LE(median_max, q_max);
+  EXPECT_GT(median_max, 2.0 * load["head_load_N"].front());
 
   // Stopped (as SIGTERM and SIGINT do) in the installation, in the ageing and in the load test,
   // then resumed: the files of the uninterrupted run.
@@ -221,6 +228,8 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
       {changed("name = \"age_1h\"\nbody = \"pile\"", "name = \"age_1h\"\nbody = \"pole\""),
        "stage[2].body"},
       {changed("rings = 3\n", "rings = 0\n"), "stage[2].rings"},
+      {changed("record_interval = 200", "record_interval = 200\ncapacity_window = 0"),
+       "stage[4].capacity_window"},
   };
   for (const auto& [bad, key] : cases) {
     const std::string error = run_error(bad);

@@ -70,6 +70,7 @@ struct StageConfig {
   double field_radius = 8.0;             // age: the outer ring's radius [shaft radii]
   LoadDirection direction = LoadDirection::Compression;  // load_test
   double displacement = 0.0;                             // load_test: head travel [m]
+  std::uint64_t capacity_window = 5;  // load_test: records whose median the capacity is taken of
   // Equilibrium (isotropic, servo oedometric) and limits: every kind.
   double tolerance = 0.002;      // every servo wall within this relative error of its target
   double unbalanced = 1e-3;      // and the unbalanced-force ratio below this

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/experiments/stages.hpp"
@@ -204,7 +205,9 @@ class PenetrateStage final : public Stage {
 // held as `axial` and `lateral` say. load_test.csv gets a row every record_interval steps: the
 // head displacement and the whole pile's head, shaft and base loads, positive in the test's
 // direction (a sector's loads divided by its fraction of the circle). The capacity is the
-// largest head load of those rows, with the shaft and base loads of that row (summary.json).
+// largest running median of the head load over `capacity_window` rows, with the shaft and base
+// loads and the displacement of the median row (summary.json): a grain that splits under the tip
+// gives a row a spike (its fragments start overlapping the tip) that is not the pile's capacity.
 class LoadTestStage final : public Stage {
  public:
   using Stage::Stage;
@@ -232,7 +235,7 @@ class LoadTestStage final : public Stage {
     Stage::state(a);
     a.section("load_test");
     a(q_start_, travel_, load_, res_.capacity, res_.shaft_at_capacity, res_.base_at_capacity,
-      res_.displacement_at_capacity);
+      res_.displacement_at_capacity, recent_);
   }
 
  protected:
@@ -267,12 +270,8 @@ class LoadTestStage final : public Stage {
     const double whole = sign() / p.sector;  // the whole pile's, in the test's direction
     const double base = whole * p.tip_load, shaft = whole * p.shaft_load;
     load_ = base + shaft;
-    if (load_ > res_.capacity) {
-      res_.capacity = load_;
-      res_.shaft_at_capacity = shaft;
-      res_.base_at_capacity = base;
-      res_.displacement_at_capacity = travel_;
-    }
+    track_capacity({load_, shaft, base, travel_});
+
     StageOutputs* out = outputs();
     if (!out) return;
     Measurement m;
@@ -289,9 +288,29 @@ class LoadTestStage final : public Stage {
     out->write("load_test.csv", m);
   }
 
-  double q_start_ = 0.0;  // the body's degree of freedom at the start [m]
-  double travel_ = 0.0;   // the head's, in the test's direction [m]
-  double load_ = 0.0;     // the head load at the last record [N]
+  // The median row of the last capacity_window rows (by head load), once there are that many:
+  // the capacity when it is the largest so far.
+  void track_capacity(const std::array<double, 4>& row) {
+    recent_.insert(recent_.end(), row.begin(), row.end());
+    const std::size_t n = cfg_.capacity_window;
+    if (recent_.size() > 4 * n) recent_.erase(recent_.begin(), recent_.begin() + 4);
+    if (recent_.size() < 4 * n) return;
+    std::vector<std::size_t> rows(n);
+    for (std::size_t i = 0; i < n; ++i) rows[i] = i;
+    std::nth_element(rows.begin(), rows.begin() + n / 2, rows.end(),
+                     [&](std::size_t a, std::size_t b) { return recent_[4 * a] < recent_[4 * b]; });
+    const double* median = &recent_[4 * rows[n / 2]];
+    if (median[0] <= res_.capacity) return;
+    res_.capacity = median[0];
+    res_.shaft_at_capacity = median[1];
+    res_.base_at_capacity = median[2];
+    res_.displacement_at_capacity = median[3];
+  }
+
+  double q_start_ = 0.0;        // the body's degree of freedom at the start [m]
+  double travel_ = 0.0;         // the head's, in the test's direction [m]
+  double load_ = 0.0;           // the head load at the last record [N]
+  std::vector<double> recent_;  // the last rows: head, shaft and base load, displacement
 };
 
 }  // namespace
@@ -364,6 +383,11 @@ const StageKind& load_test_stage_kind() {
            [](double v) { return v > 0.0; }, "a positive head displacement in m", "-"},
           {"record_interval", &StageConfig::record_interval, "",
            "steps between rows of load_test.csv", [](double v) { return v >= 1.0; }, "> 0 steps"},
+          {"capacity_window", &StageConfig::capacity_window, "",
+           "rows of load_test.csv whose median head load the capacity is the largest of (a grain "
+           "split under the tip spikes one row: its fragments start overlapping the tip); 1 = the "
+           "largest row",
+           [](double v) { return v >= 1.0 && v <= 1e3; }, "a number of rows in [1, 1000]"},
       }),
       .make = make_stage_of<LoadTestStage>,
       .check_bodies = check_driven_body,
