@@ -5,7 +5,8 @@
 runs the reference study's section 3 and draws its figures; ``crushdem sensitivity`` measures
 q_max under each uncertain choice of docs/model.md section 5; ``crushdem sweep`` runs many
 variants of one configuration on Dask and ``crushdem calibrate`` fits one or two parameters to
-targets with them; every other command is handed to the same C++ front end as the standalone
+targets with them; ``crushdem pile`` installs, ages and load-tests a pile at every ageing time
+and fits its set-up; every other command is handed to the same C++ front end as the standalone
 executable.
 """
 
@@ -27,7 +28,7 @@ def main(argv: Optional[List[str]] = None) -> None:
         from . import plot
 
         sys.exit(plot.main(args[1:]))
-    if args and args[0] in ("reproduce", "sensitivity", "sweep", "calibrate"):
+    if args and args[0] in ("reproduce", "sensitivity", "sweep", "calibrate", "pile"):
         from . import _core
 
         if args[0] == "reproduce":
@@ -36,6 +37,8 @@ def main(argv: Optional[List[str]] = None) -> None:
             from .sensitivity import main as command
         elif args[0] == "sweep":
             from .sweep import main as command
+        elif args[0] == "pile":
+            from .pile import main as command
         else:
             from .calibrate import main as command
         try:

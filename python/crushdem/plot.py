@@ -88,6 +88,15 @@ Penetration ("penetrate" stages; drawn only when DIR/penetration.csv exists):
 * ``breakage_field.png``      where grains broke around the body (with [crushing]): distance
                               from its axis [mm] against z [mm], coloured by the travel
 
+A pile's ageing ("age" stages that name a pile; drawn only when DIR/pile_ageing.csv exists):
+
+* ``pile_shaft.png``          radial stress on the shaft [kPa] by depth against ageing time
+* ``pile_rings.png``          radial and hoop stress [kPa] in rings of grains about the shaft
+                              against r / R, at four ageing times
+* ``pile_forces.png``         std of the normal and tangential contact forces near the shaft
+                              against ageing time, over their first values
+* ``pile_breakage.png``       where grains failed while the sand aged, coloured by ageing time
+
 A day of ageing is a few milliseconds of DEM time, so the figures against time (stress_time,
 coordination, kinetic_energy) draw the stages before the age stages against DEM time and the age
 stages, from events.csv, against ageing time on a second panel.

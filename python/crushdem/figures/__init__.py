@@ -16,7 +16,8 @@ other stages against DEM time.
 
 The figures live in modules by subject: :mod:`~crushdem.figures.time_series`,
 :mod:`~crushdem.figures.laboratory`, :mod:`~crushdem.figures.crushing`,
-:mod:`~crushdem.figures.ageing`, :mod:`~crushdem.figures.penetration` and
+:mod:`~crushdem.figures.ageing`, :mod:`~crushdem.figures.penetration`,
+:mod:`~crushdem.figures.pile` and
 :mod:`~crushdem.figures.study`, on the helpers of
 :mod:`~crushdem.figures.common`; every one is importable from here.
 """
@@ -37,6 +38,8 @@ from .laboratory import (figure_inertial_number, figure_oedometer, figure_prepar
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
 from .penetration import figure_breakage_field, figure_penetration, figure_shaft_stress
+from .pile import (figure_pile_breakage, figure_pile_forces, figure_pile_rings,
+                   figure_pile_setup, figure_pile_shaft)
 from .time_series import figure_coordination, figure_kinetic_energy, figure_stress_time
 
 # The functions of the modules below (FIGURES and the constants of figures.common are
@@ -51,7 +54,8 @@ __all__ = [
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",
     "figure_force_statistics", "figure_penetration", "figure_shaft_stress",
-    "figure_breakage_field",
+    "figure_breakage_field", "figure_pile_shaft", "figure_pile_rings", "figure_pile_forces",
+    "figure_pile_breakage", "figure_pile_setup",
     "draw_all", "display_available", "use_file_backend_without_display",
 ]
 
@@ -77,6 +81,10 @@ FIGURES: Dict[str, Callable[[Run], Any]] = {
     "penetration.png": figure_penetration,
     "shaft_stress.png": figure_shaft_stress,
     "breakage_field.png": figure_breakage_field,
+    "pile_shaft.png": figure_pile_shaft,
+    "pile_rings.png": figure_pile_rings,
+    "pile_forces.png": figure_pile_forces,
+    "pile_breakage.png": figure_pile_breakage,
 }
 
 

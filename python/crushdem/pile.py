@@ -1,0 +1,270 @@
+"""``crushdem pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing time
+(docs/pile.md).
+
+CONFIG is a run configuration whose stages are, in order: the installation (one or more
+"penetrate" stages of the pile, and any "hold" after them, the head load taken off, say), the
+ageing ("age" stages, each ending at an ageing time: ``until = 3600.0``, ``86400.0``, ...) and one
+or more "load_test" stages after the last age stage. ``crushdem run CONFIG`` would run those tests
+one after the other on the same pile; ``crushdem pile`` instead tests a fresh copy of the aged
+pile at every ageing time, without running the installation or the ageing again:
+
+* ``DIR/main``: the installation, every age stage and the first load test;
+* ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem run --from``) from the state of
+  DIR/main at the end of age stage i, for every age stage and every load test DIR/main did not
+  run; ``DIR/configs/`` holds each run's configuration.
+
+Then ``DIR/pile_capacity.csv`` (a row per load test: the ageing time, the test, its direction, the
+capacity and the shaft and base loads at it, the head displacement there), ``DIR/pile_setup.json``
+(per test, the set-up factor A of Q(t)/Q(t0) = 1 + A log10(t/t0), Skov and Denver 1988, fitted by
+least squares over the ageing times t >= t0 = the first positive one, with its standard error),
+``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem plot``). Called again, finished runs
+are kept, interrupted ones resumed, and the tables redrawn.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+import tomllib
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
+
+import numpy as np
+
+from .rundir import read_summary
+
+
+def fit_setup(t: Sequence[float], Q: Sequence[float], t0: Optional[float] = None
+              ) -> Dict[str, float]:
+    """The set-up factor of Skov and Denver (1988), Q(t) / Q(t0) = 1 + A log10(t / t0), fitted
+    by least squares to capacities Q at ageing times t (the points with t >= t0; t0 = the
+    smallest positive t when None): Q = Q0 + Q0 A x with x = log10(t / t0), so A = b1 / b0 of the
+    straight line b0 + b1 x. A's standard error comes from the line's covariance (residual
+    variance over n - 2 degrees of freedom) by the delta method; NaN with fewer than three
+    points. Returns {A, A_std, Q0_N (b0), Q0_std_N, t0_s, points}."""
+    t_arr, q_arr = np.asarray(t, dtype=float), np.asarray(Q, dtype=float)
+    ok = np.isfinite(t_arr) & np.isfinite(q_arr) & (t_arr > 0)
+    if t0 is None:
+        t0 = float(t_arr[ok].min()) if np.any(ok) else math.nan
+    ok &= t_arr >= t0 * (1.0 - 1e-12)
+    n = int(ok.sum())
+    out = {"A": math.nan, "A_std": math.nan, "Q0_N": math.nan, "Q0_std_N": math.nan,
+           "t0_s": float(t0), "points": n}
+    if n < 2:
+        return out
+    x = np.log10(t_arr[ok] / t0)
+    y = q_arr[ok]
+    X = np.column_stack([np.ones(n), x])
+    if np.linalg.matrix_rank(X) < 2:
+        return out
+    (b0, b1), *_ = np.linalg.lstsq(X, y, rcond=None)
+    out["A"] = float(b1 / b0)
+    out["Q0_N"] = float(b0)
+    if n > 2:
+        resid = y - X @ np.array([b0, b1])
+        s2 = float(resid @ resid) / (n - 2)
+        cov = s2 * np.linalg.inv(X.T @ X)
+        # A = b1 / b0: grad = (-b1 / b0^2, 1 / b0).
+        g = np.array([-b1 / b0 ** 2, 1.0 / b0])
+        out["A_std"] = float(math.sqrt(max(0.0, g @ cov @ g)))
+        out["Q0_std_N"] = float(math.sqrt(max(0.0, cov[0, 0])))
+    return out
+
+
+def plan(config: Mapping[str, Any], path: str = "CONFIG") -> Dict[str, Any]:
+    """What ``crushdem pile`` runs for ``config`` (a configuration as a dict): ``ages`` (the
+    indices of the age stages), ``tests`` (those of the load tests after the last one),
+    ``main`` (the stages of DIR/main) and ``branches`` ([(name, stages, from_stage, age index,
+    test)]). ValueError naming the stage when the order is not installation, ageing, load tests."""
+    stages = list(config.get("stage", []))
+    kinds = [s.get("type") for s in stages]
+    ages = [i for i, k in enumerate(kinds) if k == "age"]
+    if not ages:
+        raise ValueError(f"{path}: no \"age\" stage: a pile run ages the sand between its "
+                         "installation and its load tests")
+    last = ages[-1]
+    tests = [i for i, k in enumerate(kinds) if k == "load_test" and i > last]
+    if not tests:
+        raise ValueError(f"{path}: no \"load_test\" stage after the last age stage "
+                         f"(stage[{last}])")
+    for i, k in enumerate(kinds):
+        if k == "load_test" and i < last:
+            raise ValueError(f"{path}: stage[{i}] is a load test before the last age stage: "
+                             "the load tests come after the ageing (each is branched from every "
+                             "ageing time)")
+        if i > last and k != "load_test":
+            raise ValueError(f"{path}: stage[{i}] ({k}) follows the last age stage: only load "
+                             "tests may")
+    if not any(k == "penetrate" for k in kinds[:ages[0]]):
+        raise ValueError(f"{path}: no \"penetrate\" stage before the first age stage: the pile "
+                         "is installed first")
+    names = [str(stages[i].get("name") or stages[i]["type"]) for i in range(len(stages))]
+    main = stages[:last + 1] + [stages[tests[0]]]
+    branches = []
+    for a_pos, a in enumerate(ages):
+        for j, t in enumerate(tests):
+            if a == last and j == 0:
+                continue  # DIR/main runs it
+            branches.append((f"t{a_pos}_{names[t]}", stages[:a + 1] + [stages[t]], a + 1, a_pos,
+                             names[t]))
+    return {"ages": ages, "tests": tests, "main": main, "branches": branches,
+            "age_names": [names[a] for a in ages], "test_names": [names[t] for t in tests]}
+
+
+def _write_config(base: Mapping[str, Any], stages: List[Any], path: str, base_dir: str) -> None:
+    from . import _core
+
+    cfg = dict(base)
+    cfg["stage"] = stages
+    text = _core.resolved_run_config(cfg, base_dir)
+    if os.path.isfile(path):
+        with open(path) as f:
+            if f.read() != text:
+                raise ValueError(f"{path} holds another configuration (CONFIG changed since the "
+                                 "first call): use another --out")
+        return
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def capacity_rows(out: str, p: Mapping[str, Any]) -> List[Dict[str, Any]]:
+    """A row per finished load test of DIR: its ageing time (the run's ageing clock: the age
+    stages' ageing summed), test, direction, capacity and the loads at it."""
+    runs = [("main", len(p["ages"]) - 1, p["test_names"][0])]
+    runs += [(name, a_pos, test) for name, _, _, a_pos, test in p["branches"]]
+    rows = []
+    for name, a_pos, test in runs:
+        summary = read_summary(os.path.join(out, name))
+        stages = summary.get("stages") if summary else None
+        if not stages:
+            continue
+        clock = sum(float(s.get("ageing_time_s") or 0.0) for s in stages[:-1])
+        last = stages[-1]
+        if last.get("type") != "load_test":
+            continue
+        rows.append({"run": name, "age_stage": p["age_names"][a_pos], "ageing_time_s": clock,
+                     "test": test, "capacity_N": float(last["capacity_N"]),
+                     "shaft_at_capacity_N": float(last["shaft_at_capacity_N"]),
+                     "base_at_capacity_N": float(last["base_at_capacity_N"]),
+                     "displacement_at_capacity_m": float(last["displacement_at_capacity_m"])})
+    rows.sort(key=lambda r: (r["test"], r["ageing_time_s"]))
+    return rows
+
+
+def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
+         log: Callable[[str], None] = print) -> Dict[str, Any]:
+    """Runs (or resumes) every run of the pile experiment of ``config_path`` into ``out`` and
+    writes its tables and figures; returns {"capacity": rows, "fits": {test: fit}}."""
+    from .sweep import run_variant
+
+    with open(config_path, "rb") as f:
+        try:
+            config = tomllib.load(f)
+        except tomllib.TOMLDecodeError as e:
+            raise ValueError(f"{config_path}: {e}") from None
+    p = plan(config, config_path)
+    base_dir = os.path.dirname(os.path.abspath(config_path))
+    os.makedirs(os.path.join(out, "configs"), exist_ok=True)
+    main_cfg = os.path.join(out, "configs", "main.toml")
+    _write_config(config, p["main"], main_cfg, base_dir)
+    main_dir = os.path.join(out, "main")
+    log(f"main: installation, {len(p['ages'])} age stages and load test "
+        f"'{p['test_names'][0]}' in {main_dir}")
+    r = run_variant(main_cfg, main_dir, threads, backend=backend)
+    log("main: " + ("finished before" if r.get("skipped") else f"done in {r['wall_s']:.1f} s"))
+    for name, stages, from_stage, _, test in p["branches"]:
+        cfg_path = os.path.join(out, "configs", name + ".toml")
+        _write_config(config, stages, cfg_path, base_dir)
+        run_dir = os.path.join(out, name)
+        log(f"{name}: load test '{test}' from {main_dir}:{from_stage}")
+        r = run_variant(cfg_path, run_dir, threads, branch=f"{main_dir}:{from_stage}",
+                        backend=backend)
+        log(f"{name}: " + ("finished before" if r.get("skipped") else
+                           f"done in {r['wall_s']:.1f} s"))
+    return write_results(out, p, log)
+
+
+def write_results(out: str, p: Mapping[str, Any],
+                  log: Callable[[str], None] = print) -> Dict[str, Any]:
+    """pile_capacity.csv, pile_setup.json, pile_setup.png and the figures of DIR/main."""
+    import pandas as pd
+
+    rows = capacity_rows(out, p)
+    df = pd.DataFrame(rows)
+    df.to_csv(os.path.join(out, "pile_capacity.csv"), index=False)
+    fits: Dict[str, Dict[str, float]] = {}
+    for test in p["test_names"]:
+        sel = df[df["test"] == test] if len(df) else df
+        fits[test] = fit_setup(sel["ageing_time_s"], sel["capacity_N"]) if len(sel) else \
+            fit_setup([], [])
+        # The shaft's share on its own: set-up is a shaft effect (Axelsson 2000).
+        fits[f"{test} (shaft)"] = (fit_setup(sel["ageing_time_s"], sel["shaft_at_capacity_N"])
+                                   if len(sel) else fit_setup([], []))
+    with open(os.path.join(out, "pile_setup.json"), "w") as f:
+        json.dump({"model": "Q(t)/Q(t0) = 1 + A log10(t/t0) (Skov and Denver 1988)",
+                   "fits": fits}, f, indent=1, allow_nan=True)
+        f.write("\n")
+    from .figures import use_file_backend_without_display
+    from .figures.pile import figure_pile_setup
+
+    use_file_backend_without_display()
+    if len(df):
+        fig = figure_pile_setup(df.to_dict("list"), fits, os.path.basename(os.path.normpath(out)))
+        if fig is not None:
+            fig.savefig(os.path.join(out, "pile_setup.png"), dpi=120)
+    main_dir = os.path.join(out, "main")
+    if os.path.isfile(os.path.join(main_dir, "timeseries.csv")):
+        from .plot import make_plots
+
+        make_plots(main_dir, None)
+    if len(df):
+        with pd.option_context("display.width", 120, "display.max_columns", 20):
+            log("capacities:\n" + df[["ageing_time_s", "test", "capacity_N",
+                                      "shaft_at_capacity_N", "base_at_capacity_N"]]
+                .to_string(index=False))
+    for test, fit in fits.items():
+        log(f"set-up '{test}': A = {fit['A']:.4g} +- {fit['A_std']:.2g} (Q0 = {fit['Q0_N']:.4g} "
+            f"N, t0 = {fit['t0_s']:.4g} s, {fit['points']} points)")
+    return {"capacity": rows, "fits": fits}
+
+
+class _Stop(Exception):
+    pass
+
+
+def _raise_stop(signum, _frame):
+    raise _Stop(signum)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``crushdem pile CONFIG --out DIR [--threads N] [--backend B]``."""
+    parser = argparse.ArgumentParser(prog="crushdem pile", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("config", metavar="CONFIG")
+    parser.add_argument("--out", required=True, metavar="DIR")
+    parser.add_argument("--threads", type=int, default=1, metavar="N",
+                        help="threads of each run (they run one after the other)")
+    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"))
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+
+    def log(msg: str) -> None:
+        print(f"crushdem pile: {msg}", flush=True)
+
+    signal.signal(signal.SIGTERM, _raise_stop)
+    try:
+        pile(args.config, args.out, args.threads, args.backend, log)
+    except _Stop as e:
+        return 128 + int(e.args[0])
+    except KeyboardInterrupt:
+        return 128 + signal.SIGINT
+    except (OSError, ValueError, RuntimeError) as e:
+        print(f"crushdem pile: error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

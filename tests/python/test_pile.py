@@ -1,0 +1,137 @@
+"""``crushdem pile`` (python/crushdem/pile.py): the set-up fit returns the A of synthetic
+capacities (and its uncertainty covers it under noise); the plan of runs follows the stages and
+refuses a configuration out of order; the command on the 400-grain pile of tests/data (a main run
+and one branch, about 20 s) writes the capacities, the fit and the figures, and called again
+reuses its finished runs."""
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pandas")
+
+from crushdem import pile  # noqa: E402
+from crushdem.figures import pile as pile_figures  # noqa: E402
+
+from _data import DATA  # noqa: E402
+
+
+def test_the_setup_fit_returns_the_factor_of_synthetic_capacities():
+    t = np.array([3600.0, 86400.0, 604800.0, 2592000.0])
+    for A in (0.0, 0.25, 0.6):
+        Q = 120.0 * (1.0 + A * np.log10(t / 3600.0))
+        f = pile.fit_setup(t, Q)
+        assert f["A"] == pytest.approx(A, abs=1e-12)
+        assert f["Q0_N"] == pytest.approx(120.0, rel=1e-12)
+        assert f["A_std"] == pytest.approx(0.0, abs=1e-9)
+        assert f["t0_s"] == 3600.0 and f["points"] == 4
+    # Under noise the standard error covers the true factor (30 draws, 2 sigma: most of them).
+    rng = np.random.default_rng(3)
+    t = np.geomspace(3600.0, 2592000.0, 8)
+    inside = 0
+    for _ in range(30):
+        Q = 100.0 * (1.0 + 0.4 * np.log10(t / 3600.0)) * (1.0 + 0.03 * rng.standard_normal(t.size))
+        f = pile.fit_setup(t, Q)
+        assert f["A_std"] > 0
+        inside += abs(f["A"] - 0.4) < 2.0 * f["A_std"]
+    assert inside >= 24
+    # Two points give A without an uncertainty; one gives nothing; t = 0 is left out.
+    f = pile.fit_setup([0.0, 3600.0, 36000.0], [5.0, 1.0, 1.5])
+    assert f["points"] == 2 and f["A"] == pytest.approx(0.5) and math.isnan(f["A_std"])
+    assert math.isnan(pile.fit_setup([3600.0], [1.0])["A"])
+
+
+def _stage(kind, name, **keys):
+    return {"type": kind, "name": name, **keys}
+
+
+def test_the_plan_follows_the_stages_and_refuses_them_out_of_order():
+    install = _stage("penetrate", "install", body="pile")
+    ages = [_stage("age", f"a{i}", until=float(3600 * 10 ** i)) for i in range(3)]
+    tests = [_stage("load_test", "comp"), _stage("load_test", "tens", direction="tension")]
+    p = pile.plan({"stage": [install] + ages + tests})
+    assert p["ages"] == [1, 2, 3] and p["tests"] == [4, 5]
+    assert [s["name"] for s in p["main"]] == ["install", "a0", "a1", "a2", "comp"]
+    names = [b[0] for b in p["branches"]]
+    assert names == ["t0_comp", "t0_tens", "t1_comp", "t1_tens", "t2_tens"]
+    # Each branch: the stages up to its age stage, then its test, from the stage after it.
+    for name, stages, from_stage, a_pos, test in p["branches"]:
+        assert [s["name"] for s in stages] == ["install"] + [f"a{i}" for i in
+                                                             range(a_pos + 1)] + [test]
+        assert from_stage == 1 + a_pos + 1
+    for bad, said in [
+        ([install] + tests, "no \"age\" stage"),
+        ([install] + ages, "no \"load_test\""),
+        ([install, ages[0], tests[0], ages[1], tests[1]], "stage[2] is a load test before"),
+        ([install] + ages + tests + [_stage("hold", "h")], "stage[6] (hold) follows"),
+        (ages + tests, "no \"penetrate\" stage"),
+    ]:
+        with pytest.raises(ValueError, match=said.replace("[", r"\[").replace("(", r"\(")
+                           .replace(")", r"\)")):
+            pile.plan({"stage": bad})
+
+
+def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
+    text = open(os.path.join(DATA, "pile_400.toml")).read().replace("@DATA@", DATA)
+    cfg = tmp_path / "pile.toml"
+    cfg.write_text(text)
+    out = tmp_path / "out"
+    said = []
+    r = pile.pile(str(cfg), str(out), log=said.append)
+    # The main run (installation, both age stages, the test at 1 day) and the test at 1 hour.
+    assert sorted(os.listdir(out / "configs")) == ["main.toml", "t0_compression.toml"]
+    rows = r["capacity"]
+    assert [(row["run"], row["ageing_time_s"]) for row in rows] == [("t0_compression", 3600.0),
+                                                                    ("main", 86400.0)]
+    for row in rows:
+        assert row["capacity_N"] > 0
+        assert row["capacity_N"] == pytest.approx(row["shaft_at_capacity_N"]
+                                                  + row["base_at_capacity_N"], rel=1e-12)
+    main = json.load(open(out / "main" / "summary.json"))
+    assert main["stages"][-1]["capacity_N"] == rows[1]["capacity_N"]
+    import pandas as pd
+
+    table = pd.read_csv(out / "pile_capacity.csv")
+    assert list(table["ageing_time_s"]) == [3600.0, 86400.0]
+    fit = json.load(open(out / "pile_setup.json"))["fits"]["compression"]
+    q = table["capacity_N"].to_numpy()
+    assert fit["A"] == pytest.approx((q[1] / q[0] - 1.0) / math.log10(24.0), rel=1e-9)
+    assert fit["points"] == 2
+    shaft = json.load(open(out / "pile_setup.json"))["fits"]["compression (shaft)"]
+    assert shaft["points"] == 2 and math.isfinite(shaft["A"])
+    for png in ("pile_setup.png", "main/pile_shaft.png", "main/pile_rings.png",
+                "main/pile_forces.png"):
+        assert (out / png).stat().st_size > 1000, png
+    assert any("set-up 'compression'" in s for s in said)
+    # Called again: every run has finished, the tables come back the same.
+    again = pile.pile(str(cfg), str(out), log=lambda s: None)
+    assert again["capacity"] == rows
+    # A changed configuration is refused instead of mixed with the first one's runs.
+    cfg.write_text(text.replace("n_break = 2", "n_break = 3", 1))
+    with pytest.raises(ValueError, match="holds another configuration"):
+        pile.pile(str(cfg), str(out), log=lambda s: None)
+
+
+def test_the_ring_profile_averages_the_slices_per_event_and_ring():
+    rings = {"ageing_time_s": np.array([0, 0, 0, 0, 5, 5, 5, 5], float),
+             "ring": np.array([0, 0, 1, 1, 0, 0, 1, 1], float),
+             "bin": np.array([0, 1, 0, 1, 0, 1, 0, 1], float),
+             "height_m": np.array([1, 3, 1, 3, 1, 3, 1, 3], float),
+             "r_in_m": np.array([1, 1, 2, 2, 1, 1, 2, 2], float),
+             "r_out_m": np.array([2, 2, 4, 4, 2, 2, 4, 4], float)}
+    for k, base in (("sigma_rr_Pa", 10.0), ("sigma_tt_Pa", 20.0), ("sigma_zz_Pa", 30.0)):
+        rings[k] = base + np.arange(8, dtype=float)
+    prof = pile_figures.ring_profile(rings)
+    assert list(prof["ageing_time_s"]) == [0, 0, 5, 5]
+    assert list(prof["r_mid_m"]) == [1.5, 3.0, 1.5, 3.0]
+    assert list(prof["sigma_rr_Pa"]) == [10.5, 12.5, 14.5, 16.5]
+    low = pile_figures.ring_profile(rings, shaft_top=2.0)
+    assert list(low["sigma_tt_Pa"]) == [20.0, 22.0, 24.0, 26.0]
+    # A slice without grains (beyond the chamber's wall) is left out; a ring without any, too.
+    rings["grains"] = np.array([3, 0, 5, 5, 3, 3, 0, 0], float)
+    some = pile_figures.ring_profile(rings)
+    assert list(some["ageing_time_s"]) == [0, 0, 5]
+    assert list(some["sigma_rr_Pa"]) == [10.0, 12.5, 14.5]
