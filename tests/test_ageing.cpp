@@ -1,4 +1,4 @@
-// Time-dependent failure and off-DEM ageing (issue 5, docs/model.md 3): a grain under a constant
+// Time-dependent failure and off-DEM ageing (docs/model.md 3): a grain under a constant
 // contact stress fails at t = (0.5 d - a0) / v, in dynamic DEM and across an ageing jump; each
 // jump brings exactly n_break grains to failure.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Grain crushing (issue 4, docs/model.md 2): the 14-fragment pattern, the breaking force of one
+// Grain crushing (docs/model.md 2): the 14-fragment pattern, the breaking force of one
 // grain against walls and of two grains, the size effect and spread of strength, conservation
 // in a split, the comminution limit.
 #include <gtest/gtest.h>

@@ -255,7 +255,7 @@ def fit_log_t(t: np.ndarray, y: np.ndarray) -> Dict[str, float]:
     return out
 
 
-# N_break = 10 and 30 (issue 5): the two relaxation curves, each normalised by its value at the
+# N_break = 10 and 30: the two relaxation curves, each normalised by its value at the
 # end of phase 0 (the same state for both: the runs are identical up to the first jump), may
 # differ by at most this much anywhere between the later of the two first jumps and the end.
 # Stated before the comparison was run: 0.03, about a tenth of the 1-day relaxation of the

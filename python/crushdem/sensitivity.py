@@ -1,5 +1,5 @@
 """``crushdem sensitivity --out DIR --sample FILE``: the influence of the uncertain choices of
-docs/model.md section 5 on the drained triaxial strength q_max (issue 4).
+docs/model.md section 5 on the drained triaxial strength q_max.
 
 Each variant changes one choice of the base settings (Table 1 and the documented defaults, as
 ``crushdem reproduce`` uses them for its triaxial shear: crushing on, density scaling, no crack

@@ -1,4 +1,4 @@
-// Sample preparation and the laboratory tests (issue 3): grading, void ratio, isotropic,
+// Sample preparation and the laboratory tests: grading, void ratio, isotropic,
 // oedometric and triaxial stages, and the errors for impossible samples.
 #include <gtest/gtest.h>
 #include <unistd.h>

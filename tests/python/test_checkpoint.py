@@ -1,5 +1,5 @@
 """A run killed with SIGKILL in the middle of a dynamic phase, then resumed with
-``crushdem resume``, writes the same files as an uninterrupted run (issue 5).
+``crushdem resume``, writes the same files as an uninterrupted run.
 
 The run is the small creep test of tests/data (grains_300.toml, creep_300.toml), which
 tests/test_checkpoint.cpp runs too: 300 weak grains squeezed to 2 MPa, then off-DEM ageing for a

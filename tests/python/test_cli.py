@@ -101,3 +101,22 @@ def test_the_emulated_device_follows_the_cpu(tmp_path, capfd):
     for name, values in cpu.items():
         scale = np.max(np.abs(values))
         assert np.max(np.abs(emulated[name] - values)) <= EMULATED_TOLERANCE * scale, name
+
+
+def test_progress_lines_give_the_rate_and_the_share_done(tmp_path, capfd):
+    # A hold of 2,000 steps on the 64-grain lattice, a progress line at every check (200 steps):
+    # each line gives the steps per second and the share of the stage done, rising to 100 %.
+    config = tmp_path / "hold.toml"
+    config.write_text(f'[contact]\nlaw = "hertz"\n[particles]\nfile = "{DATA}/lattice_64.txt"\n'
+                      '[[stage]]\ntype = "hold"\nname = "rest"\nsteps = 2000\n'
+                      '[output]\ninterval = 500\nprogress_seconds = 1e-9\n')
+    code, _, err = _run(["run", str(config), "--out", str(tmp_path / "run")], capfd)
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("[crushdem] rest  step")]
+    assert len(lines) >= 5, err
+    shares = []
+    for ln in lines:
+        assert " steps/s" in ln, ln
+        shares.append(float(ln.split("% done")[0].split()[-1]))
+    assert shares == sorted(shares) and shares[0] > 0 and shares[-1] == 100.0, shares
+    assert any(", ETA " in ln for ln in lines), lines

@@ -373,7 +373,7 @@ def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
     assert set(parts) == {"other", "integration", "neighbor_search", "contact_forces",
                           "wall_forces", "crushing", "ageing_jump", "output"}
     assert sum(parts.values()) == pytest.approx(timing["wall_seconds"], rel=0.1, abs=0.2)
-    assert timing["finished"] == 1 and timing["dominant_part"] in parts
+    assert timing["finished"] is True and timing["dominant_part"] in parts
     with pytest.raises(crushdem.ConfigError, match="sample.void_ratio"):
         crushdem.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
     with pytest.raises(crushdem.ConfigError, match=r"stage\[0\]\.stress"):

@@ -10,6 +10,7 @@
 // rate, as in a loading frame).
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -197,6 +198,9 @@ class Stage : public Controller {
   const StageResult& result() const { return res_; }
   /// Where the stage stands, for progress lines (empty: the lines give the stresses).
   virtual std::string progress_note() const { return ""; }
+  /// The share of the stage done, in [0, 1], for progress lines (their ETA); NaN where the stage
+  /// ends on a state (an equilibrium) rather than a distance, a time or a strain.
+  virtual double fraction(const Simulation&) const { return std::nan(""); }
   /// Called for every time-series row (tracks peaks and limits at output resolution too).
   void observe(const Simulation& sim);
 

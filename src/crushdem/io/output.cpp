@@ -122,6 +122,9 @@ void JsonObject::number(const std::string& key, double v) {
 void JsonObject::integer(const std::string& key, long long v) {
   fields.emplace_back(key, std::to_string(v));
 }
+void JsonObject::boolean(const std::string& key, bool v) {
+  fields.emplace_back(key, v ? "true" : "false");
+}
 void JsonObject::string(const std::string& key, const std::string& v) {
   fields.emplace_back(key, json_escape(v));
 }

@@ -44,6 +44,7 @@ struct JsonObject {
   std::vector<std::pair<std::string, std::string>> fields;  // values already JSON-encoded
   void number(const std::string& key, double v);
   void integer(const std::string& key, long long v);
+  void boolean(const std::string& key, bool v);
   void string(const std::string& key, const std::string& v);
   void object(const std::string& key, const JsonObject& v);
   void array(const std::string& key, const std::vector<JsonObject>& v);

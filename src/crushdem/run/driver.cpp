@@ -124,6 +124,9 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
     csv.write(row());
     to_check = c.steps_to_check(sim_);
   }
+  drive_t0_ = clock::now();
+  drive_step0_ = sim_.step_count();
+  drive_f0_ = fraction ? fraction() : std::nan("");
   bool finished = false;
   const std::uint64_t interval = cfg_.output.interval, vtk = cfg_.output.vtk_interval;
   while (!finished) {
@@ -207,6 +210,25 @@ void Driver::state(StateArchive& a) {
   }
 }
 
+namespace {
+
+/// "42 s", "12 min", "3.4 h" or "2.1 days".
+std::string show_duration(double s) {
+  char b[32];
+  if (s < 120.0) {
+    std::snprintf(b, sizeof b, "%.0f s", s);
+  } else if (s < 7200.0) {
+    std::snprintf(b, sizeof b, "%.0f min", s / 60.0);
+  } else if (s < 172800.0) {
+    std::snprintf(b, sizeof b, "%.1f h", s / 3600.0);
+  } else {
+    std::snprintf(b, sizeof b, "%.1f days", s / 86400.0);
+  }
+  return b;
+}
+
+}  // namespace
+
 void Driver::progress(const std::string& label, const std::function<double()>& fraction) {
   if (!opt_.progress || !(cfg_.output.progress_seconds > 0)) return;
   const auto now = clock::now();
@@ -223,10 +245,18 @@ void Driver::progress(const std::string& label, const std::function<double()>& f
     const std::string note = progress_note_();
     if (!note.empty()) std::fprintf(stderr, "  %s", note.c_str());
   }
-  if (fraction) {
-    const double f = fraction();
-    const double el = std::chrono::duration<double>(now - t0_).count();
-    std::fprintf(stderr, "  (%.1f %%, ETA %.0f s)", 100.0 * f, f > 0 ? el * (1 - f) / f : 0.0);
+  const double el = std::chrono::duration<double>(now - drive_t0_).count();
+  if (el > 0.0) {
+    std::fprintf(stderr, "  %.3g steps/s",
+                 static_cast<double>(sim_.step_count() - drive_step0_) / el);
+  }
+  const double f = fraction ? fraction() : std::nan("");
+  if (std::isfinite(f)) {
+    // The ETA from the share done since this drive began (a resumed stage starts part done).
+    const double done = f - (std::isfinite(drive_f0_) ? drive_f0_ : 0.0);
+    std::fprintf(stderr, "  %.1f %% done", 100.0 * f);
+    if (done > 0.0 && f < 1.0)
+      std::fprintf(stderr, ", ETA %s", show_duration(el * (1 - f) / done).c_str());
   }
   std::fprintf(stderr, "\n");
 }

@@ -83,7 +83,8 @@ class Driver {
   /// Runs `c` to its end; `row` gives the time-series row (written at the start, every output
   /// interval and at the end). resumed: `c` was restored from a checkpoint taken inside this
   /// loop, `to_check` steps before its next check (begin() and the first row are not repeated).
-  /// `fraction` (done share) adds a percentage and ETA to progress lines, `note` a text.
+  /// `fraction` (done share, NaN when unknown) adds a percentage and ETA to progress lines,
+  /// `note` a text; every line gives the steps per second since the drive began.
   void drive(Controller& c, CsvWriter& csv, const std::function<Measurement()>& row,
              const std::string& label, const std::function<double()>& fraction = {},
              bool resumed = false, std::uint64_t to_check = 0,
@@ -124,6 +125,11 @@ class Driver {
   double particle_steps_ = 0.0;
   std::function<std::string()> progress_note_;  // set by drive() from its caller's note
   clock::time_point t0_, last_, last_checkpoint_;
+  // The current drive's start, for the progress lines' rate and ETA: its time, step and share
+  // done (NaN when the controller gives none).
+  clock::time_point drive_t0_;
+  std::uint64_t drive_step0_ = 0;
+  double drive_f0_ = 0.0;
 };
 
 }  // namespace crushdem

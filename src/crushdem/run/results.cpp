@@ -127,9 +127,9 @@ std::pair<std::size_t, double> write_timing(const std::string& path, const std::
                                             double particle_steps, Simulation& sim) {
   JsonObject timing;
   timing.string("backend", backend);
-  timing.integer("finished", finished ? 1 : 0);
+  timing.boolean("finished", finished);
   timing.number("wall_seconds", seconds);
-  timing.integer("resumed", resumed ? 1 : 0);
+  timing.boolean("resumed", resumed);
 #ifdef CRUSHDEM_HAVE_OPENMP
   timing.integer("threads", omp_get_max_threads());
 #else

@@ -450,7 +450,8 @@ class Run {
           add_crushing_columns(m);
           return m;
         },
-        cfg_.stages[k].label(), {}, cont, pos_.to_check, [&]() { return stage.progress_note(); });
+        cfg_.stages[k].label(), [&]() { return stage.fraction(sim); }, cont, pos_.to_check,
+        [&]() { return stage.progress_note(); });
     JsonObject result = stage_json(stage.result());
     if (crusher_) result.object("loaded_share", loaded_share_json(sim, *crusher_));
     pos_.stage_results.push_back(result);

@@ -9,6 +9,7 @@
 // stress on its shaft by bin) and pile_rings.csv (the stress in rings of grains about it,
 // experiments/pile_field.hpp).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -36,6 +37,12 @@ class AgeStage final : public Stage {
     ageing_time_ = ageing_clock_;
     Stage::begin(sim);
     start_phase(sim);
+  }
+
+  /// The ageing done on a log scale (the jumps grow about geometrically).
+  double fraction(const Simulation&) const override {
+    const double span = target() - ageing_clock_;
+    return span > 0.0 ? std::log1p(ageing_time_ - ageing_clock_) / std::log1p(span) : 1.0;
   }
 
   /// The dynamic phase and the ageing time against its duration.

@@ -21,6 +21,15 @@ class HoldStage final : public Stage {
     set_head(w);
   }
 
+ public:
+  double fraction(const Simulation& sim) const override {
+    if (cfg_.steps > 0) {
+      return static_cast<double>(sim.step_count() - start_step_) / static_cast<double>(cfg_.steps);
+    }
+    return (sim.time() - start_time_) / cfg_.duration;
+  }
+
+ protected:
   const char* end_reason(Simulation& sim) override {
     if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return "duration";
     if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {

@@ -15,6 +15,20 @@ class OedometricStage final : public Stage {
  public:
   using Stage::Stage;
 
+  void begin(Simulation& sim) override {
+    Stage::begin(sim);
+    sigma_v0_ = sim.walls().axial_stress();
+  }
+
+  /// Driven at a strain rate: the way to the target stress on a log scale (compression curves
+  /// are about straight in log stress). Servo-controlled (an equilibrium), or resumed (the
+  /// start's stress is not saved): none.
+  double fraction(const Simulation& sim) const override {
+    const double sv = sim.walls().axial_stress();
+    if (cfg_.strain_rate == 0.0 || !(sigma_v0_ > 0.0) || !(sv > 0.0)) return std::nan("");
+    return std::log(sv / sigma_v0_) / std::log(cfg_.stress / sigma_v0_);
+  }
+
  protected:
   void set_walls(Walls& w) override {
     if (cfg_.strain_rate == 0.0) {
@@ -49,6 +63,9 @@ class OedometricStage final : public Stage {
           std::max(res_.max_lateral_strain, std::abs(1.0 - w.length(a) / ref_.length[a]));
     }
   }
+
+ private:
+  double sigma_v0_ = 0.0;  // at the start, for progress lines only (not saved) [Pa]
 };
 
 }  // namespace

@@ -98,6 +98,10 @@ class PenetrateStage final : public Stage {
     return b;
   }
 
+  double fraction(const Simulation& sim) const override {
+    return (sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_) / cfg_.depth;
+  }
+
   /// A record reads the grains' positions and their contacts with the body.
   bool reads_grains(const Simulation& sim) const override {
     const Walls& w = sim.walls();
@@ -224,6 +228,10 @@ class LoadTestStage final : public Stage {
     std::snprintf(b, sizeof b, "head %.4g m of %.4g m  Q %.4g N (max %.4g N)", travel_,
                   cfg_.displacement, load_, res_.capacity);
     return b;
+  }
+
+  double fraction(const Simulation& sim) const override {
+    return head_travel(sim) / cfg_.displacement;
   }
 
   bool reads_grains(const Simulation& sim) const override {

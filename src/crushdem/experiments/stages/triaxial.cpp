@@ -15,6 +15,10 @@ class TriaxialStage final : public Stage {
  public:
   using Stage::Stage;
 
+  double fraction(const Simulation& sim) const override {
+    return stage_axial_strain(sim) / cfg_.axial_strain;
+  }
+
  protected:
   void set_walls(Walls& w) override {
     const double Lz = w.length(2);
