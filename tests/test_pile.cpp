@@ -228,6 +228,8 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
       {changed("name = \"age_1h\"\nbody = \"pile\"", "name = \"age_1h\"\nbody = \"pole\""),
        "stage[2].body"},
       {changed("rings = 3\n", "rings = 0\n"), "stage[2].rings"},
+      // A head load without the pile it holds.
+      {changed("name = \"unload\"\nbody = \"pile\"\n", "name = \"unload\"\n"), "stage[1].head"},
       {changed("record_interval = 200", "record_interval = 200\ncapacity_window = 0"),
        "stage[4].capacity_window"},
   };

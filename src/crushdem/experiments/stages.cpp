@@ -119,13 +119,25 @@ ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<Stage
 
 ParamTable<StageConfig> pile_head_rows() {
   return {
-      {"body", &StageConfig::body, "",
+      {"body",
+       &StageConfig::body,
+       "",
        "a pile (a [[body]]'s name) held as `head` says; in an age stage its shaft and the grains "
        "about it are recorded at every ageing event (pile_ageing.csv, pile_shaft.csv, "
-       "pile_rings.csv); empty = none"},
-      {"head", enum_choice(&StageConfig::head, kHeadControlNames), "",
-       "the pile's head: held where it is, or servo-controlled to head_load (0: the load taken "
-       "off, the pile free to rebound)"},
+       "pile_rings.csv); empty = none",
+       nullptr,
+       {},
+       "",
+       [](const StageConfig& c) { return !c.body.empty(); }},
+      {"head",
+       enum_choice(&StageConfig::head, kHeadControlNames),
+       "",
+       "with a body: the pile's head held where it is, or servo-controlled to head_load (0: the "
+       "load taken off, the pile free to rebound)",
+       nullptr,
+       {},
+       "",
+       [](const StageConfig& c) { return !c.body.empty(); }},
       {"head_load", &StageConfig::head_load, "N",
        "the whole pile's head load with head = \"load\" (a quarter chamber's pile carries its "
        "quarter)",
@@ -138,6 +150,13 @@ ParamTable<StageConfig> with_pile_head(ParamTable<StageConfig> table) {
   const ParamTable<StageConfig> head = pile_head_rows();
   table.insert(table.begin() + 4, head.begin(), head.end());  // after axial ... lateral_stress
   return table;
+}
+
+void check_pile_head(const StageConfig& c, const std::string& prefix) {
+  if (c.body.empty() && c.head != HeadControl::Held) {
+    throw ConfigError(bad_value(prefix + ".head", "\"load\"",
+                                "a `body` (the pile whose head it holds) beside it"));
+  }
 }
 
 void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,

@@ -135,6 +135,8 @@ ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<Stage
 ParamTable<StageConfig> pile_head_rows();
 /// `table` with the pile head's rows after its held walls' rows (hold, age).
 ParamTable<StageConfig> with_pile_head(ParamTable<StageConfig> table);
+/// A pile's head held at a load needs the pile (`body`); ConfigError naming prefix.head.
+void check_pile_head(const StageConfig& c, const std::string& prefix);
 /// StageKind::check_bodies of a stage that names a [[body]] it probes (penetrate, load_test; hold
 /// and age when they name one): the body exists and probe_supports() it.
 void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,

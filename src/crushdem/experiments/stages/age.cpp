@@ -254,6 +254,7 @@ const StageKind& age_stage_kind() {
                                 ".duration' (the ageing it adds, > 0 s) or '" + prefix +
                                 ".until' (the run's ageing clock to reach, > 0 s)");
             }
+            check_pile_head(c, prefix);
           },
       .check_bodies = check_probed_body,
       .needs_crack_growth = true,

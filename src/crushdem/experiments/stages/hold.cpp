@@ -75,6 +75,7 @@ const StageKind& hold_stage_kind() {
               throw ConfigError(prefix + ": a hold stage needs exactly one of '" + prefix +
                                 ".steps' (> 0) or '" + prefix + ".duration' (> 0 s)");
             }
+            check_pile_head(c, prefix);
           },
       .check_bodies = check_probed_body,
   };
