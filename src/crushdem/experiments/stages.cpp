@@ -192,6 +192,19 @@ BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c) {
   return probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(c.bins));
 }
 
+void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProbe& p,
+                      const Measurement& lead) {
+  for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
+    Measurement b = lead;
+    b.emplace_back("bin", static_cast<double>(j));
+    b.emplace_back("height_m", (static_cast<double>(j) + 0.5) * p.bin_height);
+    b.emplace_back("sigma_r_Pa", p.sigma_r[j]);
+    b.emplace_back("tau_Pa", p.tau[j]);
+    b.emplace_back("contacts", static_cast<double>(p.bin_contacts[j]));
+    out.write(file, b);
+  }
+}
+
 int stage_body_index(const Walls& w, const StageConfig& c) {
   for (int k = kNumWalls; k < w.size(); ++k) {
     if (w.name(k) == c.body) return k;

@@ -26,6 +26,7 @@
 namespace crushdem {
 
 class Crusher;
+class StageOutputs;
 class Stage;
 struct StageKind;
 struct BodyConfig;
@@ -144,6 +145,10 @@ void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodi
 /// The body a stage names, probed (walls/body_probe.hpp) with the stage's `bins` and
 /// `sleeve_length` (0: the standard sleeve, 3.75 shaft diameters).
 BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c);
+/// A row of `file` per bin of the probe's shaft: the columns of `lead`, then bin, height_m
+/// (the bin's middle above the shaft's start), sigma_r_Pa, tau_Pa and contacts.
+void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProbe& p,
+                      const Measurement& lead);
 /// Index of the body named `name` in `w` (ConfigError naming the stage's body key otherwise).
 int stage_body_index(const Walls& w, const StageConfig& c);
 

@@ -166,16 +166,9 @@ class AgeStage final : public Stage {
     m.emplace_back("std_Ft_near_N", f.std_Ft);
     for (auto& kv : out.measure(sim)) m.push_back(kv);
     out.write("pile_ageing.csv", m);
-    for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
-      Measurement b;
-      head(b);
-      b.emplace_back("bin", static_cast<double>(j));
-      b.emplace_back("height_m", (static_cast<double>(j) + 0.5) * p.bin_height);
-      b.emplace_back("sigma_r_Pa", p.sigma_r[j]);
-      b.emplace_back("tau_Pa", p.tau[j]);
-      b.emplace_back("contacts", static_cast<double>(p.bin_contacts[j]));
-      out.write("pile_shaft.csv", b);
-    }
+    Measurement lead;
+    head(lead);
+    write_shaft_rows(out, "pile_shaft.csv", p, lead);
     for (const RingStress& r : f.rings) {
       Measurement b;
       head(b);

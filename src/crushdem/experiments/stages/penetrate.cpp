@@ -178,18 +178,9 @@ class PenetrateStage final : public Stage {
     m.emplace_back("strokes", static_cast<double>(strokes_));
     for (auto& kv : out->measure(sim)) m.push_back(kv);  // time_s, step, the walls, crushing
     out->write("penetration.csv", m);
-    for (std::size_t j = 0; j < p.sigma_r.size(); ++j) {
-      Measurement b;
-      b.emplace_back("stage", static_cast<double>(index()));
-      b.emplace_back("time_s", sim.time());
-      b.emplace_back("travel_m", travel_);
-      b.emplace_back("bin", static_cast<double>(j));
-      b.emplace_back("height_m", (static_cast<double>(j) + 0.5) * p.bin_height);
-      b.emplace_back("sigma_r_Pa", p.sigma_r[j]);
-      b.emplace_back("tau_Pa", p.tau[j]);
-      b.emplace_back("contacts", static_cast<double>(p.bin_contacts[j]));
-      out->write("shaft_profile.csv", b);
-    }
+    write_shaft_rows(
+        *out, "shaft_profile.csv", p,
+        {{"stage", static_cast<double>(index())}, {"time_s", sim.time()}, {"travel_m", travel_}});
   }
 
   // The body driven at `velocity` (moving) or held still where it is.
