@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 source scripts/deps.sh
 ensure_build_deps
 ensure_venv
-.venv/bin/python -m pip install --quiet .
+.venv/bin/python -m pip install --quiet ".[plot]"  # crushdem plot draws the figures
 CONFIG=${1:-examples/relaxation_small.toml}
 OUT=${2:-runs/$(basename "$CONFIG" .toml)}
 .venv/bin/crushdem run "$CONFIG" --out "$OUT"

@@ -17,6 +17,13 @@ cmake --build build/test -j "$JOBS"
 
 echo "== C++: install, then build and run a project that uses find_package(crushdem)"
 cmake --install build/test --prefix build/test/install >/dev/null
+# -march=native is for this project's own binaries: the installed package must not pass it on.
+targets=(build/test/install/lib*/cmake/crushdem/crushdemTargets*.cmake)
+[ -f "${targets[0]}" ] || { echo "no crushdemTargets.cmake installed" >&2; exit 1; }
+if grep -n -- "-march" "${targets[@]}"; then
+  echo "the installed crushdem CMake package passes -march to its consumers" >&2
+  exit 1
+fi
 cmake -S tests/consumer -B build/consumer -DCMAKE_PREFIX_PATH="$PWD/build/test/install" >/dev/null
 cmake --build build/consumer -j "$JOBS" >/dev/null
 build/consumer/crushdem_consumer

@@ -181,6 +181,37 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
     }
     EXPECT_EQ(read_file(damaged / "checkpoint.bin"), bytes);
   }
+  // A result file changed after the checkpoint (one byte of a row it had written), or a
+  // snapshot deleted: resume refuses, naming the file, and changes nothing.
+  std::string snapshot;
+  for (const auto& e : fs::directory_iterator(base / "stopped" / "vtk")) {
+    if (e.path().extension() == ".vtp") snapshot = "vtk/" + e.path().filename().string();
+  }
+  ASSERT_FALSE(snapshot.empty());
+  for (const std::string& file : {std::string("timeseries.csv"), snapshot}) {
+    const fs::path damaged = base / "damaged";
+    fs::remove_all(damaged);
+    fs::copy(base / "stopped", damaged, fs::copy_options::recursive);
+    if (file == snapshot) {
+      fs::remove(damaged / file);
+    } else {
+      std::string bytes = read_file(damaged / file);
+      const std::size_t k = bytes.find('\n') + 3;  // in the first row
+      bytes[k] = bytes[k] == '1' ? '2' : '1';
+      std::ofstream(damaged / file, std::ios::binary) << bytes;
+    }
+    const std::string before = fs::exists(damaged / "timeseries.csv")
+                                   ? read_file(damaged / "timeseries.csv")
+                                   : std::string();
+    try {
+      resume_directory(damaged.string(), opt);
+      ADD_FAILURE() << "resumed with " << file << " changed";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(read_file(damaged / "timeseries.csv"), before);
+    EXPECT_TRUE(fs::exists(damaged / "checkpoint.bin"));
+  }
   resume_directory((base / "stopped").string(), opt);
   EXPECT_FALSE(fs::exists(base / "stopped" / "checkpoint.bin")) << "kept after the run ended";
 
@@ -216,6 +247,57 @@ TEST(Checkpoint, AStoppedRunResumedWritesTheFilesOfAnUninterruptedOne) {
 // the checkpoint all go through the device copy and its syncs.
 TEST(Checkpoint, AStoppedDeviceRunResumedWritesTheFilesOfAnUninterruptedOne) {
   expect_stopped_run_resumes_exactly("emulated");
+}
+
+// A state edited where no checksum can tell (the checksum recomputed, or a state handed over
+// in memory): an index beyond the grains, two grains with one id, a grain outside the box or a
+// NaN is refused with a RuntimeFailure when loaded, before any step reads it.
+TEST(Checkpoint, ALoadedStateIsCheckedNotOnlyItsChecksum) {
+  const testing::TempDir temp("invariants");
+  const RunConfig cfg = config(temp.path());
+  Simulation sim(cfg.simulation);
+  add_configured_particles(sim, cfg);
+  sim.step(50);
+  const std::size_t n = sim.particles().size();
+  StateWriter out;
+  save_state(sim, out);
+  const std::string good = out.bytes();
+  // The bytes of an array as the state holds it (length, then the values), to find it there.
+  const auto raw = [](const auto& v) {
+    return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0]));
+  };
+  const auto expect_refused = [&](const std::string& bytes, const std::string& what) {
+    Simulation fresh(cfg.simulation);
+    StateReader in(bytes, "edited");
+    try {
+      load_state(fresh, in);
+      ADD_FAILURE() << "loaded a state with " << what;
+    } catch (const RuntimeFailure& e) {
+      EXPECT_NE(std::string(e.what()).find("checkpoint"), std::string::npos) << e.what();
+    }
+  };
+  const auto edit = [&](const std::string& array, std::size_t k, const void* value,
+                        std::size_t size) {
+    std::string bytes = good;
+    const std::size_t at = bytes.find(array);
+    EXPECT_NE(at, std::string::npos);
+    std::memcpy(bytes.data() + at + k * size, value, size);
+    return bytes;
+  };
+  const auto& nl = sim.neighbors();
+  ASSERT_GT(nl.neighbors.size(), 2u);
+  const auto beyond = static_cast<NeighborList::Index>(n + 5);
+  expect_refused(edit(raw(nl.neighbors), 1, &beyond, sizeof beyond), "a neighbour index");
+  expect_refused(edit(raw(nl.offsets), 1, &beyond, sizeof beyond), "offsets");
+  const ParticleId twin = sim.particles().id[0];
+  expect_refused(edit(raw(sim.particles().id), 1, &twin, sizeof twin), "two grains, one id");
+  const double far = 1.0, nan = std::nan("");
+  expect_refused(edit(raw(sim.particles().x), 2, &far, sizeof far), "a grain outside the box");
+  expect_refused(edit(raw(sim.particles().radius), 3, &nan, sizeof nan), "a NaN radius");
+  // The unedited state loads.
+  Simulation fresh(cfg.simulation);
+  StateReader in(good, "good");
+  EXPECT_NO_THROW(load_state(fresh, in));
 }
 
 TEST(Checkpoint, PartClockChargesEachSecondToOnePart) {

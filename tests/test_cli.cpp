@@ -17,6 +17,7 @@
 
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/build_info.hpp"
+#include "crushdem/run/run_directory.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -148,11 +149,77 @@ TEST_F(RunDirectory, ASecondRunIsRefusedAndLeavesTheFilesAsTheyWere) {
   EXPECT_TRUE(has(again.err, "--overwrite")) << again.err;
   EXPECT_EQ(slurp(fs::path(out_) / "summary.json"), summary);
   EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
-  // --overwrite replaces it: a stale file of the old run does not survive.
+  // --overwrite replaces it: a file the old run wrote (its manifest lists it) does not survive,
+  // the user's own files do.
+  RunManifest(out_).add("grading.csv");
   std::ofstream(fs::path(out_) / "grading.csv") << "stale\n";
+  std::ofstream(fs::path(out_) / "notes.txt") << "mine";
+  fs::create_directories(fs::path(out_) / "data");
+  std::ofstream(fs::path(out_) / "data" / "lab.csv") << "mine";
   EXPECT_EQ(cli({"run", config_, "--out", out_, "--quiet", "--overwrite"}).rc, 0);
   EXPECT_FALSE(fs::exists(fs::path(out_) / "grading.csv"));
   EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
+  EXPECT_EQ(slurp(fs::path(out_) / "notes.txt"), "mine");
+  EXPECT_EQ(slurp(fs::path(out_) / "data" / "lab.csv"), "mine");
+  const std::string manifest = slurp(fs::path(out_) / "manifest.json");
+  for (const char* name : {"config.toml", "timeseries.csv", "summary.json", "vtk"}) {
+    EXPECT_TRUE(has(manifest, std::string("\"") + name + "\"")) << name << manifest;
+  }
+  EXPECT_FALSE(has(manifest, "notes.txt")) << manifest;
+}
+
+TEST_F(RunDirectory, AbsurdButValidParametersWarn) {
+  std::ofstream(config_, std::ios::app)
+      << "[material]\ndensity = 1e300\n[crushing]\nweibull_m = 1e-3\nv0 = 1e300\n"
+         "sigma_lim0 = 1\n";
+  const Outcome check = cli({"check", config_});
+  EXPECT_EQ(check.rc, 0) << check.err;
+  for (const char* key : {"material.density", "crushing.weibull_m", "crushing.v0",
+                          "crushing.sigma_lim0"}) {
+    EXPECT_TRUE(has(check.out, std::string("warning: ") + key)) << key << "\n" << check.out;
+  }
+  // A physical value gives none.
+  std::ofstream(config_) << kTinyRun;
+  const Outcome plain = cli({"check", config_});
+  EXPECT_FALSE(has(plain.out, "warning")) << plain.out;
+}
+
+TEST_F(RunDirectory, AFolderWithAConfigTomlIsNotARun) {
+  // As a user's project folder: a configuration beside notes and data, no manifest.
+  fs::create_directories(fs::path(out_) / "data");
+  std::ofstream(fs::path(out_) / "config.toml") << kTinyRun;
+  std::ofstream(fs::path(out_) / "notes.txt") << "mine";
+  std::ofstream(fs::path(out_) / "data" / "lab.csv") << "mine";
+  const Outcome resume = cli({"resume", out_});
+  EXPECT_EQ(resume.rc, 2);
+  EXPECT_TRUE(has(resume.err, "manifest.json")) << resume.err;
+  const Outcome over = cli({"run", config_, "--out", out_, "--quiet", "--overwrite"});
+  EXPECT_EQ(over.rc, 2);
+  EXPECT_TRUE(has(over.err, "not a crushdem run directory")) << over.err;
+  // A run of an earlier release (no manifest) is not cleared either.
+  std::ofstream(fs::path(out_) / "summary.json") << "{}";
+  const Outcome earlier = cli({"run", config_, "--out", out_, "--quiet", "--overwrite"});
+  EXPECT_EQ(earlier.rc, 2);
+  EXPECT_TRUE(has(earlier.err, "earlier crushdem")) << earlier.err;
+  EXPECT_EQ(slurp(fs::path(out_) / "notes.txt"), "mine");
+  EXPECT_EQ(slurp(fs::path(out_) / "data" / "lab.csv"), "mine");
+  EXPECT_EQ(slurp(fs::path(out_) / "config.toml"), kTinyRun);
+}
+
+TEST_F(RunDirectory, TheCurrentDirectoryIsNeverCleared) {
+  ASSERT_EQ(cli({"run", config_, "--out", out_, "--quiet"}).rc, 0);
+  const std::string summary = slurp(fs::path(out_) / "summary.json");
+  fs::create_directories(fs::path(out_) / "inner");
+  const fs::path cwd = fs::current_path();
+  for (const fs::path& here : {fs::path(out_), fs::path(out_) / "inner"}) {
+    fs::current_path(here);
+    const Outcome o = cli(
+        {"run", config_, "--out", here == fs::path(out_) ? "." : "..", "--quiet", "--overwrite"});
+    fs::current_path(cwd);
+    EXPECT_EQ(o.rc, 2);
+    EXPECT_TRUE(has(o.err, "current directory")) << o.err;
+  }
+  EXPECT_EQ(slurp(fs::path(out_) / "summary.json"), summary);
 }
 
 TEST_F(RunDirectory, AStoppedRunPointsToResume) {
@@ -248,7 +315,8 @@ TEST_F(Branch, AnUnchangedBranchGivesTheOriginalsFiles) {
   std::size_t compared = 0;
   for (const auto& e : fs::recursive_directory_iterator(orig)) {
     const std::string rel = fs::relative(e.path(), orig).string();
-    if (!e.is_regular_file() || rel == "timing.json") continue;  // wall-clock times
+    // Wall-clock times; the entries in the order this run created them.
+    if (!e.is_regular_file() || rel == "timing.json" || rel == "manifest.json") continue;
     ASSERT_TRUE(fs::exists(fs::path(br) / rel)) << rel;
     const std::string a = slurp(e.path());
     std::string b = slurp(fs::path(br) / rel);
@@ -265,6 +333,31 @@ TEST_F(Branch, AnUnchangedBranchGivesTheOriginalsFiles) {
     ++compared;
   }
   EXPECT_GE(compared, 5u);
+}
+
+TEST_F(Branch, TheOriginalIsCheckedAndNeverWritten) {
+  const std::string cfg = write("a.toml", staged_config(data_, 2000));
+  const std::string orig = (base_ / "orig").string();
+  ASSERT_EQ(cli({"run", cfg, "--out", orig, "--quiet"}).rc, 0);
+  const std::string summary = slurp(fs::path(orig) / "summary.json");
+  // Into the run it branches from, or into a folder that holds it: refused, nothing removed.
+  for (const std::string& out : {orig, base_.string()}) {
+    const Outcome o =
+        cli({"run", cfg, "--out", out, "--quiet", "--overwrite", "--from", orig + ":hold"});
+    EXPECT_EQ(o.rc, 2);
+    EXPECT_TRUE(has(o.err, "branches from")) << o.err;
+  }
+  EXPECT_EQ(slurp(fs::path(orig) / "summary.json"), summary);
+  // A file the saved state lists, changed in the original: the branch refuses, naming it.
+  std::string vtk;
+  for (const auto& e : fs::directory_iterator(fs::path(orig) / "vtk")) {
+    if (e.path().extension() == ".vtp" && vtk.empty()) vtk = "vtk/" + e.path().filename().string();
+  }
+  std::ofstream(fs::path(orig) / vtk, std::ios::app) << " ";
+  const Outcome o =
+      cli({"run", cfg, "--out", (base_ / "b").string(), "--quiet", "--from", orig + ":hold"});
+  EXPECT_EQ(o.rc, 2);
+  EXPECT_TRUE(has(o.err, vtk)) << o.err;
 }
 
 TEST_F(Branch, AChangedStageRunsOnlyFromThere) {

@@ -155,6 +155,17 @@ TEST(Config, ParticleFilesAreChecked) {
   check("1 1e-4 1e-4 1e-4 1e-4 7\n2 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:1", "5 columns"});
   check("1 1e-4 1e-4 1e-4 1e-4\n-1 5e-4 5e-4 5e-4 1e-4\n", {"p.txt:2", "id -1", ">= 0"});
   check("1 5e-4 5e-4 5e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n", {"particles 1 and 2", "same point"});
+  // One grain 75 % into another (of radius 5e-5: the centres 2.5e-5 apart) is refused, a
+  // contact-like overlap (1 %) is not.
+  check("1 5e-4 5e-4 5e-4 1e-4\n2 5.25e-4 5e-4 5e-4 1e-4\n",
+        {"particles 1 and 2", "overlap by 150 %"});
+  check("1 5e-4 5e-4 5e-4 1e-4\n2 5.99e-4 5e-4 5e-4 1e-4\n", {});
+  // A file cut short: inside a number (no newline at its end), or at a line end when its
+  // header says how many grains it holds.
+  check("1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 5e-4 1", {"p.txt:2", "ends inside a line"});
+  check("# particles=3\n1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n",
+        {"particles=3", "holds 2 grains"});
+  check("# particles=2\n1 1e-4 1e-4 1e-4 1e-4\n2 5e-4 5e-4 5e-4 1e-4\n", {});
 }
 
 }  // namespace

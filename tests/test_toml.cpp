@@ -200,6 +200,14 @@ TEST(TomlErrors, DeepNestingIsAnErrorNotACrash) {
     return s;
   }() + "\n";
   expect_error(tables, 1, {"nest"});
+  // Dotted keys and table headers of 10^4 parts (a 20 KB file): an error, not a crash.
+  std::string dotted = "a", header = "[a";
+  for (int i = 0; i < 10000; ++i) {
+    dotted += ".k";
+    header += ".k";
+  }
+  expect_error(dotted + " = 1\n", 1, {"nested more than 64"});
+  expect_error(header + "]\nx = 1\n", 1, {"nested more than 64"});
 }
 
 // No key takes a date; toml++ reads them, crushdem refuses them with the key and line.

@@ -27,6 +27,9 @@ message naming the key, e.g. ``material.shear_modulus``.
 from __future__ import annotations
 
 import contextlib
+import math
+import numbers
+import operator
 import threading
 from typing import Any, Dict, Iterator, Mapping, Optional, Sequence
 
@@ -76,6 +79,20 @@ WALL_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 
 #: ``parent_ids`` value of a grain that has no parent (it was not produced by a fracture).
 NO_PARENT = np.uint64(2**64 - 1)
+
+
+def _step_count(what: str, n: Any) -> int:
+    """A number of steps: an integer (Python or NumPy) >= 0; 1.5, "10" or True are refused
+    rather than rounded or parsed."""
+    if isinstance(n, bool):
+        raise TypeError(f"{what}: {n!r} steps: expected an integer count")
+    try:
+        count = operator.index(n)
+    except TypeError:
+        raise TypeError(f"{what}: {n!r} steps: expected an integer count") from None
+    if count < 0:
+        raise ValueError(f"{what}: {count} steps: expected a count >= 0")
+    return count
 
 
 def _config_dict(sections: Mapping[str, Any]) -> Dict[str, Any]:
@@ -221,7 +238,7 @@ class Simulation:
         in a notebook), False for none; None (default) shows the bar for 10,000 steps or more
         when the output is a terminal or a notebook.
         """
-        n = int(n)
+        n = _step_count("step", n)
         if progress is None:
             progress = n >= 10_000 and _interactive()
         with self._exclusive("step"):
@@ -236,19 +253,33 @@ class Simulation:
             else:
                 self._sim.step(n, progress)
 
-    def run(self, duration: float) -> None:
-        """Advances by at least ``duration`` seconds of simulated time, in whole steps."""
-        end = self.time + float(duration)
-        while self.time < end:
-            dt = self.dt
-            if not dt > 0.0:
-                raise RuntimeFailure(f"run: time step is {dt} s (no particles?)")
-            n = max(1, int(np.ceil((end - self.time) / dt - 1e-9)))
-            self._sim.step(min(n, 1_000_000))
+    def run(self, duration: Optional[float] = None, *, steps: Optional[int] = None) -> None:
+        """Advances by at least ``duration`` seconds of simulated time, in whole steps, or by
+        ``steps`` time steps (as ``step``; give one of the two)."""
+        if (duration is None) == (steps is None):
+            raise TypeError("Simulation.run: give either duration (s) or steps=")
+        if steps is not None:
+            self.step(steps)
+            return
+        if isinstance(duration, (bool, str)) or not isinstance(duration, numbers.Real):
+            raise TypeError(f"Simulation.run: duration {duration!r}: expected a time in s")
+        duration = float(duration)
+        if not (math.isfinite(duration) and duration >= 0.0):
+            raise ValueError(f"Simulation.run: duration = {duration}: expected a finite time "
+                             ">= 0 s")
+        with self._exclusive("run"):
+            end = self.time + duration
+            while self.time < end:
+                dt = self.dt
+                if not dt > 0.0:
+                    raise RuntimeFailure(f"run: time step is {dt} s (no particles?)")
+                n = max(1, int(np.ceil((end - self.time) / dt - 1e-9)))
+                self._sim.step(min(n, 1_000_000))
 
     def compute_forces(self) -> None:
         """Evaluates forces and torques at the current state without moving anything."""
-        self._sim.compute_forces()
+        with self._exclusive("compute_forces"):
+            self._sim.compute_forces()
 
     @property
     def time(self) -> float:
@@ -273,7 +304,8 @@ class Simulation:
         """Fixes the time step [s], overriding the automatic choice; warns (RuntimeWarning) when
         it is above the automatic step of the grains present (the run may be unstable)."""
         dt = float(dt)
-        self._sim.set_dt(dt)
+        with self._exclusive("set_dt"):
+            self._sim.set_dt(dt)
         if self.num_particles:
             automatic = self._sim.automatic_dt()
             if dt > automatic:
@@ -333,8 +365,9 @@ class Simulation:
         mode: "fixed", "velocity" or "servo"; velocity [m/s] along the coordinate axis;
         target_stress [Pa] (compressive); servo_alpha [-]; max_speed [m/s].
         """
-        self._sim.set_wall(name, mode=mode, velocity=velocity, target_stress=target_stress,
-                           servo_alpha=servo_alpha, max_speed=max_speed)
+        with self._exclusive("set_wall"):
+            self._sim.set_wall(name, mode=mode, velocity=velocity, target_stress=target_stress,
+                               servo_alpha=servo_alpha, max_speed=max_speed)
 
     def wall_config(self, name: str) -> Dict[str, Any]:
         """Current settings of wall ``name`` as a dict."""

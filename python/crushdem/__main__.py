@@ -15,6 +15,30 @@ from __future__ import annotations
 import sys
 from typing import List, Optional
 
+# The extra of pyproject.toml and the optional packages each Python command needs, checked
+# before it runs anything: a study should not fail after hours of runs for want of a package.
+NEEDS = {
+    "plot": ("plot", "matplotlib"),
+    "reproduce": ("plot", "matplotlib"),
+    "pile": ("plot", "matplotlib"),
+    "sensitivity": ("sweep", "distributed"),
+    "sweep": ("sweep", "distributed"),
+    "calibrate": ("calibrate", "distributed", "scipy"),
+}
+
+
+def _check_needs(command: str) -> None:
+    """Exits with status 2 and the pip command when an optional package ``command`` needs is
+    missing."""
+    from ._optional import MissingDependency, check
+
+    try:
+        extra, *packages = NEEDS[command]
+        check(f"crushdem {command}", packages, extra)
+    except MissingDependency as e:
+        sys.stderr.write(f"{e}\n")
+        sys.exit(2)
+
 
 def main(argv: Optional[List[str]] = None) -> None:
     """Entry point of the console script; exits with the command's status."""
@@ -24,6 +48,8 @@ def main(argv: Optional[List[str]] = None) -> None:
 
         print(f"crushdem {__version__}")
         sys.exit(0)
+    if args and args[0] in NEEDS and not ("-h" in args or "--help" in args):
+        _check_needs(args[0])
     if args and args[0] == "plot":
         from . import plot
 

@@ -31,6 +31,7 @@ import os
 import sys
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
+from ._optional import available, message, require
 from .sweep import (cluster_parser, read_file_and_base, run_variant, set_dotted,
                     summary_figures, variant_name)
 
@@ -77,10 +78,12 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
               log: Callable[[str], None] = print) -> Dict[str, Any]:
     """Runs the calibration of ``path`` into ``out``; returns calibration.json's content."""
     import numpy as np
-    from distributed import Client, LocalCluster
-    from scipy import optimize
 
     from . import _core
+
+    distributed = require("distributed", "crushdem calibrate", "calibrate")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
+    optimize = require("scipy.optimize", "crushdem calibrate")
 
     cal = read_calibration(path)
     keys, targets, tol = list(cal["parameters"]), cal["targets"], cal["tolerance"]
@@ -184,7 +187,10 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
         with open(os.path.join(out, "calibrated.toml"), "w") as f:
             f.write(f"# crushdem calibrate {os.path.abspath(path)}: "
                     + ", ".join(f"{k} = {best[k]!r}" for k in keys) + "\n" + text)
-        _figure(evaluations, os.path.join(out, "convergence.png"), tol)
+        if available("matplotlib"):
+            _figure(evaluations, os.path.join(out, "convergence.png"), tol)
+        else:
+            log(message("matplotlib", "convergence.png", "plot") + " (not drawn)")
     result = {"converged": converged, "tolerance": tol, "evaluations": len(evaluations),
               "calibrated": {k: best.get(k) for k in keys},
               "figures": {k: best.get(k) for k in targets}, "targets": targets,
@@ -195,8 +201,7 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
 
 
 def _figure(evaluations: List[Dict[str, Any]], path: str, tol: float) -> None:
-    from matplotlib.figure import Figure
-
+    Figure = require("matplotlib.figure", "crushdem calibrate's figure", "plot").Figure
     fig = Figure(figsize=(6, 3.8))
     ax = fig.subplots()
     n = [e["evaluation"] for e in evaluations]

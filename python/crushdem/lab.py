@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import numbers
 import os
 import textwrap
 import types
@@ -28,6 +29,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Union
 import numpy as np
 
 from . import _core
+from ._core import ConfigError
 
 SampleSpec = Union[str, os.PathLike, Mapping[str, Any]]
 
@@ -69,6 +71,13 @@ class Result:
 
     def __repr__(self) -> str:
         return f"crushdem.lab.Result({self.directory!r})"
+
+
+def _check_steps(key: str, value: Any) -> None:
+    """A count of steps given to a laboratory function: an integer >= 0 (ConfigError naming the
+    keyword otherwise, as the engine does for a configuration key)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ConfigError(f"{key} = {value!r}: expected a whole number of steps >= 0")
 
 
 def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: str = ".",
@@ -297,6 +306,7 @@ def oedometric_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
     """Lateral walls fixed; the top loads at ``strain_rate`` to the vertical ``stress``, holds
     for ``hold_steps`` (walls fixed) and unloads to ``unload_to`` when given."""
     stages = [_stage(a, "oedometric", "loading", stress=a.stress, strain_rate=a.strain_rate)]
+    _check_steps("hold_steps", a.hold_steps)
     if a.hold_steps > 0:
         stages.append(_stage(a, "hold", "hold", steps=a.hold_steps))
     if a.unload_to is not None:
@@ -321,6 +331,7 @@ def triaxial_test(a: types.SimpleNamespace) -> List[Dict[str, Any]]:
         stages.append(_stage(a, "isotropic", "isotropic", stress=a.sigma_3))
     stages.append(_stage(a, "triaxial", "shear", sigma_3=a.sigma_3, strain_rate=a.strain_rate,
                          axial_strain=a.axial_strain, stop_q=a.stop_q))
+    _check_steps("hold_steps", a.hold_steps)
     if a.hold_steps > 0:
         stages.append(_stage(a, "hold", "hold", steps=a.hold_steps, axial="fixed",
                              lateral="servo", lateral_stress=a.sigma_3))

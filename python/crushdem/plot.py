@@ -122,14 +122,16 @@ from .figures import (FIGURES, MPA, as_run, figure_breakage,  # noqa: F401  (re-
                       figure_stress_time, figure_triaxial, figure_void_ratio,
                       use_file_backend_without_display)
 from .rundir import (read_breakage, read_events, read_grading,  # noqa: F401  (re-exported)
-                     read_run, read_summary, read_timeseries, stages_from_config)
+                     read_run, read_summary, read_timeseries, record_entries,
+                     stages_from_config)
 
 
 def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     """Draws the figures of ``run_dir`` that its files have the data for into ``out_dir``
     (default: ``run_dir``) as PNG files; returns the paths written."""
-    import matplotlib.pyplot as plt
+    from ._optional import require
 
+    plt = require("matplotlib.pyplot", "crushdem plot")
     run = read_run(run_dir)
     out_dir = out_dir or run_dir
     os.makedirs(out_dir, exist_ok=True)
@@ -144,6 +146,8 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
             written.append(path)
         finally:
             plt.close(fig)
+    if os.path.abspath(out_dir) == os.path.abspath(run_dir):
+        record_entries(run_dir, [os.path.basename(p) for p in written])
     return written
 
 

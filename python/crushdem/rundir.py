@@ -27,6 +27,30 @@ PathLike = Union[str, "os.PathLike[str]"]
 Columns = Dict[str, np.ndarray]
 
 
+MANIFEST = "manifest.json"
+
+
+def record_entries(run_dir: PathLike, names: List[str]) -> None:
+    """Adds top-level ``names`` (files crushdem wrote into ``run_dir``, such as figures) to the
+    run's ``manifest.json``, so that ``--overwrite`` removes them with the run and nothing else.
+    A folder without a manifest (not a run directory) is left alone."""
+    path = os.path.join(os.fspath(run_dir), MANIFEST)
+    if not os.path.isfile(path):
+        return
+    with open(path, encoding="utf-8") as f:
+        manifest = json.load(f)
+    entries = manifest.setdefault("entries", [])
+    added = [n for n in names if n not in entries and os.path.basename(n) == n]
+    if not added:
+        return
+    entries.extend(added)
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        json.dump(manifest, f, indent=2)
+        f.write("\n")
+    os.replace(tmp, path)
+
+
 def read_csv(path: PathLike) -> Columns:
     """A CSV with one header row as {column: float64 array}; blanks and text become NaN and
     lines starting with ``#`` are skipped. Raises ValueError for an empty file or a row with the

@@ -284,8 +284,9 @@ def draw_figures(out: str, dirs: Mapping[str, str], cfg: Mapping[str, Any], q_ma
 def write_figure(out: str, name: str, data: FigureData, fig: Any) -> str:
     """``out``/name.csv (the notes and columns of ``data``: what the figure draws) and
     ``out``/name.png (``fig``, then closed); returns the PNG's path."""
-    import matplotlib.pyplot as plt
+    from ._optional import require
 
+    plt = require("matplotlib.pyplot", "crushdem reproduce")
     write_csv(os.path.join(out, name + ".csv"), data.notes, data.columns)
     path = os.path.join(out, name + ".png")
     try:

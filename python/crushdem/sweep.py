@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, 
 
 import numpy as np
 
+from ._optional import available, message, require
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
 from .rundir import read_events, read_summary, read_timing
 
@@ -360,15 +361,13 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
     try:
         df.astype({k: str for k in keys if df[k].dtype == object}).to_parquet(
             os.path.join(out, "results.parquet"), index=False)
-    except ImportError:  # pragma: no cover (pyarrow is a dependency of the sweep extra)
+    except ImportError:  # no pyarrow: sweep() says so
         pass
     return df
 
 
 def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
     """Each summary figure against each varied key (numeric keys only), one panel each."""
-    from matplotlib.figure import Figure  # no pyplot: no backend is chosen for the caller
-
     from pandas.api.types import is_numeric_dtype  # pandas' own string columns too
 
     skip = {"variant", "status", "error", "run_dir", "wall_s", *keys}
@@ -378,6 +377,8 @@ def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
     numeric = [k for k in keys if is_numeric_dtype(df[k].dtype)]
     if not figures or not numeric:
         return None
+    # No pyplot: no backend is chosen for the caller.
+    Figure = require("matplotlib.figure", "crushdem.sweep.figure").Figure
     fig = Figure(figsize=(3.6 * len(numeric), 2.6 * len(figures)))
     axes = fig.subplots(len(figures), len(numeric), squeeze=False)
     for i, f in enumerate(figures):
@@ -449,14 +450,20 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
     if todo:
         _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"],
                    backend)
+    if not available("pyarrow"):
+        log(message("pyarrow", "results.parquet") + " (results.csv is written)")
     df = results_table(out, listed, sw["keys"], errors)
-    figure(df, sw["keys"], os.path.join(out, "results.png"))
+    if available("matplotlib"):
+        figure(df, sw["keys"], os.path.join(out, "results.png"))
+    else:
+        log(message("matplotlib", "results.png", "plot") + " (not drawn)")
     return df
 
 
 def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
                branch=None, backend="cpu") -> None:
-    from distributed import Client, LocalCluster
+    distributed = require("distributed", "crushdem sweep")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     previous = signal.signal(signal.SIGTERM, _raise_stop)
     cluster = None

@@ -32,6 +32,7 @@
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
+#include "crushdem/particles/generate.hpp"
 #include "crushdem/run/runner.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
@@ -55,9 +56,18 @@ std::string type_name_of(nb::handle obj) {
       nb::str(nb::handle(reinterpret_cast<PyObject*>(Py_TYPE(obj.ptr()))).attr("__name__")));
 }
 
-toml::Table to_table(nb::handle dict, const std::string& prefix);
+toml::Table to_table(nb::handle dict, const std::string& prefix, int depth = 0);
 
-toml::Value to_value(nb::handle obj, const std::string& key) {
+// As the TOML reader's bound: no configuration nests beyond 4, and a dict nested 10^5 deep (or
+// a list that holds itself) must be an error, not a stack overflow.
+constexpr int kMaxDepth = 64;
+
+toml::Value to_value(nb::handle obj, const std::string& key, int depth = 0) {
+  if (depth > kMaxDepth) {
+    throw ConfigError("<python>: key '" + key.substr(0, 60) +
+                      "...': dicts and lists nested more than " + std::to_string(kMaxDepth) +
+                      " deep (no configuration goes beyond 4)");
+  }
   // bool first: Python's bool is a subclass of int.
   if (PyBool_Check(obj.ptr())) return toml::Value::make_bool(obj.ptr() == Py_True);
   if (PyLong_Check(obj.ptr())) {
@@ -72,12 +82,12 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
   }
   if (PyFloat_Check(obj.ptr())) return toml::Value::make_float(PyFloat_AsDouble(obj.ptr()));
   if (PyUnicode_Check(obj.ptr())) return toml::Value::make_string(nb::cast<std::string>(obj));
-  if (PyDict_Check(obj.ptr())) return toml::Value::make_table(to_table(obj, key));
+  if (PyDict_Check(obj.ptr())) return toml::Value::make_table(to_table(obj, key, depth + 1));
   if (PyList_Check(obj.ptr()) || PyTuple_Check(obj.ptr())) {
     std::vector<toml::Value> elements;
     std::size_t k = 0;
     for (nb::handle item : obj) {
-      elements.push_back(to_value(item, key + "[" + std::to_string(k) + "]"));
+      elements.push_back(to_value(item, key + "[" + std::to_string(k) + "]", depth + 1));
       ++k;
     }
     return toml::Value::make_array(std::move(elements));
@@ -86,7 +96,7 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
   // Python objects first; numpy.bool_ becomes bool, integer dtypes int, float dtypes float.
   if (nb::hasattr(obj, "dtype") && nb::hasattr(obj, "tolist")) {
     nb::object plain = obj.attr("tolist")();
-    if (!nb::hasattr(plain, "dtype")) return to_value(plain, key);
+    if (!nb::hasattr(plain, "dtype")) return to_value(plain, key, depth + 1);
   }
   if (obj.is_none()) {
     throw ConfigError("<python>: key '" + key +
@@ -97,7 +107,7 @@ toml::Value to_value(nb::handle obj, const std::string& key) {
       " cannot be a configuration value (expected bool, int, float, str, list or dict)");
 }
 
-toml::Table to_table(nb::handle dict, const std::string& prefix) {
+toml::Table to_table(nb::handle dict, const std::string& prefix, int depth) {
   if (!PyDict_Check(dict.ptr())) {
     throw ConfigError((prefix.empty() ? std::string("configuration") : "key '" + prefix + "'") +
                       ": expected a dict, got a " + type_name_of(dict));
@@ -110,9 +120,35 @@ toml::Table to_table(nb::handle dict, const std::string& prefix) {
                         (prefix.empty() ? std::string() : " in '" + prefix + "'"));
     }
     const std::string key = nb::cast<std::string>(k);
-    t[key] = to_value(v, join_key(prefix, key));
+    t[key] = to_value(v, join_key(prefix, key), depth);
   }
   return t;
+}
+
+// The API refuses what the sample reader refuses: a new grain at another's centre or deep
+// inside it (checked against the grains present and the other new ones, before any is added).
+void check_new_overlaps(const Simulation& sim, const std::vector<NewParticle>& grains) {
+  const ParticleStore& p = sim.particles();
+  std::vector<PlacedSphere> all;
+  all.reserve(p.size() + grains.size());
+  for (std::size_t i = 0; i < p.size(); ++i) all.push_back({{p.x[i], p.y[i], p.z[i]}, p.radius[i]});
+  for (const NewParticle& g : grains) {
+    if (!(g.radius > 0.0) || !std::isfinite(g.radius)) return;  // refused by add_particles itself
+    all.push_back({g.position, g.radius});
+  }
+  const auto deep = find_deep_overlap(all, kMaxInputOverlapShare, p.size());
+  if (!deep) return;
+  const auto name = [&](std::size_t k) {
+    return k < p.size() ? "grain id " + std::to_string(p.id[k])
+                        : "new grain " + std::to_string(k - p.size());
+  };
+  char share[32];
+  std::snprintf(share, sizeof share, "%.0f %%", 100.0 * deep->share);
+  throw ConfigError("add_particles: " + name(deep->a) + " and " + name(deep->b) + " overlap by " +
+                    share + " of the smaller radius (coincident centres give " +
+                    "200 %): expected distinct grains overlapping by at most " +
+                    std::to_string(static_cast<int>(100.0 * kMaxInputOverlapShare)) +
+                    " % of a radius");
 }
 
 SimulationConfig config_from_dict(nb::handle dict) {
@@ -355,14 +391,10 @@ NB_MODULE(_core, m) {
       "parameter_tables()[\"stage.\" + name].");
   m.def(
       "set_threads",
-      [](int n) {
-        if (n < 1) throw ConfigError("threads: " + std::to_string(n) + " (expected >= 1)");
-#ifdef CRUSHDEM_HAVE_OPENMP
-        omp_set_num_threads(n);
-        return omp_get_max_threads();
-#else
-        return 1;
-#endif
+      [](long n) {
+        if (n < 1) throw ConfigError(bad_value("threads", std::to_string(n), "a count >= 1"));
+        cli::set_threads(n, "threads");
+        return cli::current_threads();
       },
       nb::arg("n"),
       "Sets the number of OpenMP threads of every later step and run (results do not depend "
@@ -414,6 +446,7 @@ NB_MODULE(_core, m) {
               if (v) grains[i].velocity = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
               grains[i].radius = r[i];
             }
+            check_new_overlaps(sim, grains);
             return id_column(sim.add_particles(std::move(grains)));
           },
           "positions"_a, "radii"_a, "velocities"_a = nb::none(),

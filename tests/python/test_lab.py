@@ -228,3 +228,10 @@ def test_arguments_are_checked_as_a_signature_checks_them(recorded, tmp_path):
 def test_common_stage_keys_are_listed_in_the_module_docstring():
     for key in ("tolerance", "unbalanced", "max_strain_rate", "check_interval", "max_steps"):
         assert f"``{key}``" in lab.__doc__.split("Keys every stage kind has")[1]
+
+
+def test_a_negative_hold_is_refused(tmp_path):
+    with pytest.raises(crushdem.ConfigError, match="hold_steps"):
+        lab.oedometric_test(tmp_path / "o", str(tmp_path / "none.txt"), stress=1e6, hold_steps=-1)
+    with pytest.raises(crushdem.ConfigError, match="hold_steps"):
+        lab.triaxial_test(tmp_path / "t", str(tmp_path / "none.txt"), sigma_3=1e6, hold_steps=2.5)

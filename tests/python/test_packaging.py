@@ -1,10 +1,18 @@
 """The installed package: the compiled module's type stubs (_core.pyi, made by nanobind's
 stubgen at build time) and the py.typed marker sit beside it (PEP 561), so that type checkers
-and editors see crushdem._core's signatures."""
+and editors see crushdem._core's signatures. Its dependencies: numpy, pandas and tqdm only,
+the others in extras, imported only by what needs them and named with their pip command when
+missing. The installed CMake package passes no -march to its consumers."""
 
 import ast
+import glob
 import importlib.util
 import os
+import re
+import shutil
+import subprocess
+import sys
+import tomllib
 
 import pytest
 
@@ -31,3 +39,104 @@ def test_core_stubs_and_py_typed_are_installed():
     # Interrupted is made with PyErr_NewException("crushdem._core.Interrupted"): stubgen, which
     # imports the module as `_core` at build time, takes it for a name from another module.
     assert public - {"Interrupted"} <= names, sorted(public - names)
+
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+PYPROJECT = os.path.join(ROOT, "pyproject.toml")
+OPTIONAL = ("matplotlib", "dask", "distributed", "scipy", "pyarrow")
+
+
+def _names(requirements):
+    return sorted(re.match(r"[A-Za-z0-9_.-]+", r).group(0).lower() for r in requirements)
+
+
+@pytest.mark.skipif(not os.path.isfile(PYPROJECT), reason="not run from a checkout")
+def test_required_dependencies_are_minimal_and_the_rest_are_extras():
+    with open(PYPROJECT, "rb") as f:
+        project = tomllib.load(f)["project"]
+    assert _names(project["dependencies"]) == ["numpy", "pandas", "tqdm"]
+    extras = project["optional-dependencies"]
+    assert extras["plot"] == ["matplotlib"]
+    assert sorted(extras["sweep"]) == ["dask[distributed]", "pyarrow"]
+    assert sorted(extras["calibrate"]) == ["dask[distributed]", "scipy"]
+    assert extras["all"] == ["crushdem[plot,sweep,calibrate]"]
+    assert "crushdem[all]" in extras["test"] and "pytest" in _names(extras["test"])
+    # The message of a missing package names an extra that exists.
+    from crushdem import _optional
+
+    assert set(_optional.EXTRAS.values()) <= set(extras)
+
+
+def _python(code, *args):
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                          timeout=120, cwd=os.path.dirname(os.path.abspath(__file__)))
+
+
+def test_importing_crushdem_imports_no_optional_package():
+    r = _python("import crushdem, crushdem.lab, crushdem.rundir, crushdem.runs, sys; "
+                f"print([m for m in {OPTIONAL!r} if m in sys.modules])")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"
+
+
+# Each command with a missing optional package: exit status 2 before it runs anything, and the
+# package and the pip command of its extra on stderr.
+@pytest.mark.parametrize("missing, command, message", [
+    ("matplotlib", "plot", 'crushdem plot needs matplotlib: pip install "crushdem[plot]"'),
+    ("matplotlib", "reproduce",
+     'crushdem reproduce needs matplotlib: pip install "crushdem[plot]"'),
+    ("distributed", "sweep", 'crushdem sweep needs distributed: pip install "crushdem[sweep]"'),
+    ("scipy", "calibrate",
+     'crushdem calibrate needs scipy: pip install "crushdem[calibrate]"'),
+])
+def test_a_command_names_the_extra_of_a_missing_package(missing, command, message, tmp_path):
+    r = _python(f"import sys; sys.modules[{missing!r}] = None\n"
+                "from crushdem.__main__ import main\n"
+                "main(sys.argv[1:])", command, "FILE", "--out", str(tmp_path / "out"))
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert message in r.stderr
+    assert not os.path.exists(tmp_path / "out")
+    # --help needs no optional package.
+    r = _python(f"import sys; sys.modules[{missing!r}] = None\n"
+                "from crushdem.__main__ import main\n"
+                "main(sys.argv[1:])", command, "--help")
+    assert r.returncode == 0, r.stderr
+
+
+def test_the_python_api_names_the_extra_of_a_missing_package(tmp_path):
+    r = _python("import sys; sys.modules['matplotlib'] = None\n"
+                "import crushdem.plot, crushdem.figures.common\n"
+                "for call in (lambda: crushdem.plot.make_plots(sys.argv[1]),\n"
+                "             crushdem.figures.common.pyplot):\n"
+                "    try:\n"
+                "        call()\n"
+                "    except ImportError as e:\n"
+                "        print(e)\n", str(tmp_path))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == [
+        'crushdem plot needs matplotlib: pip install "crushdem[plot]"',
+        'crushdem\'s figures needs matplotlib: pip install "crushdem[plot]"']
+
+
+@pytest.mark.skipif(not (shutil.which("cmake")
+                         and os.path.isfile(os.path.join(ROOT, "CMakeLists.txt"))),
+                    reason="needs cmake and the checkout")
+def test_installed_cmake_package_passes_no_march(tmp_path):
+    """-march=native builds the project's own targets only: the exported targets (what
+    find_package(crushdem) gives a consumer) carry no -march. Configuring alone generates
+    them."""
+    build = tmp_path / "build"
+    r = subprocess.run(["cmake", "-S", ROOT, "-B", str(build), "-DCRUSHDEM_NATIVE=ON",
+                        "-DCRUSHDEM_TESTS=OFF", "-DCRUSHDEM_CUDA=OFF"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    exported = glob.glob(str(build / "CMakeFiles" / "Export" / "*" / "crushdemTargets*.cmake"))
+    assert exported
+    for path in exported:
+        with open(path) as f:
+            text = f.read()
+        assert "-march" not in text, path
+    # The library itself is still built for this machine.
+    flags = glob.glob(str(build / "CMakeFiles" / "crushdem.dir" / "flags.make"))
+    flags += glob.glob(str(build / "build.ninja"))
+    assert flags and any("-march=native" in open(p).read() for p in flags)

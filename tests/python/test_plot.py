@@ -860,3 +860,22 @@ def test_breakage_around_the_cone_is_drawn_by_distance_from_its_axis(tmp_path):
 def test_a_run_without_penetration_has_no_penetration_figures(tmp_path):
     names = _plots(_plain_run(tmp_path / "plain"))
     assert not {"penetration.png", "shaft_stress.png"} & names
+
+
+def test_figures_join_the_runs_manifest(tmp_path):
+    """Figures drawn into a run directory are listed in its manifest.json (so --overwrite removes
+    them with the run); a folder without a manifest gets none."""
+    run = _triaxial_run(tmp_path / "triaxial")
+    with open(os.path.join(run, "manifest.json"), "w") as f:
+        json.dump({"crushdem_run": True, "entries": ["config.toml", "timeseries.csv"]}, f)
+    written = plot.make_plots(run)
+    with open(os.path.join(run, "manifest.json")) as f:
+        entries = json.load(f)["entries"]
+    assert entries[:2] == ["config.toml", "timeseries.csv"]
+    assert sorted(entries[2:]) == sorted(os.path.basename(p) for p in written)
+    plot.make_plots(run)  # drawn again: listed once
+    with open(os.path.join(run, "manifest.json")) as f:
+        assert len(json.load(f)["entries"]) == len(entries)
+    other = _plain_run(tmp_path / "plain")
+    plot.make_plots(other)
+    assert not os.path.exists(os.path.join(other, "manifest.json"))

@@ -447,8 +447,9 @@ def test_set_threads_sets_the_engine_thread_count():
         for n in (2, 3):
             expected = n if openmp else 1
             assert crushdem.set_threads(n) == expected and crushdem.threads() == expected
-        with pytest.raises(crushdem.ConfigError, match="expected >= 1"):
-            crushdem.set_threads(0)
+        for bad in (0, -2, 10**6):
+            with pytest.raises(crushdem.ConfigError, match="threads"):
+                crushdem.set_threads(bad)
         assert crushdem.threads() == (3 if openmp else 1)  # a refused count changes nothing
     finally:
         crushdem.set_threads(before)
@@ -621,3 +622,76 @@ def test_a_fixed_step_above_the_automatic_one_warns():
     with pytest.warns(RuntimeWarning, match="times the automatic step"):
         sim.set_dt(6.7 * auto)
     assert sim.dt == 6.7 * auto
+
+
+def test_step_and_run_refuse_what_they_cannot_mean():
+    """A step count is a whole number >= 0 and a duration a finite time >= 0: 1.5 steps, "10",
+    True, -1 s or NaN are refused (before anything moves), not rounded, parsed or ignored."""
+    sim = _rattling_pair()
+    for bad, error in ((1.5, TypeError), ("10", TypeError), (True, TypeError), (-1, ValueError)):
+        with pytest.raises(error, match="step"):
+            sim.step(bad)
+    for bad, error in ((-1.0, ValueError), (float("nan"), ValueError), (float("inf"), ValueError),
+                       ("1e-6", TypeError)):
+        with pytest.raises(error, match="duration"):
+            sim.run(bad)
+    with pytest.raises(TypeError, match="either"):
+        sim.run()
+    assert sim.step_count == 0
+    sim.step(np.int64(3))
+    sim.run(steps=4)
+    assert sim.step_count == 7
+    sim.run(3 * sim.dt)
+    assert sim.step_count == 10
+
+
+def test_state_changes_wait_for_a_step_in_another_thread():
+    """While step() runs in one thread (the GIL released), set_dt, set_wall, run and
+    compute_forces from another are refused, not interleaved with the step."""
+    import threading
+    import time
+
+    sim = _rattling_pair()
+    t0 = time.perf_counter()
+    sim.step(20_000, progress=False)
+    n = max(20_000, int(20_000 * 1.5 / max(time.perf_counter() - t0, 1e-6)))  # ~1.5 s
+    t = threading.Thread(target=sim.step, args=(n,), kwargs={"progress": False})
+    t.start()
+    time.sleep(0.2)
+    try:
+        assert t.is_alive(), "the step ended before the check: make it longer"
+        for call in (lambda: sim.set_dt(1e-9), lambda: sim.set_wall("xmin", velocity=0.1),
+                     lambda: sim.run(1e-9), sim.compute_forces):
+            with pytest.raises(RuntimeError, match="another thread"):
+                call()
+    finally:
+        t.join()
+
+
+def test_a_deeply_nested_configuration_is_an_error_not_a_crash():
+    deep: dict = {}
+    inner = deep
+    for _ in range(100_000):
+        inner["k"] = {}
+        inner = inner["k"]
+    with pytest.raises(crushdem.ConfigError, match="nested more than"):
+        crushdem.Simulation(deep)
+    loop: list = []
+    loop.append(loop)
+    with pytest.raises(crushdem.ConfigError, match="nested more than"):
+        crushdem.Simulation(material={"friction": loop})
+
+
+def test_add_particles_refuses_what_the_sample_reader_refuses():
+    """Two grains at one centre, or one deep inside another (new against present, and new
+    against new), are refused before any is added; contact-like overlaps are not."""
+    sim = hertz_sim()
+    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
+    with pytest.raises(crushdem.ConfigError, match="grain id 0 and new grain 0"):
+        sim.add_particle([5e-4, 5e-4, 5e-4], 1e-4)
+    with pytest.raises(crushdem.ConfigError, match="new grain 0 and new grain 1 overlap by 175 %"):
+        sim.add_particles(np.array([[2e-4, 2e-4, 2e-4], [2.25e-4, 2e-4, 2e-4]]),
+                          np.array([1e-4, 1e-4]))
+    assert sim.num_particles == 1
+    sim.add_particle([6.99e-4, 5e-4, 5e-4], 1e-4)  # 1 % of a radius: as in a dense sample
+    assert sim.num_particles == 2

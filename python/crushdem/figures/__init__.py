@@ -113,6 +113,6 @@ def use_file_backend_without_display() -> None:
     """For the commands that only write files: selects the Agg backend when no display can be
     opened (never called on import: a notebook or an application keeps its backend)."""
     if not display_available():
-        import matplotlib
+        from .._optional import require
 
-        matplotlib.use("Agg")
+        require("matplotlib", "crushdem's figures").use("Agg")

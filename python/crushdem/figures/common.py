@@ -29,9 +29,9 @@ def as_run(run: Run) -> RunData:
 
 def pyplot() -> Any:
     """matplotlib.pyplot, imported when a figure is drawn."""
-    import matplotlib.pyplot as plt
+    from .._optional import require
 
-    return plt
+    return require("matplotlib.pyplot", "crushdem's figures")
 
 
 def unique_legend(ax: Axes, *twins: Axes, **kw: Any) -> Optional[Legend]:

@@ -12,8 +12,11 @@
 
 namespace crushdem::cli {
 
-void set_threads(long n) {
-  if (n < 0) throw ConfigError(bad_value("--threads", std::to_string(n), "a count >= 1"));
+void set_threads(long n, const char* key) {
+  if (n < 0 || n > kMaxThreads) {
+    throw ConfigError(
+        bad_value(key, std::to_string(n), "a count from 1 to " + std::to_string(kMaxThreads)));
+  }
 #ifdef CRUSHDEM_HAVE_OPENMP
   if (n > 0) omp_set_num_threads(static_cast<int>(n));
 #else

@@ -33,7 +33,11 @@ int check_main(const std::string& config);
 int bench_main(const BenchArgs& a);
 
 /// Sets the OpenMP thread count (0 = leave the default).
-void set_threads(long n);
+/// The most threads a run takes: far beyond any machine's cores, below what would exhaust the
+/// process creating them.
+inline constexpr long kMaxThreads = 1024;
+/// Sets the thread count (0: OpenMP's default); ConfigError naming `key` outside 0..kMaxThreads.
+void set_threads(long n, const char* key = "--threads");
 int current_threads();
 
 }  // namespace crushdem::cli

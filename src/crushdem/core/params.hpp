@@ -100,6 +100,10 @@ struct Param {
   // The key applies only where this holds (a servo target with a servo wall): written to
   // config.toml and range-checked only then; always when null.
   std::function<bool(const S&)> applies = {};
+  // The values a physical material takes (a Number only): a valid value outside them gives a
+  // warning, not an error (a deliberate numerical experiment may want it). None when null.
+  bool (*plausible)(double) = nullptr;
+  std::string_view plausible_range = {};
 };
 
 template <class S>
@@ -129,6 +133,8 @@ void append_rows(ParamTable<S>& out, const ParamTable<Part>& rows) {
     q.ok = p.ok;
     q.expected = p.expected;
     q.default_doc = p.default_doc;
+    q.plausible = p.plausible;
+    q.plausible_range = p.plausible_range;
     if (p.applies) q.applies = [f = p.applies](const S& s) { return f(s); };
     std::visit(
         [&q](const auto& m) {
@@ -176,6 +182,26 @@ void validate_params(const S& obj, const ParamTable<S>& table, const std::string
           bad_value(section + "." + std::string(p.key), show_number(v), std::string(p.expected)));
     }
   }
+}
+
+/// The warnings for valid values outside what a physical material takes: "section.key = value is
+/// outside RANGE" for each.
+template <class S>
+std::vector<std::string> plausibility_warnings(const S& obj, const ParamTable<S>& table,
+                                               const std::string& section) {
+  std::vector<std::string> out;
+  for (const Param<S>& p : table) {
+    if (!p.plausible || (p.applies && !p.applies(obj))) continue;
+    const auto* num = std::get_if<typename Param<S>::Number>(&p.member);
+    if (!num) continue;
+    const double v = obj.*(*num);
+    if (!p.plausible(v)) {
+      out.push_back(section + "." + std::string(p.key) + " = " + show_number(v) +
+                    " is outside what a grain material takes (" + std::string(p.plausible_range) +
+                    "): the run goes on, check the value");
+    }
+  }
+  return out;
 }
 
 }  // namespace crushdem

@@ -19,12 +19,17 @@ namespace crushdem {
 /// The current checkpoint format: 1 the first; 2 adds the wall-clock seconds by part; 3 the
 /// rolling-resistance history of the contacts; 4 ends with the checksum of everything before it
 /// (fnv1a64), so that a damaged file is refused instead of resumed into other results; 5 lists
-/// the ParaView snapshots by step and time (for the .pvd collections).
-constexpr int kStateVersion = 5;
+/// the ParaView snapshots by step and time (for the .pvd collections); 6 records a checksum of
+/// each result file's bytes and the size and checksum of every file written whole before it
+/// (sample, snapshots, stage states), which resume and branches check.
+constexpr int kStateVersion = 6;
 
-/// 64-bit FNV-1a hash of the bytes (checkpoint checksums, settled-state headers).
-inline std::uint64_t fnv1a64(const char* data, std::size_t n) {
-  std::uint64_t hash = 14695981039346656037ULL;
+/// The start value of fnv1a64, for a hash continued over pieces.
+inline constexpr std::uint64_t kFnvOffset = 14695981039346656037ULL;
+
+/// 64-bit FNV-1a hash of the bytes (checkpoint checksums, settled-state headers, result files);
+/// `hash` continues one over earlier bytes.
+inline std::uint64_t fnv1a64(const char* data, std::size_t n, std::uint64_t hash = kFnvOffset) {
   for (std::size_t i = 0; i < n; ++i) {
     hash = (hash ^ static_cast<unsigned char>(data[i])) * 1099511628211ULL;
   }
@@ -126,6 +131,11 @@ class StateReader {
     if (s != name) fail(std::string("section '") + name + "'");
   }
   bool at_end() const { return pos_ == buf_.size(); }
+  /// A count of entries of at least one byte each read just now: more than the bytes left
+  /// means a damaged or foreign file (refused before anything is sized by it).
+  void check_count(std::uint64_t n, const char* what) const {
+    if (n > buf_.size() - pos_) fail(what);
+  }
   /// The checkpoint format version being read (kStateVersion unless the file is older): lets a
   /// module skip what older files do not hold.
   int version() const { return version_; }
@@ -182,6 +192,13 @@ class StateArchive {
   T value(T v) {
     one(v);
     return v;
+  }
+  /// value() for a number of entries that follow: a read count beyond the bytes left is
+  /// refused.
+  std::uint64_t count(std::uint64_t n, const char* what) {
+    one(n);
+    if (in_) in_->check_count(n, what);
+    return n;
   }
 
  private:

@@ -287,6 +287,7 @@ void Simulation::state(StateArchive& a) {
   if (nl_valid_ && nl_.num_particles() != p_.size()) {
     throw RuntimeFailure("checkpoint: neighbour list and particles disagree");
   }
+  check_loaded_state();
   // The loaded list may carry the build count the pruned list was made for; the packed copies
   // are those of the state before.
   pair_loop_.pruned().invalidate();
@@ -294,6 +295,48 @@ void Simulation::state(StateArchive& a) {
   next_drift_.reset();
   inspection_ = {};
   ++layout_version_;
+}
+
+// A loaded state is checked for what the step relies on without checking (sizes, indices, ids,
+// finite values, grains within the box), beyond the file's checksum: an edited state behind a
+// recomputed checksum is refused with a message, never read out of bounds.
+void Simulation::check_loaded_state() const {
+  const auto fail = [](const std::string& what) {
+    throw RuntimeFailure("checkpoint: " + what + "; the state is damaged or was edited");
+  };
+  const std::size_t n = p_.size();
+  const ContactHistory::Vectors& ft = history_.tangential();
+  if (nl_valid_ && (ft.x.size() != nl_.neighbors.size() || ft.y.size() != ft.x.size() ||
+                    ft.z.size() != ft.x.size())) {
+    fail("the contact history and the neighbour list disagree");
+  }
+  const std::size_t nw = wc_.size();
+  for (const auto* v : {&wc_.ft_x, &wc_.ft_y, &wc_.ft_z, &wc_.fx, &wc_.fy, &wc_.fz, &wc_.tx,
+                        &wc_.ty, &wc_.tz, &wc_.F_n, &wc_.k_n, &wc_.delta}) {
+    if (v->size() != nw) fail("the wall contacts' arrays differ in length");
+  }
+  if (wc_.wall.size() != nw) fail("the wall contacts' arrays differ in length");
+  for (std::size_t k = 0; k < nw; ++k) {
+    if (wc_.particle[k] >= n) fail("a wall contact names grain index " + std::to_string(k));
+    if (wc_.wall[k] >= walls_.size()) fail("a wall contact names a body that does not exist");
+  }
+  std::vector<ParticleId> ids(p_.id.begin(), p_.id.end());
+  std::sort(ids.begin(), ids.end());
+  if (std::adjacent_find(ids.begin(), ids.end()) != ids.end()) fail("two grains share an id");
+  if (!ids.empty() && ids.back() >= p_.next_id()) fail("a grain id beyond the next id");
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = p_.radius[i];
+    const double c[3] = {p_.x[i], p_.y[i], p_.z[i]};
+    if (!(r > 0.0) || !std::isfinite(r) || !std::isfinite(c[0]) || !std::isfinite(c[1]) ||
+        !std::isfinite(c[2]) || !(p_.mass[i] > 0.0)) {
+      fail("grain " + std::to_string(p_.id[i]) + " has a non-finite or non-positive value");
+    }
+    for (int a = 0; a < 3; ++a) {
+      if (c[a] < walls_.position(2 * a) - r || c[a] > walls_.position(2 * a + 1) + r) {
+        fail("grain " + std::to_string(p_.id[i]) + " lies outside the box");
+      }
+    }
+  }
 }
 
 // --- time integration --------------------------------------------------------------------------

@@ -210,6 +210,7 @@ class Simulation {
   NormalForce normal_force(double delta, double R_star, bool wall) const;
 
  private:
+  void check_loaded_state() const;
   ContactRecord pair_record(std::size_t e) const;
   /// drift_next: also the next step's first half kick and drift (into next_drift_).
   void evaluate_forces(double increment_dt, bool kick, bool drift_next = false);

@@ -585,6 +585,17 @@ void RunConfig::validate_stage_sequence() const {
   }
 }
 
+std::vector<std::string> RunConfig::warnings() const {
+  std::vector<std::string> out =
+      plausibility_warnings(simulation.material, material_params(), "material");
+  if (crushing.enabled) {
+    for (std::string& w : plausibility_warnings(crushing, crushing_params(), "crushing")) {
+      out.push_back(std::move(w));
+    }
+  }
+  return out;
+}
+
 void RunConfig::validate() const {
   simulation.validate();
   validate_params(upscaling, upscaling_params(), "upscaling");

@@ -98,6 +98,10 @@ struct RunConfig {
   std::uint64_t steps = 0;  // [run] without stages: run length in steps, or
   double duration = 0.0;    // in simulated seconds (exactly one of the two)
   void validate() const;
+  /// Valid values outside what a grain material takes (plausibility_warnings of [material] and,
+  /// with crushing on, [crushing]): printed by `crushdem check` and by a run, and kept in its
+  /// summary.json.
+  std::vector<std::string> warnings() const;
   /// The checks across stages: the ageing clock's `until`s in order, a load test after its
   /// body's installation, no body pushed into the bottom platen; errors name stage[i].key.
   void validate_stage_sequence() const;

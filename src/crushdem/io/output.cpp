@@ -1,5 +1,6 @@
 #include "crushdem/io/output.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -7,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "crushdem/core/error.hpp"
 
@@ -35,23 +37,30 @@ void CsvWriter::flush() {
   }
 }
 
+void CsvWriter::put(const std::string& text) {
+  std::fputs(text.c_str(), f_);
+  digest_ = fnv1a64(text.data(), text.size(), digest_);
+  flush();
+}
+
 void CsvWriter::start(const std::vector<std::string>& columns) {
   if (f_) std::fclose(f_);
   f_ = std::fopen(path_.c_str(), "w");
   if (!f_) throw ConfigError("cannot write '" + path_ + "'");
   columns_ = columns;
+  digest_ = kFnvOffset;
+  std::string header;
   for (std::size_t k = 0; k < columns.size(); ++k) {
-    std::fprintf(f_, "%s%s", k ? "," : "", columns[k].c_str());
+    if (k) header += ',';
+    header += columns[k];
   }
-  std::fputc('\n', f_);
-  flush();
+  header += '\n';
+  put(header);
 }
 
 void CsvWriter::write_line(const std::string& line) {
   if (!f_) throw std::logic_error("CsvWriter::write_line before start(): " + path_);
-  std::fputs(line.c_str(), f_);
-  std::fputc('\n', f_);
-  flush();
+  put(line + "\n");
 }
 
 void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
@@ -65,22 +74,26 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     throw std::logic_error("CSV row has " + std::to_string(row.size()) + " columns, header " +
                            std::to_string(columns_.size()));
   }
+  std::string line;
   for (std::size_t k = 0; k < row.size(); ++k) {
-    std::fprintf(f_, "%s%s", k ? "," : "", format_double(row[k].second).c_str());
+    if (k) line += ',';
+    line += format_double(row[k].second);
   }
-  std::fputc('\n', f_);
-  flush();
+  line += '\n';
+  put(line);
 }
 
 long long CsvWriter::size() const {
   return f_ ? static_cast<long long>(std::ftell(f_)) : -1;
 }
 
-void CsvWriter::resume(long long size, const std::vector<std::string>& columns) {
+void CsvWriter::resume(long long size, const std::vector<std::string>& columns,
+                       const std::uint64_t* digest) {
   namespace fs = std::filesystem;
   if (f_) std::fclose(f_);
   f_ = nullptr;
   columns_.clear();
+  digest_ = kFnvOffset;
   std::error_code ec;
   if (size < 0) {
     fs::remove(path_, ec);
@@ -89,6 +102,17 @@ void CsvWriter::resume(long long size, const std::vector<std::string>& columns) 
   if (!fs::exists(path_) || fs::file_size(path_) < static_cast<std::uintmax_t>(size)) {
     throw RuntimeFailure("cannot resume: '" + path_ + "' is missing or shorter than at the " +
                          "checkpoint (" + std::to_string(size) + " bytes)");
+  }
+  if (digest) {
+    digest_ = file_digest(path_, size);
+    if (digest_ != *digest) {
+      throw RuntimeFailure("cannot resume: '" + path_ +
+                           "' was changed after the checkpoint (its first " + std::to_string(size) +
+                           " bytes differ from what the run wrote); restore it or start the run "
+                           "again with --overwrite");
+    }
+  } else {
+    digest_ = file_digest(path_, size);
   }
   fs::resize_file(path_, static_cast<std::uintmax_t>(size), ec);
   if (ec) throw RuntimeFailure("cannot resume: '" + path_ + "': " + ec.message());
@@ -173,12 +197,52 @@ void write_text_file(const std::string& path, const std::string& text) {
   if (!f) throw ConfigError("cannot write '" + path + "'");
 }
 
-std::string read_binary_file(const std::string& path) {
+std::string read_binary_file(const std::string& path, std::uintmax_t max_bytes) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) throw ConfigError("cannot read '" + path + "': no such file");
+  if (!fs::is_regular_file(st)) {
+    throw ConfigError("cannot read '" + path + "': not a regular file (a device, pipe or folder)");
+  }
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) throw ConfigError("cannot read '" + path + "': " + ec.message());
+  if (size > max_bytes) {
+    throw ConfigError("cannot read '" + path + "': " + std::to_string(size) +
+                      " bytes, more than the " + std::to_string(max_bytes) +
+                      " bytes such a file can hold");
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) throw ConfigError("cannot read '" + path + "'");
-  std::ostringstream o;
-  o << f.rdbuf();
-  return o.str();
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  f.read(bytes.data(), static_cast<std::streamsize>(size));
+  if (f.gcount() != static_cast<std::streamsize>(size)) {
+    throw ConfigError("cannot read '" + path + "': it changed while it was read");
+  }
+  return bytes;
+}
+
+std::uint64_t file_digest(const std::string& path, long long bytes) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ConfigError("cannot read '" + path + "'");
+  std::uint64_t hash = kFnvOffset;
+  std::vector<char> buf(std::size_t{1} << 20);
+  long long left = bytes;
+  while (bytes < 0 || left > 0) {
+    const auto want = bytes < 0 ? static_cast<std::streamsize>(buf.size())
+                                : static_cast<std::streamsize>(std::min<long long>(
+                                      left, static_cast<long long>(buf.size())));
+    f.read(buf.data(), want);
+    const std::streamsize got = f.gcount();
+    hash = fnv1a64(buf.data(), static_cast<std::size_t>(got), hash);
+    left -= got;
+    if (got < want) break;
+  }
+  if (bytes >= 0 && left > 0) {
+    throw ConfigError("cannot read '" + path + "': shorter than " + std::to_string(bytes) +
+                      " bytes");
+  }
+  return hash;
 }
 
 void write_file_atomically(const std::string& path, const std::string& bytes) {

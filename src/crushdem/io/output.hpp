@@ -3,11 +3,13 @@
 // byte for byte.
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "crushdem/core/state_io.hpp"
 #include "crushdem/particles/particle_store.hpp"
 
 namespace crushdem {
@@ -27,16 +29,24 @@ class CsvWriter {
   void write_line(const std::string& line);
   /// Bytes written so far (-1 before the first row); everything up to here is on disk.
   long long size() const;
+  /// fnv1a64 of the bytes written so far (kept as they are written, so a checkpoint can record
+  /// it without reading the file back).
+  std::uint64_t digest() const { return digest_; }
   const std::vector<std::string>& columns() const { return columns_; }
   /// Continues a file written by an interrupted run: cuts it back to `size` bytes (what the
-  /// checkpoint saw) and appends from there; size < 0 removes it (it had no row yet).
-  void resume(long long size, const std::vector<std::string>& columns);
+  /// checkpoint saw) and appends from there; size < 0 removes it (it had no row yet). With a
+  /// `digest` (checkpoints from format 6 on) the first `size` bytes must still hash to it:
+  /// otherwise the file was changed after the checkpoint and the run is refused, naming it.
+  void resume(long long size, const std::vector<std::string>& columns,
+              const std::uint64_t* digest = nullptr);
 
  private:
+  void put(const std::string& text);  // writes, hashes and flushes
   void flush();  // throws RuntimeFailure naming the file when the bytes cannot be written
   std::string path_;
   std::FILE* f_ = nullptr;
   std::vector<std::string> columns_;
+  std::uint64_t digest_ = kFnvOffset;
 };
 
 /// A flat JSON object of numbers and strings, written in the order given.
@@ -54,8 +64,15 @@ struct JsonObject {
   double number_value(const std::string& key) const;
 };
 void write_text_file(const std::string& path, const std::string& text);
-/// The whole file as bytes (ConfigError naming the path when it cannot be read).
-std::string read_binary_file(const std::string& path);
+/// The largest file crushdem reads whole (checkpoints of 10^7 grains stay far below it).
+inline constexpr std::uintmax_t kMaxReadBytes = std::uintmax_t{64} << 30;
+/// The whole file as bytes. Only a regular file (a link is followed) of at most `max_bytes` is
+/// read: a device, a pipe or a larger file is refused with a ConfigError naming the path, as is
+/// a file that cannot be read.
+std::string read_binary_file(const std::string& path, std::uintmax_t max_bytes = kMaxReadBytes);
+/// fnv1a64 of the file's first `bytes` bytes (all of it when bytes < 0); ConfigError naming the
+/// path when it is missing, shorter or unreadable.
+std::uint64_t file_digest(const std::string& path, long long bytes = -1);
 /// Writes PATH.tmp and renames it onto PATH, so that a crash while writing leaves the previous
 /// file intact (checkpoints, cached states).
 void write_file_atomically(const std::string& path, const std::string& bytes);

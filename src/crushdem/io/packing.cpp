@@ -11,6 +11,7 @@
 #include <unordered_set>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/particles/generate.hpp"
 
 namespace crushdem {
 
@@ -40,8 +41,10 @@ Packing read_packing(const std::string& path) {
   std::string line;
   int lineno = 0;
   std::unordered_set<ParticleId> seen;
+  bool ends_with_newline = true;
   while (std::getline(in, line)) {
     ++lineno;
+    ends_with_newline = !in.eof();  // getline stopped at a newline, not at the end of the file
     if (line.empty() || line.find_first_not_of(" \t\r") == std::string::npos) continue;
     if (line[0] == '#') {
       const auto eq = line.find('=');
@@ -83,21 +86,37 @@ Packing read_packing(const std::string& path) {
     pk.rows.push_back(r);
   }
   if (pk.rows.empty()) throw ConfigError("particle file '" + path + "' holds no particles");
-  // Two grains at one point would meet with an infinite force at the first step.
-  std::vector<std::size_t> order(pk.rows.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  const auto at = [&](std::size_t i) {
-    const Vec3& x = pk.rows[i].position;
-    return std::array<double, 3>{x.x, x.y, x.z};
-  };
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return at(a) < at(b); });
-  for (std::size_t k = 1; k < order.size(); ++k) {
-    if (at(order[k]) == at(order[k - 1])) {
-      throw ConfigError(path + ": particles " + std::to_string(pk.rows[order[k - 1]].id) + " and " +
-                        std::to_string(pk.rows[order[k]].id) +
-                        " sit at the same point: expected distinct positions");
+  // A file cut short: crushdem's own files say how many grains they hold, and every file's last
+  // line ends with a newline (a cut inside a number would otherwise read as a smaller number).
+  if (!ends_with_newline) {
+    throw ConfigError(path + ":" + std::to_string(lineno) +
+                      ": the file ends inside a line (cut short?): expected each line, the last "
+                      "included, to end with a newline");
+  }
+  if (const auto it = pk.header.find(Packing::kCountHeader); it != pk.header.end()) {
+    if (it->second != std::to_string(pk.rows.size())) {
+      throw ConfigError(path + ": header " + std::string(Packing::kCountHeader) + "=" + it->second +
+                        " but the file holds " + std::to_string(pk.rows.size()) +
+                        " grains: it was cut short or edited");
     }
+  }
+  // Two grains at one point, or one deep inside another, would meet with an enormous force at
+  // the first step.
+  std::vector<PlacedSphere> grains;
+  grains.reserve(pk.rows.size());
+  for (const PackingRow& r : pk.rows) grains.push_back({r.position, 0.5 * r.diameter});
+  if (const auto deep = find_deep_overlap(grains)) {
+    const PackingRow &a = pk.rows[deep->a], &b = pk.rows[deep->b];
+    const bool same = a.position.x == b.position.x && a.position.y == b.position.y &&
+                      a.position.z == b.position.z;
+    char share[32];
+    std::snprintf(share, sizeof share, "%.0f %%", 100.0 * deep->share);
+    throw ConfigError(
+        path + ": particles " + std::to_string(a.id) + " and " + std::to_string(b.id) +
+        (same ? std::string(" sit at the same point")
+              : " overlap by " + std::string(share) + " of the smaller radius") +
+        ": expected distinct grains overlapping by at most " +
+        std::to_string(static_cast<int>(100.0 * kMaxInputOverlapShare)) + " % of a radius");
   }
   return pk;
 }
@@ -105,7 +124,10 @@ Packing read_packing(const std::string& path) {
 void write_packing(const std::string& path, const Packing& packing) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (!f) throw ConfigError("cannot write '" + path + "'");
-  for (const auto& [k, v] : packing.header) std::fprintf(f, "# %s=%s\n", k.c_str(), v.c_str());
+  for (const auto& [k, v] : packing.header) {
+    if (k != Packing::kCountHeader) std::fprintf(f, "# %s=%s\n", k.c_str(), v.c_str());
+  }
+  std::fprintf(f, "# %s=%zu\n", Packing::kCountHeader, packing.rows.size());
   std::vector<const PackingRow*> rows;
   for (const auto& r : packing.rows) rows.push_back(&r);
   std::sort(rows.begin(), rows.end(), [](auto* a, auto* b) { return a->id < b->id; });

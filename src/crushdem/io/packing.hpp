@@ -30,9 +30,15 @@ struct Packing {
   std::array<double, kNumWalls> box(const std::string& path) const;
   /// The header key of wall k's position ("box_xmin" ... "box_zmax").
   static std::string box_header_key(int k) { return std::string("box_") + wall_name(k); }
+  /// The header key of the number of grains (written by crushdem; checked when present, so a
+  /// file cut at a line end is refused).
+  static constexpr const char* kCountHeader = "particles";
 };
 
-/// Reads a packing file; throws ConfigError naming the file (and line) on any problem.
+/// Reads a packing file; throws ConfigError naming the file (and line) on any problem: a bad
+/// row, a repeated id, a file cut short (a last line without its newline, or fewer grains than
+/// its `# particles=` header says), or two grains at one point or overlapping by more than
+/// kMaxInputOverlapShare of the smaller radius.
 Packing read_packing(const std::string& path);
 /// Writes rows sorted by id with full double precision.
 void write_packing(const std::string& path, const Packing& packing);

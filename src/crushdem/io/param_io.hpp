@@ -237,6 +237,7 @@ struct ParamRow {
   std::string choices;   // a choice's values, e.g. "\"fixed\" or \"servo\"" (empty otherwise)
   bool checked = false;  // a range check, whose expected value is `expected`
   std::string expected;
+  std::string plausible;  // the values outside which a run warns (empty: none)
 };
 
 /// The member type T of a pointer to member T S::*.
@@ -259,6 +260,7 @@ std::vector<ParamRow> param_rows(const ParamTable<S>& table) {
     r.doc = p.doc;
     r.checked = p.ok != nullptr;
     if (r.checked) r.expected = p.expected;
+    if (p.plausible) r.plausible = p.plausible_range;
     std::visit(
         [&r](const auto& m) {
           using M = std::decay_t<decltype(m)>;
@@ -318,6 +320,7 @@ inline std::string markdown(const std::vector<ParamRow>& rows,
     std::string meaning = r.doc;
     if (!r.choices.empty()) meaning += "; one of " + r.choices;
     if (r.checked) meaning += "; expected: " + r.expected;
+    if (!r.plausible.empty()) meaning += "; warns outside " + r.plausible;
     out +=
         "| `" + r.key + "` | " + default_text(r) + " | " + r.unit + " | " + cell(meaning) + " |\n";
   }

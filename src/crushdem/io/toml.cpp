@@ -198,30 +198,42 @@ int line_of(const ::toml::node& node) {
   return static_cast<int>(node.source().begin.line);
 }
 
-Value convert(const ::toml::node& node, const std::string& key, const std::string& source);
+// Deeper than any configuration goes: a file of dotted keys or headers 10^4 parts long would
+// otherwise recurse (and build key names) without bound here. toml++ bounds inline nesting.
+constexpr int kMaxDepth = 64;
 
-Table convert_table(const ::toml::table& t, const std::string& path, const std::string& source) {
+Value convert(const ::toml::node& node, const std::string& key, const std::string& source,
+              int depth);
+
+Table convert_table(const ::toml::table& t, const std::string& path, const std::string& source,
+                    int depth) {
   Table out;
   for (const auto& [k, child] : t) {
     const std::string name =
         path.empty() ? std::string(k.str()) : path + "." + std::string(k.str());
-    out.emplace(std::string(k.str()), convert(child, name, source));
+    out.emplace(std::string(k.str()), convert(child, name, source, depth + 1));
   }
   return out;
 }
 
-Value convert(const ::toml::node& node, const std::string& key, const std::string& source) {
+Value convert(const ::toml::node& node, const std::string& key, const std::string& source,
+              int depth) {
+  if (depth > kMaxDepth) {
+    throw ConfigError(where(source, node.source()) + "'" + key.substr(0, 60) +
+                      "...': tables and arrays nested more than " + std::to_string(kMaxDepth) +
+                      " deep (no configuration goes beyond 4)");
+  }
   Value v;
   switch (node.type()) {
     case ::toml::node_type::table:
-      v = Value::make_table(convert_table(*node.as_table(), key, source));
+      v = Value::make_table(convert_table(*node.as_table(), key, source, depth));
       break;
     case ::toml::node_type::array: {
       std::vector<Value> elements;
       const ::toml::array& a = *node.as_array();
       elements.reserve(a.size());
       for (size_t i = 0; i < a.size(); ++i) {
-        elements.push_back(convert(a[i], key + "[" + std::to_string(i) + "]", source));
+        elements.push_back(convert(a[i], key + "[" + std::to_string(i) + "]", source, depth + 1));
       }
       v = Value::make_array(std::move(elements));
       break;
@@ -328,7 +340,7 @@ void write_body(std::string& out, const Table& t, const std::string& path) {
 Table parse(std::string_view text, const std::string& source_name) {
   try {
     const ::toml::table root = ::toml::parse(text, std::string_view(source_name));
-    return convert_table(root, "", source_name);
+    return convert_table(root, "", source_name, 0);
   } catch (const ::toml::parse_error& e) {
     throw ConfigError(where(source_name, e.source()) + std::string(e.description()));
   }
@@ -338,6 +350,14 @@ Table parse_file(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
     throw ConfigError("cannot read config file '" + path + "': it is a directory");
+  }
+  // A configuration is a few kilobytes; a device or a huge file is not one.
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{16} << 20;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    throw ConfigError("cannot read config file '" + path + "': not a regular file");
+  }
+  if (std::filesystem::exists(path, ec) && std::filesystem::file_size(path, ec) > kMaxBytes) {
+    throw ConfigError("cannot read config file '" + path + "': larger than 16 MiB");
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ConfigError("cannot open config file '" + path + "'");

@@ -289,7 +289,51 @@ void NeighborList::state(StateArchive& a) {
   a(offsets, neighbors, column_offsets, column_members, color_offsets, owner, skin_);
   builds_ = static_cast<std::size_t>(a.value(static_cast<std::uint64_t>(builds_)));
   a(x0_, y0_, z0_);
-  if (a.loading()) sum_column_work();  // derived, not stored
+  if (!a.loading()) return;
+  check_loaded();
+  sum_column_work();  // derived, not stored
+}
+
+void NeighborList::check_loaded() const {
+  // A loaded list indexes the particle arrays in the pair loop: every index and range is
+  // checked here, so that a damaged state is refused instead of read out of bounds.
+  const auto fail = [](const char* what) {
+    throw RuntimeFailure(std::string("checkpoint: the neighbour list is damaged (") + what + ")");
+  };
+  const auto ranges = [&](const std::vector<Index>& off, std::size_t total, const char* what) {
+    if (off.empty()) return;
+    if (off.front() != 0 || off.back() != total) fail(what);
+    for (std::size_t k = 1; k < off.size(); ++k) {
+      if (off[k] < off[k - 1]) fail(what);
+    }
+  };
+  if (offsets.empty()) return;  // no list yet: the next step builds one
+  const std::size_t n = offsets.size() - 1;
+  ranges(offsets, neighbors.size(), "offsets");
+  for (const Index j : neighbors) {
+    if (j >= n) fail("a neighbour index");
+  }
+  if (!owner.empty()) {
+    if (owner.size() != neighbors.size()) fail("owners");
+    for (const Index i : owner) {
+      if (i >= n) fail("an owner index");
+    }
+  }
+  ranges(column_offsets, column_members.size(), "columns");
+  for (const Index i : column_members) {
+    if (i >= n) fail("a column member");
+  }
+  const std::size_t columns = column_offsets.empty() ? 0 : column_offsets.size() - 1;
+  if (!color_offsets.empty()) {
+    if (color_offsets.size() != kColors + 1 || color_offsets.front() != 0 ||
+        color_offsets.back() != columns) {
+      fail("colours");
+    }
+    for (std::size_t k = 1; k < color_offsets.size(); ++k) {
+      if (color_offsets[k] < color_offsets[k - 1]) fail("colours");
+    }
+  }
+  if (x0_.size() != n || y0_.size() != n || z0_.size() != n) fail("reference positions");
 }
 
 }  // namespace crushdem

@@ -82,6 +82,7 @@ class NeighborList {
  private:
   void build_columns(const ParticleStore& p, const double lo[3], double h);
   void sum_column_work();
+  void check_loaded() const;  // RuntimeFailure when a loaded list indexes out of bounds
   double skin_ = 0.0;
   std::size_t builds_ = 0;
   std::vector<double> x0_, y0_, z0_;  // positions at the last build

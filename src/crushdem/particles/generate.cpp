@@ -68,4 +68,52 @@ std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
   return out;
 }
 
+std::optional<DeepOverlap> find_deep_overlap(const std::vector<PlacedSphere>& grains,
+                                             double max_share, std::size_t first_new) {
+  if (grains.size() < 2 || first_new >= grains.size()) return std::nullopt;
+  double r_max = 0.0;
+  for (const PlacedSphere& g : grains) r_max = std::max(r_max, g.radius);
+  const double h = 2.0 * r_max;  // no overlapping pair spans more than one cell
+  if (!(h > 0.0) || !std::isfinite(h)) return std::nullopt;
+  const auto cell_of = [h](const Vec3& p) {
+    return std::array<long long, 3>{static_cast<long long>(std::floor(p.x / h)),
+                                    static_cast<long long>(std::floor(p.y / h)),
+                                    static_cast<long long>(std::floor(p.z / h))};
+  };
+  const auto key = [](long long i, long long j, long long k) {
+    const auto u = [](long long v) { return static_cast<std::uint64_t>(v) & 0x1FFFFFULL; };
+    return (u(i) << 42) | (u(j) << 21) | u(k);
+  };
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells;
+  cells.reserve(grains.size());
+  for (std::size_t i = 0; i < grains.size(); ++i) {
+    const auto c = cell_of(grains[i].position);
+    cells[key(c[0], c[1], c[2])].push_back(i);
+  }
+  std::optional<DeepOverlap> worst;
+  for (std::size_t i = first_new; i < grains.size(); ++i) {
+    const auto c = cell_of(grains[i].position);
+    for (long long di = -1; di <= 1; ++di) {
+      for (long long dj = -1; dj <= 1; ++dj) {
+        for (long long dk = -1; dk <= 1; ++dk) {
+          const auto it = cells.find(key(c[0] + di, c[1] + dj, c[2] + dk));
+          if (it == cells.end()) continue;
+          for (const std::size_t j : it->second) {
+            // Each new-new pair once (j < i), each old-new pair once (j old).
+            if (j == i || (j >= first_new && j > i)) continue;
+            const Vec3 d = grains[i].position - grains[j].position;
+            const double dist = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+            const double share = (grains[i].radius + grains[j].radius - dist) /
+                                 std::min(grains[i].radius, grains[j].radius);
+            if (share > max_share && (!worst || share > worst->share)) {
+              worst = DeepOverlap{std::min(i, j), std::max(i, j), share};
+            }
+          }
+        }
+      }
+    }
+  }
+  return worst;
+}
+
 }  // namespace crushdem

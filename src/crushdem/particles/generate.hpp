@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "crushdem/core/types.hpp"
@@ -29,5 +30,23 @@ std::vector<PlacedSphere> random_sequential_addition(std::vector<double> radii,
                                                      std::uint64_t seed,
                                                      std::uint64_t max_attempts = 100000,
                                                      const PlaceTest& inside = {});
+
+/// Two grains that overlap by more than a contact can: their indices (a < b) and the overlap
+/// r_a + r_b - |x_a - x_b| as a share of the smaller radius (>= 1 when one centre lies inside
+/// the other grain; infinite-force territory for Hertz at any share near 1).
+struct DeepOverlap {
+  std::size_t a = 0, b = 0;
+  double share = 0.0;
+};
+
+/// The grain sets crushdem takes from outside (sample files, the Python API) are checked with
+/// this before any step: compressed samples overlap by well under 1 % of a radius, so an overlap
+/// beyond `max_share` of the smaller radius (coincident centres included) is an input error.
+/// Only pairs with at least one grain from index `first_new` on are examined (grains already in
+/// a simulation were checked when they came in). A cell grid: O(N) for similar sizes.
+inline constexpr double kMaxInputOverlapShare = 0.5;
+std::optional<DeepOverlap> find_deep_overlap(const std::vector<PlacedSphere>& grains,
+                                             double max_share = kMaxInputOverlapShare,
+                                             std::size_t first_new = 0);
 
 }  // namespace crushdem

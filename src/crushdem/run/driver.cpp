@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "crushdem/io/vtk.hpp"
+#include "crushdem/run/run_directory.hpp"
 #include "crushdem/run/signals.hpp"
 
 namespace crushdem {
@@ -64,7 +65,10 @@ Driver::Driver(Simulation& sim, Stepper& stepper, const RunConfig& cfg, const Ru
 
 CsvWriter& Driver::file(const std::string& name) {
   auto& f = files_[name];
-  if (!f) f = std::make_unique<CsvWriter>((dir_ / name).string());
+  if (!f) {
+    if (manifest) manifest->add(name);
+    f = std::make_unique<CsvWriter>((dir_ / name).string());
+  }
   return *f;
 }
 
@@ -84,6 +88,7 @@ void Driver::snapshot() {
   if (sim_.walls().size() > kNumWalls) {
     write_vtp_bodies((vtk / ("bodies_" + k + ".vtp")).string(), sim_.walls());
   }
+  for (const std::string& kind : snapshot_kinds()) keep("vtk/" + kind + "_" + k + ".vtp");
   snapshots_.push_back(now);
   write_collections();
 }
@@ -180,33 +185,92 @@ std::vector<std::string> Driver::file_names() const {
   return names;
 }
 
+void Driver::keep(const std::string& path, const std::string* bytes) {
+  const std::string full = (dir_ / path).string();
+  KeptFile f{path, 0, 0};
+  if (bytes) {
+    f.size = static_cast<long long>(bytes->size());
+    f.digest = fnv1a64(bytes->data(), bytes->size());
+  } else {
+    f.size = static_cast<long long>(std::filesystem::file_size(full));
+    f.digest = file_digest(full);
+  }
+  const auto it =
+      std::find_if(kept_.begin(), kept_.end(), [&](const KeptFile& k) { return k.path == path; });
+  if (it != kept_.end()) {
+    *it = f;
+  } else {
+    kept_.push_back(f);
+  }
+}
+
+void Driver::check_kept_files() const {
+  namespace fs = std::filesystem;
+  for (const KeptFile& k : kept_) {
+    const fs::path full = dir_ / k.path;
+    std::error_code ec;
+    const auto size = fs::file_size(full, ec);
+    const char* what = nullptr;
+    if (ec) {
+      what = "is missing";
+    } else if (static_cast<long long>(size) != k.size) {
+      what = "has another size than the run wrote";
+    } else if (file_digest(full.string()) != k.digest) {
+      what = "was changed after the run wrote it";
+    }
+    if (what) {
+      throw ConfigError("cannot go on from '" + dir_.string() + "': " + k.path + " " + what + " (" +
+                        std::to_string(k.size) +
+                        " bytes); restore it, or start the run again with --overwrite");
+    }
+  }
+}
+
 void Driver::state(StateArchive& a) {
   a.section("files");
   // Format 4 and older: a count of legacy .vtk snapshots only.
   legacy_snapshots_ = static_cast<std::size_t>(a.value<std::uint64_t>(legacy_snapshots_));
   if (a.loading()) snapshots_.clear();
   if (a.version() >= 5) {
-    const auto count = a.value<std::uint64_t>(snapshots_.size());
+    const auto count = a.count(snapshots_.size(), "snapshot count");
     if (a.loading()) snapshots_.resize(count);
     for (Snapshot& snap : snapshots_) a(snap.step, snap.time);
   }
-  // Each result file: its name, its length and its columns.
-  const auto n = a.value<std::uint64_t>(files_.size());
+  // Each result file: its name, its length and its columns, from format 6 on its checksum.
+  const auto n = a.count(files_.size(), "result file count");
   if (!a.loading()) {
     for (auto& [name, f] : files_) {
       std::string file_name = name;
       long long size = f->size();
       std::vector<std::string> columns = f->columns();
+      std::uint64_t digest = f->digest();
       a(file_name, size, columns);
+      a.since(6, digest);
     }
-    return;
+  } else {
+    for (std::uint64_t k = 0; k < n; ++k) {
+      std::string name;
+      long long size = 0;
+      std::vector<std::string> columns;
+      std::uint64_t digest = 0;
+      a(name, size, columns);
+      a.since(6, digest);
+      file(name).resume(size, columns, a.version() >= 6 ? &digest : nullptr);
+    }
   }
-  for (std::uint64_t k = 0; k < n; ++k) {
-    std::string name;
-    long long size = 0;
-    std::vector<std::string> columns;
-    a(name, size, columns);
-    file(name).resume(size, columns);
+  if (a.version() < 6) return;
+  const auto kept = a.count(kept_.size(), "kept file count");
+  if (a.loading()) kept_.assign(kept, {});
+  for (KeptFile& f : kept_) {
+    a(f.path, f.size, f.digest);
+    // A path inside the run directory: a damaged list must not point a branch's copy elsewhere.
+    const std::filesystem::path p(f.path);
+    if (a.loading() &&
+        (f.path.empty() || p.is_absolute() || f.size < 0 ||
+         std::any_of(p.begin(), p.end(), [](const auto& part) { return part == ".."; }))) {
+      throw RuntimeFailure("checkpoint lists a kept file outside its run directory ('" +
+                           f.path.substr(0, 80) + "'): it is damaged or from another program");
+    }
   }
 }
 

@@ -23,6 +23,8 @@
 
 namespace crushdem {
 
+class RunManifest;
+
 /// "000012": legacy snapshot ordinals (format 4 and older checkpoints).
 std::string ordinal_stamp(std::size_t k);
 /// Snapshot file names carry the step, zero-padded so that they sort in order.
@@ -34,6 +36,14 @@ struct Snapshot {
   double time = 0.0;
 };
 inline constexpr const char* kSnapshotKinds[] = {"particles", "contacts", "box"};
+
+/// A file the run wrote whole (the sample, a snapshot, a stage's state), by its path in the run
+/// directory, with its size and fnv1a64 when written: resume and branches check it is unchanged.
+struct KeptFile {
+  std::string path;
+  long long size = 0;
+  std::uint64_t digest = 0;
+};
 
 /// The plain [run]: the walls as configured, for a number of steps or a duration.
 class FixedLengthController final : public Controller {
@@ -61,6 +71,8 @@ class Driver {
 
   /// The CSV file `name` in the output directory (opened when its first row is written).
   CsvWriter& file(const std::string& name);
+  /// Where the run directory's entries are recorded (each CSV as it is first named).
+  RunManifest* manifest = nullptr;
 
   /// The state as ParaView files named by step (vtk/particles_, contacts_ and box_STEP.vtp),
   /// listed with their times in vtk/particles.pvd, contacts.pvd and box.pvd.
@@ -104,7 +116,16 @@ class Driver {
   std::size_t legacy_snapshots() const { return legacy_snapshots_; }
   std::vector<std::string> file_names() const;
 
-  /// The snapshots and each result file's length and columns (checkpoints).
+  /// Records DIR/`path`, just written whole, with its size and checksum (`bytes`: its contents
+  /// when at hand, else the file is read back).
+  void keep(const std::string& path, const std::string* bytes = nullptr);
+  const std::vector<KeptFile>& kept_files() const { return kept_; }
+  /// Every kept file is in DIR as it was written: otherwise a ConfigError names the first that
+  /// is missing or changed (what a resume or branch would build on).
+  void check_kept_files() const;
+
+  /// The snapshots, each result file's length, columns and checksum, and the kept files
+  /// (checkpoints).
   void state(StateArchive& a);
 
  private:
@@ -120,6 +141,7 @@ class Driver {
   std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
   std::filesystem::path dir_;
   std::vector<Snapshot> snapshots_;
+  std::vector<KeptFile> kept_;
   std::size_t legacy_snapshots_ = 0;
   bool checkpoint_requested_ = false;
   double particle_steps_ = 0.0;

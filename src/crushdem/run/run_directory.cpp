@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <set>
 
+#include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/run/driver.hpp"
 
@@ -46,6 +47,90 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
 
 }  // namespace
 
+RunManifest::RunManifest(std::filesystem::path dir) : dir_(std::move(dir)) {
+  const std::filesystem::path path = dir_ / kName;
+  if (!std::filesystem::exists(path)) return;
+  const std::string text = read_binary_file(path.string(), std::uintmax_t{1} << 24);
+  // The list under "entries": JSON strings, as write() puts them.
+  const std::size_t key = text.find("\"entries\"");
+  std::size_t k = key == std::string::npos ? key : text.find('[', key);
+  const auto damaged = [&]() {
+    return ConfigError("'" + path.string() +
+                       "' is damaged (no list of entries): crushdem cannot tell its files from "
+                       "others there; restore it or remove the folder yourself");
+  };
+  if (k == std::string::npos) throw damaged();
+  for (++k; k < text.size() && text[k] != ']'; ++k) {
+    if (text[k] != '"') continue;
+    std::string name;
+    for (++k; k < text.size() && text[k] != '"'; ++k) {
+      if (text[k] == '\\' && k + 1 < text.size()) ++k;
+      name += text[k];
+    }
+    if (k >= text.size()) throw damaged();
+    const std::filesystem::path p(name);
+    // Only names at the top level: a damaged list must not reach outside the directory.
+    if (name.empty() || name == "." || name == ".." || p.has_parent_path() || p.is_absolute()) {
+      throw ConfigError("'" + path.string() + "' lists '" + name.substr(0, 80) +
+                        "', which is not a name in the run directory: it is damaged");
+    }
+    if (std::find(names_.begin(), names_.end(), name) == names_.end()) names_.push_back(name);
+  }
+  if (k >= text.size()) throw damaged();
+}
+
+bool RunManifest::present(const std::filesystem::path& dir) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(dir / kName, ec);
+}
+
+void RunManifest::add(const std::string& name) {
+  if (std::find(names_.begin(), names_.end(), name) != names_.end()) return;
+  names_.push_back(name);
+  write();
+}
+
+void RunManifest::write() const {
+  std::string list;
+  for (const std::string& n : names_) {
+    std::string quoted = "\"";
+    for (char c : n) quoted += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
+    list += (list.empty() ? "\n    " : ",\n    ") + quoted + "\"";
+  }
+  JsonObject m;
+  m.boolean("crushdem_run", true);
+  m.string("version", CRUSHDEM_VERSION);
+  m.fields.emplace_back("entries", "[" + list + "\n  ]");
+  write_file_atomically((dir_ / kName).string(), m.dump() + "\n");
+}
+
+namespace {
+
+// A run directory of an earlier release (before manifests): its config.toml and one of the
+// files only a run writes.
+bool earlier_run(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  return fs::exists(dir / "config.toml") &&
+         (fs::exists(dir / "checkpoint.bin") || fs::exists(dir / "summary.json") ||
+          fs::exists(dir / "timing.json"));
+}
+
+// `dir` is the current directory or holds it.
+bool holds_current_directory(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path d = fs::weakly_canonical(dir, ec);
+  fs::path cwd = fs::current_path(ec);
+  if (ec) return false;
+  for (; !cwd.empty(); cwd = cwd.parent_path()) {
+    if (cwd == d) return true;
+    if (cwd == cwd.parent_path()) break;
+  }
+  return false;
+}
+
+}  // namespace
+
 void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite) {
   namespace fs = std::filesystem;
   std::error_code ec;
@@ -59,7 +144,7 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite)
   }
   if (ec) throw ConfigError("--out '" + dir.string() + "': cannot read it: " + ec.message());
   if (entries.empty()) return;
-  const bool is_run = fs::exists(dir / "config.toml");
+  const bool is_run = RunManifest::present(dir);
   if (!overwrite) {
     std::string what;
     if (fs::exists(dir / "checkpoint.bin")) {
@@ -83,14 +168,45 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite)
     }
     throw ConfigError("--out '" + dir.string() + "' " + what);
   }
-  if (!is_run) {
+  if (holds_current_directory(dir)) {
     throw ConfigError("--out '" + dir.string() +
-                      "' is not a crushdem run directory (no config.toml), and --overwrite "
-                      "replaces only crushdem runs: choose a new or empty directory");
+                      "' is the current directory or holds it, which --overwrite never clears: "
+                      "give the run a folder of its own");
   }
-  for (const fs::path& p : entries) {
-    fs::remove_all(p, ec);
-    if (ec) throw ConfigError("--overwrite: cannot remove '" + p.string() + "': " + ec.message());
+  if (!is_run) {
+    throw ConfigError(
+        "--out '" + dir.string() + "' " +
+        (earlier_run(dir)
+             ? "holds a run of an earlier crushdem (no manifest.json, so its files cannot be "
+               "told from others): --overwrite replaces only runs with a manifest; remove the "
+               "folder yourself or choose another --out"
+             : "is not a crushdem run directory (no manifest.json), and --overwrite replaces "
+               "only crushdem runs: choose a new or empty directory"));
+  }
+  const RunManifest manifest(dir);
+  for (const std::string& name : manifest.names()) {
+    if (name == kLockName) continue;
+    fs::remove_all(dir / name, ec);
+    if (ec) {
+      throw ConfigError("--overwrite: cannot remove '" + (dir / name).string() +
+                        "': " + ec.message());
+    }
+  }
+  fs::remove(dir / RunManifest::kName, ec);
+}
+
+void check_branch_directories(const std::filesystem::path& out, const std::filesystem::path& from) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path o = fs::weakly_canonical(out, ec);
+  for (fs::path f = fs::weakly_canonical(from, ec); !f.empty(); f = f.parent_path()) {
+    if (f == o) {
+      throw ConfigError("--out '" + out.string() + "' " +
+                        (f == fs::weakly_canonical(from, ec) ? "is" : "holds") +
+                        " the run it branches from (--from '" + from.string() +
+                        "'): a branch writes into a folder of its own");
+    }
+    if (f == f.parent_path()) break;
   }
 }
 
@@ -200,24 +316,26 @@ void keep_branch_files(const std::filesystem::path& from, const std::filesystem:
   }
   fs::create_directories(dir / "vtk");
   const auto keep = [&](const std::string& file) {
-    const fs::path f = from / "vtk" / file;
-    if (fs::exists(f)) fs::copy_file(f, dir / "vtk" / file, fs::copy_options::overwrite_existing);
+    const fs::path f = from / file;
+    if (!fs::exists(f)) return;
+    fs::create_directories((dir / file).parent_path());
+    fs::copy_file(f, dir / file, fs::copy_options::overwrite_existing);
   };
+  // Format 6 on: every file the state lists; then checked against its checksum.
+  for (const KeptFile& k : driver.kept_files()) keep(k.path);
   for (std::size_t k = 0; k < driver.legacy_snapshots(); ++k) {
-    for (const char* kind : {"particles_", "box_"}) keep(kind + ordinal_stamp(k) + ".vtk");
+    for (const char* kind : {"particles_", "box_"})
+      keep("vtk/" + (kind + ordinal_stamp(k)) + ".vtk");
   }
   for (const Snapshot& snap : driver.snapshot_list()) {
     for (const std::string& kind : driver.snapshot_kinds()) {
-      keep(kind + "_" + step_stamp(snap.step) + ".vtp");
+      keep("vtk/" + kind + "_" + step_stamp(snap.step) + ".vtp");
     }
   }
   driver.write_collections();
   fs::create_directories(dir / "stages");
-  for (std::size_t k = 0; k < stage; ++k) {
-    const fs::path f = from / "stages" / ("stage_" + std::to_string(k) + ".bin");
-    if (fs::exists(f))
-      fs::copy_file(f, dir / "stages" / f.filename(), fs::copy_options::overwrite_existing);
-  }
+  for (std::size_t k = 0; k < stage; ++k) keep("stages/stage_" + std::to_string(k) + ".bin");
+  driver.check_kept_files();
 }
 
 }  // namespace crushdem

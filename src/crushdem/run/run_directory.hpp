@@ -14,11 +14,37 @@ namespace crushdem {
 
 class Driver;
 
+/// DIR/manifest.json: marks DIR as a crushdem run directory and lists every entry crushdem
+/// created in it (names at its top level: result files, vtk/, stages/, figures), so that
+/// --overwrite and a restarted resume remove those and nothing else. It is rewritten (whole,
+/// atomically) each time an entry is added.
+class RunManifest {
+ public:
+  static constexpr const char* kName = "manifest.json";
+  /// The manifest of `dir` as it stands (empty when there is none; a manifest that cannot be
+  /// read is refused, naming it).
+  explicit RunManifest(std::filesystem::path dir);
+  /// Records a top-level entry crushdem is about to create (nothing happens if listed).
+  void add(const std::string& name);
+  const std::vector<std::string>& names() const { return names_; }
+  static bool present(const std::filesystem::path& dir);
+
+ private:
+  void write() const;
+  std::filesystem::path dir_;
+  std::vector<std::string> names_;
+};
+
 /// A new run starts in a new or empty directory: finished or stopped work is never overwritten
-/// or mixed with a new run's files unless asked (overwrite), and then only a crushdem run
-/// directory (one with config.toml) is emptied. The errors say what the directory holds and how
-/// to go on (resume, another --out, --overwrite).
+/// or mixed with a new run's files unless asked (overwrite), and then only in a directory
+/// crushdem's manifest marks as a run, and only the entries it lists are removed (a user's
+/// other files stay). The current directory and its parents are never cleared. The errors say
+/// what the directory holds and how to go on (resume, another --out, --overwrite).
 void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite);
+
+/// A branch never writes into the run it starts from: `out` may be neither `from` nor a folder
+/// that holds it (ConfigError naming --out otherwise).
+void check_branch_directories(const std::filesystem::path& out, const std::filesystem::path& from);
 
 /// An exclusive lock on DIR/.lock for the life of the run: a second run or resume into the
 /// same directory stops at once instead of splicing its rows into the first one's files.
@@ -44,7 +70,8 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
 void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir);
 
 /// After the branch state is loaded: the CSVs it does not list are removed (the original wrote
-/// them later), its snapshots and the states of the stages before the branch are copied.
+/// them later); the files it keeps (the sample, its snapshots, the states of the stages before
+/// the branch) are copied and checked against their recorded checksums.
 void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
                        const Driver& driver, std::size_t stage);
 

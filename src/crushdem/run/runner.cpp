@@ -116,14 +116,28 @@ class Run {
         dir_(opt.out_dir),
         stepper_(make_stepper(opt.backend)),
         lock_(open_directory(opt)),
+        manifest_(dir_),
         config_text_(toml::serialize(to_toml(cfg))),
         branching_(!opt.branch_dir.empty()),
         resumed_(opt.resume || branching_),
         from_(branching_ ? fs::absolute(opt.branch_dir) : fs::path()) {}
 
   RunSummary execute() {
-    if (!opt_.resume) write_text_file((dir_ / "config.toml").string(), config_text_);
-    if (resumed_) read_saved_position();
+    manifest_.add(".lock");
+    manifest_.add("vtk");
+    create_directory(dir_ / "vtk", opt_.out_dir);
+    if (!opt_.resume) {
+      manifest_.add("config.toml");
+      write_text_file((dir_ / "config.toml").string(), config_text_);
+    }
+    if (resumed_) {
+      read_saved_position();
+    } else {
+      for (const std::string& w : cfg_.warnings()) {
+        pos_.warnings.push_back(w);
+        if (opt_.progress) std::fprintf(stderr, "[crushdem] warning: %s\n", w.c_str());
+      }
+    }
     make_simulation();
     if (resumed_) restore();
     driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
@@ -145,10 +159,10 @@ class Run {
   static std::unique_ptr<DirectoryLock> open_directory(const RunOptions& opt) {
     clear_stop_request();
     const fs::path dir(opt.out_dir);
+    if (!opt.branch_dir.empty()) check_branch_directories(dir, opt.branch_dir);
     create_directory(dir, opt.out_dir);
     auto lock = std::make_unique<DirectoryLock>(dir);
     if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite);
-    create_directory(dir / "vtk", opt.out_dir);
     return lock;
   }
 
@@ -184,6 +198,7 @@ class Run {
       JsonObject b;
       b.string("run", from_.string());
       b.integer("stage", static_cast<long long>(branch_k_));
+      manifest_.add("branch.json");
       write_text_file((dir_ / "branch.json").string(), b.dump() + "\n");
     }
   }
@@ -221,6 +236,7 @@ class Run {
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
+    driver_->manifest = &manifest_;
   }
 
   void make_crusher() {
@@ -237,7 +253,15 @@ class Run {
   void restore() {
     if (branching_) copy_run_files(from_, dir_);
     load_state(*driver_, *in_);
-    if (branching_) keep_branch_files(from_, dir_, *driver_, branch_k_);
+    if (branching_) {
+      manifest_.add("stages");
+      for (const KeptFile& k : driver_->kept_files()) {
+        manifest_.add(fs::path(k.path).begin()->string());
+      }
+      keep_branch_files(from_, dir_, *driver_, branch_k_);
+    } else {
+      driver_->check_kept_files();
+    }
     load_state(*sim_, *in_);
     if (pos_.has_crusher) {
       make_crusher();
@@ -253,7 +277,10 @@ class Run {
     }
   }
 
-  std::string timing_path() const { return (dir_ / "timing.json").string(); }
+  std::string timing_path() {
+    manifest_.add("timing.json");
+    return (dir_ / "timing.json").string();
+  }
 
   // The whole state at this point of the run (checkpoint.bin). stage_state: the copy kept for
   // branches (stages/stage_K.bin) instead, without the wall-clock times (a branch starts its
@@ -282,8 +309,11 @@ class Run {
         checkpoint_bytes(config_text_, saved, *driver_, *sim_, crusher_.get(), running);
     if (!stage_state.empty()) {
       write_file_atomically(stage_state, bytes);
+      driver_->keep(fs::relative(stage_state, dir_).generic_string(), &bytes);
       return;
     }
+    manifest_.add("checkpoint.bin");
+    manifest_.add("checkpoint.bin.tmp");
     write_file_atomically((dir_ / "checkpoint.bin").string(), bytes);
     write_timing(timing_path(), opt_.backend, false, resumed_,
                  pos_.wall_seconds + driver_->seconds(), driver_->particle_steps(), *sim_);
@@ -296,6 +326,7 @@ class Run {
     pos_.part = part;
     save_checkpoint(nullptr, 0);
     if (part >= kPartFirstStage) {
+      manifest_.add("stages");
       create_directory(dir_ / "stages", opt_.out_dir);
       save_checkpoint(
           nullptr, 0,
@@ -365,7 +396,9 @@ class Run {
     for (std::size_t i = 0; i < p.size(); ++i) {
       pk.rows.push_back({p.id[i], {p.x[i], p.y[i], p.z[i]}, 2.0 * p.radius[i]});
     }
+    manifest_.add("sample.txt");
     write_packing((dir_ / "sample.txt").string(), pk);
+    driver_->keep("sample.txt");
     pos_.sample_json = sample_json(sim, cfg_.sample, prep);
     pos_.has_sample_json = true;
     if (!prep.warning().empty()) {
@@ -485,6 +518,7 @@ class Run {
         fs::exists(dir_ / "branch.json") ? read_binary_file((dir_ / "branch.json").string()) : "";
     const JsonObject summary =
         summary_json(pos_, *sim_, driver_->snapshots(), crusher_.get(), branch);
+    manifest_.add("summary.json");
     write_text_file((dir_ / "summary.json").string(), summary.dump() + "\n");
     const auto [dominant, dominant_fraction] = write_timing(
         timing_path(), opt_.backend, true, resumed_, secs, driver_->particle_steps(), *sim_);
@@ -507,6 +541,7 @@ class Run {
   const fs::path dir_;
   std::unique_ptr<Stepper> stepper_;  // what advances the simulation (opt.backend)
   std::unique_ptr<DirectoryLock> lock_;
+  RunManifest manifest_;  // read after the lock is held and an old run is cleared
   const std::string config_text_;
   const bool branching_, resumed_;
   const fs::path from_;  // the run a branch starts from
@@ -540,7 +575,14 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
   const fs::path d(dir);
   if (!fs::exists(d / "checkpoint.bin") && !fs::exists(d / "summary.json")) {
     // Stopped before its first checkpoint (during sample preparation, say): nothing to continue
-    // from, and nothing finished to lose, so the run starts again from its config.toml.
+    // from, and nothing finished to lose, so the run starts again from its config.toml, in
+    // place of the files its manifest lists (only a folder crushdem started as a run has one).
+    if (!RunManifest::present(d)) {
+      throw ConfigError("crushdem resume: '" + dir +
+                        "' has a config.toml but no checkpoint and no manifest.json, so it is not "
+                        "a run crushdem started there; start one with `crushdem run " +
+                        path + " --out NEW_DIR`");
+    }
     if (opt.progress) {
       std::fprintf(stderr, "[crushdem] %s has no checkpoint yet: starting the run again\n",
                    dir.c_str());
