@@ -174,8 +174,8 @@ TEST_F(RunDirectory, AbsurdButValidParametersWarn) {
          "sigma_lim0 = 1\n";
   const Outcome check = cli({"check", config_});
   EXPECT_EQ(check.rc, 0) << check.err;
-  for (const char* key : {"material.density", "crushing.weibull_m", "crushing.v0",
-                          "crushing.sigma_lim0"}) {
+  for (const char* key :
+       {"material.density", "crushing.weibull_m", "crushing.v0", "crushing.sigma_lim0"}) {
     EXPECT_TRUE(has(check.out, std::string("warning: ") + key)) << key << "\n" << check.out;
   }
   // A physical value gives none.
