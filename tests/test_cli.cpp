@@ -166,6 +166,12 @@ TEST_F(RunDirectory, ASecondRunIsRefusedAndLeavesTheFilesAsTheyWere) {
     EXPECT_TRUE(has(manifest, std::string("\"") + name + "\"")) << name << manifest;
   }
   EXPECT_FALSE(has(manifest, "notes.txt")) << manifest;
+  // run.log, written with --quiet too: how the run went, with UTC time stamps.
+  const std::string log = slurp(fs::path(out_) / "run.log");
+  EXPECT_TRUE(has(log, std::string("run with crushdem ") + CRUSHDEM_VERSION)) << log;
+  EXPECT_TRUE(has(log, "Z  run  step")) << log;  // a progress line
+  EXPECT_TRUE(has(log, "Z  finished: ")) << log;
+  EXPECT_TRUE(has(manifest, "\"run.log\"")) << manifest;
 }
 
 TEST_F(RunDirectory, AbsurdButValidParametersWarn) {
@@ -316,7 +322,10 @@ TEST_F(Branch, AnUnchangedBranchGivesTheOriginalsFiles) {
   for (const auto& e : fs::recursive_directory_iterator(orig)) {
     const std::string rel = fs::relative(e.path(), orig).string();
     // Wall-clock times; the entries in the order this run created them.
-    if (!e.is_regular_file() || rel == "timing.json" || rel == "manifest.json") continue;
+    if (!e.is_regular_file() || rel == "timing.json" || rel == "manifest.json" ||
+        rel == "run.log") {
+      continue;
+    }
     ASSERT_TRUE(fs::exists(fs::path(br) / rel)) << rel;
     const std::string a = slurp(e.path());
     std::string b = slurp(fs::path(br) / rel);

@@ -54,7 +54,8 @@ std::size_t compare_thread_counts(const std::string& config, const fs::path& bas
   threading_threshold() = saved_threshold;
   std::size_t compared = 0;
   for (const auto& e : fs::recursive_directory_iterator(base / "t1")) {
-    if (!e.is_regular_file() || e.path().filename() == "timing.json") continue;
+    const auto name = e.path().filename();
+    if (!e.is_regular_file() || name == "timing.json" || name == "run.log") continue;
     const fs::path other = base / "t2" / fs::relative(e.path(), base / "t1");
     EXPECT_TRUE(fs::exists(other)) << other;
     EXPECT_EQ(slurp(e.path()), slurp(other)) << "differs: " << fs::relative(e.path(), base / "t1");

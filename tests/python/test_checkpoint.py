@@ -47,7 +47,7 @@ def files(run_dir):
     out = {}
     for root, _dirs, names in os.walk(run_dir):
         for n in names:
-            if n == "timing.json":  # wall-clock times
+            if n in ("timing.json", "run.log"):  # wall-clock times
                 continue
             p = os.path.join(root, n)
             with open(p, "rb") as f:

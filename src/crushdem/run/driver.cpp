@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 
 #include "crushdem/io/vtk.hpp"
 #include "crushdem/run/run_directory.hpp"
@@ -174,7 +175,13 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
         checkpoint(c, to_check);
         checkpoint_requested_ = false;
       }
-      if (stop != 0) throw Interrupted(stop, opt_.out_dir);
+      if (stop != 0) {
+        say("stopped by signal " + std::to_string(stop) + " at step " +
+                std::to_string(sim_.step_count()) + "; continue with `crushdem resume " +
+                opt_.out_dir + "`",
+            false);
+        throw Interrupted(stop, opt_.out_dir);
+      }
     }
   }
 }
@@ -294,35 +301,68 @@ std::string show_duration(double s) {
 }  // namespace
 
 void Driver::progress(const std::string& label, const std::function<double()>& fraction) {
-  if (!opt_.progress || !(cfg_.output.progress_seconds > 0)) return;
   const auto now = clock::now();
-  if (std::chrono::duration<double>(now - last_).count() < cfg_.output.progress_seconds) return;
-  last_ = now;
+  const auto since = [&](clock::time_point t) {
+    return std::chrono::duration<double>(now - t).count();
+  };
+  const double every = cfg_.output.progress_seconds;
+  const bool to_terminal = opt_.progress && every > 0 && since(last_) >= every;
+  const bool to_log = since(last_logged_) >= kLogSeconds;
+  if (!to_terminal && !to_log) return;
   const Walls& w = sim_.walls();
   const double sz = w.axial_stress(), sr = w.lateral_stress();
-  std::fprintf(stderr,
-               "[crushdem] %s  step %llu  t = %.4e s  sigma_z = %.4g MPa  sigma_r = %.4g MPa  "
-               "q = %.4g MPa",
-               label.c_str(), static_cast<unsigned long long>(sim_.step_count()), sim_.time(),
-               1e-6 * sz, 1e-6 * sr, 1e-6 * (sz - sr));
+  char b[256];
+  std::snprintf(b, sizeof b,
+                "%s  step %llu  t = %.4e s  sigma_z = %.4g MPa  sigma_r = %.4g MPa  q = %.4g MPa",
+                label.c_str(), static_cast<unsigned long long>(sim_.step_count()), sim_.time(),
+                1e-6 * sz, 1e-6 * sr, 1e-6 * (sz - sr));
+  std::string line = b;
   if (progress_note_) {
     const std::string note = progress_note_();
-    if (!note.empty()) std::fprintf(stderr, "  %s", note.c_str());
+    if (!note.empty()) line += "  " + note;
   }
-  const double el = std::chrono::duration<double>(now - drive_t0_).count();
+  const double el = since(drive_t0_);
   if (el > 0.0) {
-    std::fprintf(stderr, "  %.3g steps/s",
-                 static_cast<double>(sim_.step_count() - drive_step0_) / el);
+    std::snprintf(b, sizeof b, "  %.3g steps/s",
+                  static_cast<double>(sim_.step_count() - drive_step0_) / el);
+    line += b;
   }
   const double f = fraction ? fraction() : std::nan("");
   if (std::isfinite(f)) {
     // The ETA from the share done since this drive began (a resumed stage starts part done).
     const double done = f - (std::isfinite(drive_f0_) ? drive_f0_ : 0.0);
-    std::fprintf(stderr, "  %.1f %% done", 100.0 * f);
-    if (done > 0.0 && f < 1.0)
-      std::fprintf(stderr, ", ETA %s", show_duration(el * (1 - f) / done).c_str());
+    std::snprintf(b, sizeof b, "  %.1f %% done", 100.0 * f);
+    line += b;
+    if (done > 0.0 && f < 1.0) line += ", ETA " + show_duration(el * (1 - f) / done);
   }
-  std::fprintf(stderr, "\n");
+  if (to_terminal) {
+    last_ = now;
+    std::fprintf(stderr, "[crushdem] %s\n", line.c_str());
+  }
+  if (to_log) {
+    last_logged_ = now;
+    log_line(line);
+  }
+}
+
+void Driver::say(const std::string& text, bool terminal) {
+  if (terminal && opt_.progress) std::fprintf(stderr, "[crushdem] %s\n", text.c_str());
+  log_line(text);
+}
+
+void Driver::log_line(const std::string& text) {
+  if (!run_log_) {
+    if (manifest) manifest->add("run.log");
+    run_log_.reset(std::fopen((dir_ / "run.log").c_str(), "a"));
+    if (!run_log_) return;  // the log is for people; a run never stops for it
+  }
+  const std::time_t t = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&t, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  std::fprintf(run_log_.get(), "%s  %s\n", stamp, text.c_str());
+  std::fflush(run_log_.get());
 }
 
 void Driver::log(const std::vector<BreakageEvent>& events) {

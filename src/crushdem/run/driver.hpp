@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -102,6 +103,12 @@ class Driver {
              bool resumed = false, std::uint64_t to_check = 0,
              std::function<std::string()> note = {});
 
+  /// A line for the person running: "[crushdem] text" on the terminal (with progress on, and
+  /// `terminal`), and always DIR/run.log with a UTC time stamp. run.log also gets a progress
+  /// line every kLogSeconds, so a quiet run still says how it went.
+  void say(const std::string& text, bool terminal = true);
+  static constexpr double kLogSeconds = 60.0;
+
   double seconds() const { return std::chrono::duration<double>(clock::now() - t0_).count(); }
   /// Particles times steps over the run (the count is fixed within a chunk); a resumed run
   /// starts from the total its checkpoint holds.
@@ -132,6 +139,11 @@ class Driver {
   using clock = std::chrono::steady_clock;
   void progress(const std::string& label, const std::function<double()>& fraction);
   void log(const std::vector<BreakageEvent>& events);
+  void log_line(const std::string& text);
+  struct FileCloser {
+    void operator()(std::FILE* f) const { std::fclose(f); }
+  };
+  std::unique_ptr<std::FILE, FileCloser> run_log_;  // DIR/run.log, opened at its first line
 
   Simulation& sim_;
   Stepper& stepper_;
@@ -146,7 +158,7 @@ class Driver {
   bool checkpoint_requested_ = false;
   double particle_steps_ = 0.0;
   std::function<std::string()> progress_note_;  // set by drive() from its caller's note
-  clock::time_point t0_, last_, last_checkpoint_;
+  clock::time_point t0_, last_, last_checkpoint_, last_logged_;
   // The current drive's start, for the progress lines' rate and ETA: its time, step and share
   // done (NaN when the controller gives none).
   clock::time_point drive_t0_;

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <memory>
 
+#include "crushdem/core/build_info.hpp"
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
 #include "crushdem/experiments/measurements.hpp"
@@ -130,15 +132,22 @@ class Run {
       manifest_.add("config.toml");
       write_text_file((dir_ / "config.toml").string(), config_text_);
     }
-    if (resumed_) {
-      read_saved_position();
-    } else {
+    if (resumed_) read_saved_position();
+    make_simulation();
+    driver_->say(std::string(opt_.resume  ? "resume"
+                             : branching_ ? "branch"
+                                          : "run") +
+                     " with crushdem " + CRUSHDEM_VERSION + " (" + build_commit() + "), backend " +
+                     opt_.backend + ", " + std::to_string(max_team_size()) + " threads" +
+                     (branching_ ? ", from " + from_.string() + " stage " + opt_.branch_stage
+                                 : std::string()),
+                 false);
+    if (!resumed_) {
       for (const std::string& w : cfg_.warnings()) {
         pos_.warnings.push_back(w);
-        if (opt_.progress) std::fprintf(stderr, "[crushdem] warning: %s\n", w.c_str());
+        driver_->say("warning: " + w);
       }
     }
-    make_simulation();
     if (resumed_) restore();
     driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
       save_checkpoint(&c, to_check);
@@ -271,10 +280,10 @@ class Run {
     // Timing totals go on from the checkpoint's.
     sim_->part_clock().add(pos_.part_seconds);
     driver_->add_particle_steps(pos_.particle_steps);
-    if (opt_.progress) {
-      std::fprintf(stderr, "[crushdem] resuming at step %llu, t = %.6e s\n",
-                   static_cast<unsigned long long>(sim_->step_count()), sim_->time());
-    }
+    char b[96];
+    std::snprintf(b, sizeof b, "resuming at step %llu, t = %.6e s",
+                  static_cast<unsigned long long>(sim_->step_count()), sim_->time());
+    driver_->say(b);
   }
 
   std::string timing_path() {
@@ -333,7 +342,12 @@ class Run {
           (dir_ / "stages" / ("stage_" + std::to_string(part - kPartFirstStage) + ".bin"))
               .string());
     }
-    if (stop_signal() != 0) throw Interrupted(stop_signal(), opt_.out_dir);
+    if (stop_signal() != 0) {
+      driver_->say("stopped by signal " + std::to_string(stop_signal()) + " between two parts; " +
+                       "continue with `crushdem resume " + opt_.out_dir + "`",
+                   false);
+      throw Interrupted(stop_signal(), opt_.out_dir);
+    }
   }
 
   // The controller of the part the checkpoint was taken in continues where it was.
@@ -403,15 +417,13 @@ class Run {
     pos_.has_sample_json = true;
     if (!prep.warning().empty()) {
       pos_.warnings.push_back(prep.warning());
-      std::fprintf(stderr, "[crushdem] warning: %s\n", prep.warning().c_str());
+      driver_->say("warning: " + prep.warning());
     }
-    if (opt_.progress) {
-      std::fprintf(stderr,
-                   "[crushdem] sample: %zu grains, e = %.4f (target %.4f), preparation friction "
-                   "%.4g\n",
-                   p.size(), prep.void_ratio(), cfg_.sample.void_ratio,
-                   prep.preparation_friction());
-    }
+    char b[160];
+    std::snprintf(b, sizeof b,
+                  "sample: %zu grains, e = %.4f (target %.4f), preparation friction %.4g", p.size(),
+                  prep.void_ratio(), cfg_.sample.void_ratio, prep.preparation_friction());
+    driver_->say(b);
   }
 
   // The test starts here: its strain reference and d50, and crushing (which acts during the
@@ -445,7 +457,7 @@ class Run {
                           " s (rayleigh_fraction x the Rayleigh time, safety x sqrt(m / k)): "
                           "the run may be unstable (0 = automatic)";
     pos_.warnings.push_back(w);
-    if (opt_.progress) std::fprintf(stderr, "[crushdem] warning: %s\n", w.c_str());
+    driver_->say("warning: " + w);
   }
 
   // Every time-series row of the test: the crushing columns and a grading row when grains can
@@ -488,12 +500,13 @@ class Run {
     JsonObject result = stage_json(stage.result());
     if (crusher_) result.object("loaded_share", loaded_share_json(sim, *crusher_));
     pos_.stage_results.push_back(result);
-    if (!stage.result().warning.empty()) pos_.warnings.push_back(stage.result().warning);
-    if (opt_.progress) {
-      std::fprintf(stderr, "[crushdem] stage '%s' ended (%s) after %llu steps\n",
-                   stage.result().name.c_str(), stage.result().end_reason.c_str(),
-                   static_cast<unsigned long long>(stage.result().steps));
+    if (!stage.result().warning.empty()) {
+      pos_.warnings.push_back(stage.result().warning);
+      driver_->say("warning: stage '" + stage.result().name + "': " + stage.result().warning,
+                   false);  // the stage said it on the terminal when it happened
     }
+    driver_->say("stage '" + stage.result().name + "' ended (" + stage.result().end_reason +
+                 ") after " + std::to_string(stage.result().steps) + " steps");
   }
 
   void run_plain() {
@@ -522,6 +535,10 @@ class Run {
     write_text_file((dir_ / "summary.json").string(), summary.dump() + "\n");
     const auto [dominant, dominant_fraction] = write_timing(
         timing_path(), opt_.backend, true, resumed_, secs, driver_->particle_steps(), *sim_);
+    char b[160];
+    std::snprintf(b, sizeof b, "finished: %llu steps, t = %.6e s, %.1f s of wall-clock time",
+                  static_cast<unsigned long long>(sim_->step_count()), sim_->time(), secs);
+    driver_->say(b, false);
     // The run is complete: its checkpoint is no longer needed.
     std::error_code ec;
     fs::remove(dir_ / "checkpoint.bin", ec);
