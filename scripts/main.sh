@@ -11,5 +11,15 @@ ensure_venv
 .venv/bin/python -m pip install --quiet ".[plot]"  # crushdem plot draws the figures
 CONFIG=${1:-examples/relaxation_small.toml}
 OUT=${2:-runs/$(basename "$CONFIG" .toml)}
-.venv/bin/crushdem run "$CONFIG" --out "$OUT"
+if [ -f "$OUT/summary.json" ]; then
+  # Run before: the finished result stays as it is; its figures are drawn again.
+  echo "main job: $OUT holds the finished run (summary.json); its figures are drawn again." \
+    "For a new run, remove $OUT or pass another OUT_DIR: bash scripts/main.sh $CONFIG runs/NEW"
+elif [ -f "$OUT/checkpoint.bin" ]; then
+  echo "main job: $OUT holds a stopped run: resuming it"
+  .venv/bin/crushdem resume "$OUT"
+else
+  .venv/bin/crushdem run "$CONFIG" --out "$OUT"
+fi
 .venv/bin/crushdem plot "$OUT"
+echo "main job: results and figures in $OUT (relaxation.png: the relaxation curve)"
