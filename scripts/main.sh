@@ -15,7 +15,7 @@ if [ -f "$OUT/summary.json" ]; then
   # Run before: the finished result stays as it is; its figures are drawn again.
   echo "main job: $OUT holds the finished run (summary.json); its figures are drawn again." \
     "For a new run, remove $OUT or pass another OUT_DIR: bash scripts/main.sh $CONFIG runs/NEW"
-elif [ -f "$OUT/checkpoint.bin" ]; then
+elif [ -f "$OUT/checkpoint.bin" ] || [ -f "$OUT/manifest.json" ]; then
   echo "main job: $OUT holds a stopped run: resuming it"
   .venv/bin/crushdem resume "$OUT"
 else

@@ -207,6 +207,9 @@ TEST_F(RunDirectory, AFolderWithAConfigTomlIsNotARun) {
   const Outcome earlier = cli({"run", config_, "--out", out_, "--quiet", "--overwrite"});
   EXPECT_EQ(earlier.rc, 2);
   EXPECT_TRUE(has(earlier.err, "earlier crushdem")) << earlier.err;
+  // Nor does a resume that finds nothing to continue leave a manifest behind.
+  EXPECT_EQ(cli({"resume", out_}).rc, 2);
+  EXPECT_FALSE(fs::exists(fs::path(out_) / "manifest.json"));
   EXPECT_EQ(slurp(fs::path(out_) / "notes.txt"), "mine");
   EXPECT_EQ(slurp(fs::path(out_) / "data" / "lab.csv"), "mine");
   EXPECT_EQ(slurp(fs::path(out_) / "config.toml"), kTinyRun);
@@ -257,7 +260,11 @@ TEST_F(RunDirectory, ResumeBeforeTheFirstCheckpointStartsAgain) {
   // As a run killed during its set-up leaves it: config.toml and a partial series.
   fs::remove(fs::path(out_) / "summary.json");
   std::ofstream(fs::path(out_) / "timeseries.csv") << "partial\n";
-  const Outcome o = cli({"resume", out_});
+  // From inside it: starting again removes only the run's listed files, so "." is accepted.
+  const fs::path cwd = fs::current_path();
+  fs::current_path(out_);
+  const Outcome o = cli({"resume", "."});
+  fs::current_path(cwd);
   EXPECT_EQ(o.rc, 0) << o.err;
   EXPECT_TRUE(has(o.err, "starting the run again")) << o.err;
   EXPECT_EQ(slurp(fs::path(out_) / "timeseries.csv"), series);
@@ -357,6 +364,22 @@ TEST_F(Branch, TheOriginalIsCheckedAndNeverWritten) {
     EXPECT_TRUE(has(o.err, "branches from")) << o.err;
   }
   EXPECT_EQ(slurp(fs::path(orig) / "summary.json"), summary);
+  // A branch replacing a run keeps the user's files there and refuses to copy over one.
+  const std::string b2 = (base_ / "b2").string();
+  ASSERT_EQ(cli({"run", cfg, "--out", b2, "--quiet"}).rc, 0);
+  std::ofstream(fs::path(b2) / "my_fit.csv") << "mine";
+  ASSERT_EQ(cli({"run", cfg, "--out", b2, "--quiet", "--overwrite", "--from", orig + ":hold"}).rc,
+            0);
+  EXPECT_EQ(slurp(fs::path(b2) / "my_fit.csv"), "mine");
+  const std::string b3 = (base_ / "b3").string();
+  fs::create_directories(b3);
+  std::ofstream(fs::path(b3) / "manifest.json") << "{\"entries\": []}\n";
+  std::ofstream(fs::path(b3) / "timeseries.csv") << "mine";
+  const Outcome clash =
+      cli({"run", cfg, "--out", b3, "--quiet", "--overwrite", "--from", orig + ":hold"});
+  EXPECT_EQ(clash.rc, 2);
+  EXPECT_TRUE(has(clash.err, "timeseries.csv")) << clash.err;
+  EXPECT_EQ(slurp(fs::path(b3) / "timeseries.csv"), "mine");
   // A file the saved state lists, changed in the original: the branch refuses, naming it.
   std::string vtk;
   for (const auto& e : fs::directory_iterator(fs::path(orig) / "vtk")) {

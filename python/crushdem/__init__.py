@@ -86,6 +86,8 @@ def _step_count(what: str, n: Any) -> int:
     rather than rounded or parsed."""
     if isinstance(n, bool):
         raise TypeError(f"{what}: {n!r} steps: expected an integer count")
+    if isinstance(n, float) and n.is_integer():  # 1e4 is a count; 1.5 is not
+        n = int(n)
     try:
         count = operator.index(n)
     except TypeError:

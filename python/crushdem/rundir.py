@@ -44,7 +44,7 @@ def record_entries(run_dir: PathLike, names: List[str]) -> None:
     if not added:
         return
     entries.extend(added)
-    tmp = path + ".tmp"
+    tmp = f"{path}.{os.getpid()}.tmp"  # not the engine's temporary name
     with open(tmp, "w", encoding="utf-8") as f:
         json.dump(manifest, f, indent=2)
         f.write("\n")

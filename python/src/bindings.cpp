@@ -672,7 +672,8 @@ NB_MODULE(_core, m) {
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
       "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)). A directory "
-      "that holds files is refused unless overwrite (then a crushdem run directory is emptied). "
+      "that holds files is refused unless overwrite (then the entries its manifest.json lists are "
+      "removed, nothing else). "
       "branch_dir (and branch_stage, index or name): start from that run's state at the start of "
       "the stage, as `crushdem run --from DIR:STAGE`. backend: \"cpu\", \"cuda\" (a GPU, in a "
       "build with CUDA) or \"emulated\" (the GPU's step run on the host), as `--backend`.");

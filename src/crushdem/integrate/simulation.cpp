@@ -317,7 +317,10 @@ void Simulation::check_loaded_state() const {
   }
   if (wc_.wall.size() != nw) fail("the wall contacts' arrays differ in length");
   for (std::size_t k = 0; k < nw; ++k) {
-    if (wc_.particle[k] >= n) fail("a wall contact names grain index " + std::to_string(k));
+    if (wc_.particle[k] >= n) {
+      fail("wall contact " + std::to_string(k) + " names grain index " +
+           std::to_string(wc_.particle[k]) + " of " + std::to_string(n));
+    }
     if (wc_.wall[k] >= walls_.size()) fail("a wall contact names a body that does not exist");
   }
   std::vector<ParticleId> ids(p_.id.begin(), p_.id.end());

@@ -72,13 +72,22 @@ std::optional<DeepOverlap> find_deep_overlap(const std::vector<PlacedSphere>& gr
                                              double max_share, std::size_t first_new) {
   if (grains.size() < 2 || first_new >= grains.size()) return std::nullopt;
   double r_max = 0.0;
-  for (const PlacedSphere& g : grains) r_max = std::max(r_max, g.radius);
+  for (const PlacedSphere& g : grains) {
+    if (std::isfinite(g.radius)) r_max = std::max(r_max, g.radius);
+  }
   const double h = 2.0 * r_max;  // no overlapping pair spans more than one cell
   if (!(h > 0.0) || !std::isfinite(h)) return std::nullopt;
+  // Cells far beyond any sample are clamped (no overflow; pairs there are still compared by
+  // distance).
   const auto cell_of = [h](const Vec3& p) {
-    return std::array<long long, 3>{static_cast<long long>(std::floor(p.x / h)),
-                                    static_cast<long long>(std::floor(p.y / h)),
-                                    static_cast<long long>(std::floor(p.z / h))};
+    const auto c = [h](double x) {
+      return static_cast<long long>(std::clamp(std::floor(x / h), -1e12, 1e12));
+    };
+    return std::array<long long, 3>{c(p.x), c(p.y), c(p.z)};
+  };
+  const auto finite = [](const PlacedSphere& g) {
+    return std::isfinite(g.position.x) && std::isfinite(g.position.y) &&
+           std::isfinite(g.position.z) && std::isfinite(g.radius) && g.radius > 0.0;
   };
   const auto key = [](long long i, long long j, long long k) {
     const auto u = [](long long v) { return static_cast<std::uint64_t>(v) & 0x1FFFFFULL; };
@@ -87,11 +96,13 @@ std::optional<DeepOverlap> find_deep_overlap(const std::vector<PlacedSphere>& gr
   std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells;
   cells.reserve(grains.size());
   for (std::size_t i = 0; i < grains.size(); ++i) {
+    if (!finite(grains[i])) continue;  // refused by the caller's own checks
     const auto c = cell_of(grains[i].position);
     cells[key(c[0], c[1], c[2])].push_back(i);
   }
   std::optional<DeepOverlap> worst;
   for (std::size_t i = first_new; i < grains.size(); ++i) {
+    if (!finite(grains[i])) continue;
     const auto c = cell_of(grains[i].position);
     for (long long di = -1; di <= 1; ++di) {
       for (long long dj = -1; dj <= 1; ++dj) {

@@ -18,9 +18,13 @@ struct RunOptions {
   /// crushing, ageing, checkpoints and resuming work on each.
   std::string backend = "cpu";
   bool resume = false;  // continue from out_dir/checkpoint.bin
-  /// A new run refuses a directory that holds files; with overwrite, a crushdem run directory
-  /// (one with config.toml) is emptied first.
+  /// A new run refuses a directory that holds files; with overwrite, the entries the manifest of
+  /// a crushdem run directory lists are removed first (nothing else; never the current
+  /// directory or one that holds it).
   bool overwrite = false;
+  /// A resume that starts a run again (no checkpoint yet): overwrite, in the current directory
+  /// too (only the listed entries go).
+  bool restart = false;
   /// A branch: start from the state of the finished (or stopped) run in branch_dir at the start
   /// of stage branch_stage (its index or name; empty: the first stage the configuration
   /// changes), with this run's configuration. What may differ from the original run: the stages

@@ -86,6 +86,10 @@ bool RunManifest::present(const std::filesystem::path& dir) {
 
 void RunManifest::add(const std::string& name) {
   if (std::find(names_.begin(), names_.end(), name) != names_.end()) return;
+  // What another writer added meanwhile (`crushdem plot`'s figures) is kept.
+  for (const std::string& n : RunManifest(dir_).names_) {
+    if (std::find(names_.begin(), names_.end(), n) == names_.end()) names_.push_back(n);
+  }
   names_.push_back(name);
   write();
 }
@@ -131,7 +135,7 @@ bool holds_current_directory(const std::filesystem::path& dir) {
 
 }  // namespace
 
-void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite) {
+void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite, bool restart) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;
@@ -168,7 +172,7 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite)
     }
     throw ConfigError("--out '" + dir.string() + "' " + what);
   }
-  if (holds_current_directory(dir)) {
+  if (!restart && holds_current_directory(dir)) {
     throw ConfigError("--out '" + dir.string() +
                       "' is the current directory or holds it, which --overwrite never clears: "
                       "give the run a folder of its own");
@@ -294,25 +298,33 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
   return k;
 }
 
-void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir) {
+std::vector<std::string> copy_run_files(const std::filesystem::path& from,
+                                        const std::filesystem::path& dir, RunManifest& manifest) {
   namespace fs = std::filesystem;
+  std::vector<std::string> copied;
   for (const fs::directory_entry& e : fs::directory_iterator(from)) {
-    if (e.is_regular_file() && e.path().extension() == ".csv") {
-      fs::copy_file(e.path(), dir / e.path().filename(), fs::copy_options::overwrite_existing);
+    if (!e.is_regular_file() || e.path().extension() != ".csv") continue;
+    const std::string name = e.path().filename().string();
+    if (fs::exists(dir / name)) {
+      throw ConfigError("--out '" + dir.string() + "' holds " + name +
+                        ", which the branch would copy from --from '" + from.string() +
+                        "': move it away or choose another --out");
     }
+    manifest.add(name);
+    fs::copy_file(e.path(), dir / name);
+    copied.push_back(name);
   }
+  return copied;
 }
 
 void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
-                       const Driver& driver, std::size_t stage) {
+                       const Driver& driver, std::size_t stage,
+                       const std::vector<std::string>& copied) {
   namespace fs = std::filesystem;
   const std::vector<std::string> listed = driver.file_names();
-  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
-    const std::string name = e.path().filename().string();
-    if (e.path().extension() == ".csv" &&
-        std::find(listed.begin(), listed.end(), name) == listed.end()) {
-      fs::remove(e.path());
-    }
+  // Only what the branch copied and its state does not list (the original wrote it later).
+  for (const std::string& name : copied) {
+    if (std::find(listed.begin(), listed.end(), name) == listed.end()) fs::remove(dir / name);
   }
   fs::create_directories(dir / "vtk");
   const auto keep = [&](const std::string& file) {

@@ -40,7 +40,8 @@ class RunManifest {
 /// crushdem's manifest marks as a run, and only the entries it lists are removed (a user's
 /// other files stay). The current directory and its parents are never cleared. The errors say
 /// what the directory holds and how to go on (resume, another --out, --overwrite).
-void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite);
+void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite,
+                               bool restart = false);
 
 /// A branch never writes into the run it starts from: `out` may be neither `from` nor a folder
 /// that holds it (ConfigError naming --out otherwise).
@@ -66,13 +67,17 @@ class DirectoryLock {
 std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
                          const std::string& spec, const std::filesystem::path& from);
 
-/// Copies the original run's result files (CSV) into a branch's directory.
-void copy_run_files(const std::filesystem::path& from, const std::filesystem::path& dir);
+/// Copies the original run's result files (CSV) into a branch's directory, each recorded in
+/// `manifest` first; returns their names. A file of that name already there (a user's) is
+/// refused, naming it, rather than replaced.
+std::vector<std::string> copy_run_files(const std::filesystem::path& from,
+                                        const std::filesystem::path& dir, RunManifest& manifest);
 
 /// After the branch state is loaded: the CSVs it does not list are removed (the original wrote
 /// them later); the files it keeps (the sample, its snapshots, the states of the stages before
 /// the branch) are copied and checked against their recorded checksums.
 void keep_branch_files(const std::filesystem::path& from, const std::filesystem::path& dir,
-                       const Driver& driver, std::size_t stage);
+                       const Driver& driver, std::size_t stage,
+                       const std::vector<std::string>& copied);
 
 }  // namespace crushdem

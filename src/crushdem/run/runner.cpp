@@ -1,5 +1,6 @@
 #include "crushdem/run/runner.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -125,6 +126,19 @@ class Run {
         from_(branching_ ? fs::absolute(opt.branch_dir) : fs::path()) {}
 
   RunSummary execute() {
+    // A resume writes nothing before its checkpoint is found good (a finished or foreign folder
+    // gets no manifest); one in a folder of a release before manifests adopts the files a run
+    // writes there.
+    if (opt_.resume) {
+      read_saved_position();
+      if (!RunManifest::present(dir_)) {
+        for (const char* name :
+             {"config.toml", "checkpoint.bin", "checkpoint.bin.tmp", "summary.json", "timing.json",
+              "branch.json", "sample.txt", "stages", "run.log"}) {
+          if (fs::exists(dir_ / name)) manifest_.add(name);
+        }
+      }
+    }
     manifest_.add(".lock");
     manifest_.add("vtk");
     create_directory(dir_ / "vtk", opt_.out_dir);
@@ -132,7 +146,7 @@ class Run {
       manifest_.add("config.toml");
       write_text_file((dir_ / "config.toml").string(), config_text_);
     }
-    if (resumed_) read_saved_position();
+    if (branching_) read_saved_position();
     make_simulation();
     driver_->say(std::string(opt_.resume  ? "resume"
                              : branching_ ? "branch"
@@ -142,8 +156,11 @@ class Run {
                      (branching_ ? ", from " + from_.string() + " stage " + opt_.branch_stage
                                  : std::string()),
                  false);
-    if (!resumed_) {
+    if (!opt_.resume) {  // a branch may change keys that warn (v0, n): its own
       for (const std::string& w : cfg_.warnings()) {
+        if (std::find(pos_.warnings.begin(), pos_.warnings.end(), w) != pos_.warnings.end()) {
+          continue;
+        }
         pos_.warnings.push_back(w);
         driver_->say("warning: " + w);
       }
@@ -171,7 +188,7 @@ class Run {
     if (!opt.branch_dir.empty()) check_branch_directories(dir, opt.branch_dir);
     create_directory(dir, opt.out_dir);
     auto lock = std::make_unique<DirectoryLock>(dir);
-    if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite);
+    if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite, opt.restart);
     return lock;
   }
 
@@ -260,14 +277,15 @@ class Run {
   // length there by load_state), the snapshots before it, and the states of the stages before
   // it.
   void restore() {
-    if (branching_) copy_run_files(from_, dir_);
+    std::vector<std::string> copied;
+    if (branching_) copied = copy_run_files(from_, dir_, manifest_);
     load_state(*driver_, *in_);
     if (branching_) {
       manifest_.add("stages");
       for (const KeptFile& k : driver_->kept_files()) {
         manifest_.add(fs::path(k.path).begin()->string());
       }
-      keep_branch_files(from_, dir_, *driver_, branch_k_);
+      keep_branch_files(from_, dir_, *driver_, branch_k_, copied);
     } else {
       driver_->check_kept_files();
     }
@@ -606,6 +624,7 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
     }
     o.resume = false;
     o.overwrite = true;
+    o.restart = true;
     if (fs::exists(d / "branch.json")) {  // a branch starts again from its state
       const std::string b = read_binary_file((d / "branch.json").string());
       const auto field = [&b](const std::string& key) {
