@@ -58,15 +58,14 @@ std::string type_name_of(nb::handle obj) {
 
 toml::Table to_table(nb::handle dict, const std::string& prefix, int depth = 0);
 
-// As the TOML reader's bound: no configuration nests beyond 4, and a dict nested 10^5 deep (or
-// a list that holds itself) must be an error, not a stack overflow.
-constexpr int kMaxDepth = 64;
+// The TOML reader's bound: a dict nested 10^5 deep (or a list that holds itself) is an error,
+// not a stack overflow.
 
 toml::Value to_value(nb::handle obj, const std::string& key, int depth = 0) {
-  if (depth > kMaxDepth) {
+  if (depth > toml::kMaxNesting) {
     throw ConfigError("<python>: key '" + key.substr(0, 60) +
-                      "...': dicts and lists nested more than " + std::to_string(kMaxDepth) +
-                      " deep (no configuration goes beyond 4)");
+                      "...': dicts and lists nested more than " +
+                      std::to_string(toml::kMaxNesting) + " deep (no configuration goes beyond 4)");
   }
   // bool first: Python's bool is a subclass of int.
   if (PyBool_Check(obj.ptr())) return toml::Value::make_bool(obj.ptr() == Py_True);

@@ -103,16 +103,12 @@ void CsvWriter::resume(long long size, const std::vector<std::string>& columns,
     throw RuntimeFailure("cannot resume: '" + path_ + "' is missing or shorter than at the " +
                          "checkpoint (" + std::to_string(size) + " bytes)");
   }
-  if (digest) {
-    digest_ = file_digest(path_, size);
-    if (digest_ != *digest) {
-      throw RuntimeFailure("cannot resume: '" + path_ +
-                           "' was changed after the checkpoint (its first " + std::to_string(size) +
-                           " bytes differ from what the run wrote); restore it or start the run "
-                           "again with --overwrite");
-    }
-  } else {
-    digest_ = file_digest(path_, size);
+  digest_ = file_digest(path_, size);  // continued as rows are appended
+  if (digest && digest_ != *digest) {
+    throw RuntimeFailure("cannot resume: '" + path_ +
+                         "' was changed after the checkpoint (its first " + std::to_string(size) +
+                         " bytes differ from what the run wrote); restore it or start the run "
+                         "again with --overwrite");
   }
   fs::resize_file(path_, static_cast<std::uintmax_t>(size), ec);
   if (ec) throw RuntimeFailure("cannot resume: '" + path_ + "': " + ec.message());

@@ -198,10 +198,6 @@ int line_of(const ::toml::node& node) {
   return static_cast<int>(node.source().begin.line);
 }
 
-// Deeper than any configuration goes: a file of dotted keys or headers 10^4 parts long would
-// otherwise recurse (and build key names) without bound here. toml++ bounds inline nesting.
-constexpr int kMaxDepth = 64;
-
 Value convert(const ::toml::node& node, const std::string& key, const std::string& source,
               int depth);
 
@@ -218,9 +214,9 @@ Table convert_table(const ::toml::table& t, const std::string& path, const std::
 
 Value convert(const ::toml::node& node, const std::string& key, const std::string& source,
               int depth) {
-  if (depth > kMaxDepth) {
+  if (depth > kMaxNesting) {
     throw ConfigError(where(source, node.source()) + "'" + key.substr(0, 60) +
-                      "...': tables and arrays nested more than " + std::to_string(kMaxDepth) +
+                      "...': tables and arrays nested more than " + std::to_string(kMaxNesting) +
                       " deep (no configuration goes beyond 4)");
   }
   Value v;

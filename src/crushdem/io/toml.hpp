@@ -63,6 +63,11 @@ bool operator==(const Value& a, const Value& b);
 /// "string", "integer", "float", "boolean", "array", "table".
 const char* type_name(Type t);
 
+/// The deepest nesting of tables and arrays a configuration may have (none goes beyond 4): a file
+/// of dotted keys or headers 10^4 parts long, or a Python dict as deep, is an error rather than
+/// unbounded recursion. toml++ bounds inline nesting itself.
+inline constexpr int kMaxNesting = 64;
+
 /// Parses a TOML document. Errors throw crushdem::ConfigError("SOURCE:LINE: what is wrong").
 Table parse(std::string_view text, const std::string& source_name = "<string>");
 

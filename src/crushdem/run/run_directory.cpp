@@ -110,6 +110,11 @@ void RunManifest::write() const {
 
 namespace {
 
+// The files and folders a run writes besides its CSVs, by name.
+constexpr const char* kRunEntries[] = {"config.toml",  "checkpoint.bin", "checkpoint.bin.tmp",
+                                       "summary.json", "timing.json",    "branch.json",
+                                       "sample.txt",   "stages",         "run.log"};
+
 // A run directory of an earlier release (before manifests): its config.toml and one of the
 // files only a run writes.
 bool earlier_run(const std::filesystem::path& dir) {
@@ -197,6 +202,12 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite,
     }
   }
   fs::remove(dir / RunManifest::kName, ec);
+}
+
+void RunManifest::adopt_earlier_run() {
+  for (const char* name : kRunEntries) {
+    if (std::filesystem::exists(dir_ / name)) add(name);
+  }
 }
 
 void check_branch_directories(const std::filesystem::path& out, const std::filesystem::path& from) {

@@ -26,6 +26,9 @@ class RunManifest {
   explicit RunManifest(std::filesystem::path dir);
   /// Records a top-level entry crushdem is about to create (nothing happens if listed).
   void add(const std::string& name);
+  /// A run of a release before manifests, resumed: lists the files such a run wrote that are
+  /// there (its CSVs are added as the resumed run names them).
+  void adopt_earlier_run();
   const std::vector<std::string>& names() const { return names_; }
   static bool present(const std::filesystem::path& dir);
 

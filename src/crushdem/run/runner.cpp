@@ -131,13 +131,7 @@ class Run {
     // writes there.
     if (opt_.resume) {
       read_saved_position();
-      if (!RunManifest::present(dir_)) {
-        for (const char* name :
-             {"config.toml", "checkpoint.bin", "checkpoint.bin.tmp", "summary.json", "timing.json",
-              "branch.json", "sample.txt", "stages", "run.log"}) {
-          if (fs::exists(dir_ / name)) manifest_.add(name);
-        }
-      }
+      if (!RunManifest::present(dir_)) manifest_.adopt_earlier_run();
     }
     manifest_.add(".lock");
     manifest_.add("vtk");
