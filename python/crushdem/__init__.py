@@ -16,12 +16,16 @@ A simulation is configured with the same sections and keys as a TOML configurati
         box={"min": [0, 0, 0], "max": [1e-3] * 3},
         walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
     )
-    sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
-    sim.step(100)
-    print(sim.time, sim.wall_stresses())
+    g = (np.arange(3) + 0.5) / 3 * 1e-3  # 27 grains on a grid, the top wall servo-controlled
+    sim.add_particles(np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3), 1.65e-4)
+    sim.step(10_000)
+    print(sim.time, sim.num_contacts, sim.wall_stresses())
 
 Invalid or unknown keys raise :class:`ConfigError` (a subclass of :class:`ValueError`) with a
 message naming the key, e.g. ``material.shear_modulus``.
+
+Run directories (``crushdem run``, the laboratory functions of :mod:`crushdem.lab`) are read
+with :class:`crushdem.lab.Result`, each table as a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -30,8 +34,10 @@ import contextlib
 import math
 import numbers
 import operator
+import re
 import threading
-from typing import Any, Dict, Iterator, Mapping, Optional, Sequence
+import warnings
+from typing import Any, Dict, Iterator, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -49,6 +55,7 @@ __all__ = [
     "RuntimeFailure",
     "WALL_NAMES",
     "NO_PARENT",
+    "backends",
     "cli_main",
     "parameter_reference",
     "set_threads",
@@ -79,6 +86,24 @@ WALL_NAMES = ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")
 
 #: ``parent_ids`` value of a grain that has no parent (it was not produced by a fracture).
 NO_PARENT = np.uint64(2**64 - 1)
+
+
+def backends() -> Tuple[str, ...]:
+    """The backends this build can run, as names for ``backend=`` and ``--backend``:
+    ``("cpu", "emulated")``, with ``"cuda"`` after them in a build with CUDA (whether a GPU is
+    there is found when a run starts)."""
+    return tuple(name for name in re.split(r",\s*|\s+or\s+", _core.backends().strip()) if name)
+
+
+class _ContactCount(int):
+    """``Simulation.num_contacts``, a property that was a method: an int that may still be
+    called, until the next release, with a DeprecationWarning."""
+
+    def __call__(self) -> int:
+        warnings.warn("Simulation.num_contacts is a property: write sim.num_contacts without the "
+                      "parentheses (calling it stops working in the next release)",
+                      DeprecationWarning, stacklevel=2)
+        return int(self)
 
 
 def _step_count(what: str, n: Any) -> int:
@@ -113,8 +138,13 @@ def resolved_config(**sections: Any) -> str:
 class Simulation:
     """A DEM simulation of spheres in a box of six walls.
 
-    Particle data come from methods (``positions()``, ``velocities()``, ...) that return NumPy
-    copies; editing them does not change the simulation.
+    Properties and methods: the scalars the simulation keeps, its counts and clock, are
+    properties (``num_particles``, ``num_contacts``, ``time``, ``step_count``, ``dt``; and
+    ``core``, the engine object); whatever copies arrays, computes a measure or takes arguments
+    is a method (``positions()``, ``contacts()``, ``wall_stresses()``, ``kinetic_energy()``,
+    ``step(n)``, ...). Arrays are NumPy copies; editing them does not change the simulation.
+    ``contacts()`` returns columns (1-D arrays of one length) that ``pandas.DataFrame`` takes as
+    they are.
 
     Keyword arguments are the sections of a configuration file, each a dict (SI units). The
     keys of ``material``, ``contact``, ``damping``, ``timestep`` and ``neighbor`` are listed at
@@ -328,20 +358,33 @@ class Simulation:
     # --- contacts, walls, measures ----------------------------------------------------------
 
     def contacts(self) -> Dict[str, np.ndarray]:
-        """Touching contacts at the current state, grain-grain then grain-wall.
+        """Touching contacts at the current state, grain-grain then grain-wall, as columns: a
+        dict of 1-D arrays of one length, one entry per contact, so that
+        ``pandas.DataFrame(sim.contacts())`` is the table of contacts.
 
-        Returns a dict of arrays of equal length: ``id_i``, ``id_j`` (uint64; for a wall
-        contact ``id_j`` is the wall index 0..5, see WALL_NAMES), ``is_wall`` (bool),
-        ``overlap`` [m], ``normal_force`` [N] (elastic), ``normal`` (n, 3) unit vector from i
-        towards j (or into the wall), ``tangential_force`` (n, 3) [N] on grain i,
-        ``rolling_moment`` (n, 3) [N m] on grain i (zero without rolling resistance and at
-        walls).
+        ``id_i``, ``id_j`` (uint64; for a wall contact ``id_j`` is the wall index 0..5, see
+        WALL_NAMES), ``is_wall`` (bool), ``overlap`` [m], ``normal_force`` [N] (elastic);
+        ``normal_x``, ``normal_y``, ``normal_z``: the unit normal from i towards j (or into the
+        wall); ``tangential_force_x``, ``_y``, ``_z`` [N] on grain i; ``rolling_moment_x``,
+        ``_y``, ``_z`` [N m] on grain i (zero without rolling resistance and at walls). A
+        vector as an (n, 3) array: ``np.column_stack([c["normal_x"], c["normal_y"],
+        c["normal_z"]])``.
         """
-        return self._sim.contacts()
+        columns: Dict[str, np.ndarray] = {}
+        for name, values in self._sim.contacts().items():
+            values = np.asarray(values)
+            if values.ndim == 2:  # a vector per contact: one column per axis
+                for k, axis in enumerate("xyz"):
+                    columns[f"{name}_{axis}"] = np.ascontiguousarray(values[:, k])
+            else:
+                columns[name] = values
+        return columns
 
+    @property
     def num_contacts(self) -> int:
-        """Grain-grain contacts with positive overlap."""
-        return self._sim.num_contacts()
+        """Grain-grain contacts with positive overlap. A property (it was a method:
+        ``sim.num_contacts()`` still works until the next release, with a DeprecationWarning)."""
+        return _ContactCount(self._sim.num_contacts())
 
     def wall_positions(self) -> np.ndarray:
         """Wall plane coordinates (6,) [m], in WALL_NAMES order."""

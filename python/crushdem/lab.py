@@ -1,5 +1,6 @@
 """Laboratory tests from Python: the same configurations as the TOML files, run by the same
-C++ driver (``crushdem run``), with the results read back as NumPy arrays.
+C++ driver (``crushdem run``), with the results read back: each table of the run as a pandas
+DataFrame (:class:`Result`).
 
 Each function writes a run directory (``timeseries.csv``, ``summary.json``, ``config.toml``,
 ``vtk/``) and returns a :class:`Result`. ``sample`` is either the path of a prepared sample file
@@ -24,53 +25,161 @@ import numbers
 import os
 import textwrap
 import types
-from typing import Any, Callable, Dict, List, Mapping, Optional, Union
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Union
 
 from . import _core
 from ._core import ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SampleSpec = Union[str, os.PathLike, Mapping[str, Any]]
 
 
 class Result:
-    """A finished run directory."""
+    """A run directory: what ``crushdem run`` or a laboratory function wrote there
+    (docs/configuration.md, "Result directory", lists the files and their columns).
+    ``Result(path)`` opens any run directory, one of the command line's too.
 
-    def __init__(self, directory: str) -> None:
-        self.directory = directory
+    What is an attribute and what is a call: what is small and cheap to read is a property
+    (``directory``, ``summary``, ``stages``, ``timing``, ``sample_file``); a table of the run (a
+    CSV file) is a method that reads the file anew on every call and returns a pandas DataFrame,
+    one column per CSV column, so that a run still going gives the rows written so far:
+    ``timeseries()``, ``events()``, ``phases()``, ``breakages()``, and ``table(name)`` for any
+    other CSV file of the run (``"grading"``, ``"preparation"``, ``"penetration"``, ...).
+
+    Column types: counts and indices (``step``, ``stage``, ``dynamic_phase``, ``cycle``, ``id``,
+    ``fragments``, ``n_particles``, ``n_contacts``, ``breakages_*``, ...) are int64 (float64
+    where a value is missing), the text columns of breakage.csv (``cause``, ``fragment_ids``)
+    strings, every other column float64.
+
+    A table that a run writes only when it applies and that this run did not write is empty:
+    ``breakages()`` of a run without ``[crushing]``, ``events()`` and ``phases()`` of a run
+    without an age stage are DataFrames of no rows with the columns the engine writes there
+    (for ``events()``, whose columns follow the time series, the three it starts with).
+    ``timeseries()`` (every run writes it) and ``table(name)`` raise FileNotFoundError when the
+    file is missing.
+    """
+
+    def __init__(self, directory: Union[str, os.PathLike]) -> None:
+        self.directory = os.fspath(directory)
+
+    def _path(self, name: str) -> str:
+        return os.path.join(self.directory, name)
 
     @property
     def summary(self) -> Dict[str, Any]:
-        with open(os.path.join(self.directory, "summary.json")) as f:
+        """``summary.json``: the final state and each stage's results (written when the run
+        ends; FileNotFoundError before)."""
+        with open(self._path("summary.json")) as f:
             return json.load(f)
-
-    @property
-    def timeseries(self) -> Dict[str, np.ndarray]:
-        """``timeseries.csv`` as {column: float64 array}."""
-        from .rundir import read_timeseries
-
-        return read_timeseries(os.path.join(self.directory, "timeseries.csv"))
 
     @property
     def timing(self) -> Dict[str, Any]:
         """``timing.json``: wall-clock seconds, threads, particle-steps per second, and
         ``seconds_by_part`` (integration, neighbor_search, contact_forces, wall_forces, crushing,
         ageing_jump, output, other) with the ``dominant_part``."""
-        with open(os.path.join(self.directory, "timing.json")) as f:
+        with open(self._path("timing.json")) as f:
             return json.load(f)
 
     @property
     def stages(self) -> List[Dict[str, Any]]:
+        """The stages' results of ``summary.json``, one dict per stage in order."""
         return list(self.summary.get("stages", []))
 
     @property
     def sample_file(self) -> Optional[str]:
-        p = os.path.join(self.directory, "sample.txt")
+        """The path of ``sample.txt`` (a run with ``[sample]``: the prepared grains, which a
+        later test starts from), or None."""
+        p = self._path("sample.txt")
         return p if os.path.exists(p) else None
+
+    def timeseries(self) -> pd.DataFrame:
+        """``timeseries.csv``: one row every ``output.interval`` steps (time_s, step, the wall
+        positions and stresses, strains, void ratio, contact statistics, ...; the stage and
+        crushing columns when they apply). The values as written: the contact columns of a
+        test's first row are 0 before its contacts are computed
+        (:func:`crushdem.analysis.mask_unmeasured_contacts` marks them)."""
+        return read_table(self._path("timeseries.csv"))
+
+    def events(self) -> pd.DataFrame:
+        """``events.csv``: one row per dynamic phase of the age stages, at its end
+        (ageing_time_s, stage, dynamic_phase, then the time-series measurements); empty
+        without an age stage."""
+        return read_table(self._path("events.csv"), _EVENTS_COLUMNS)
+
+    def phases(self) -> pd.DataFrame:
+        """``phases.csv``: rows every ``record_interval`` cycles within each dynamic phase of
+        the age stages (cycle, the stresses, the phase's strains, the breakages); empty
+        without an age stage."""
+        return read_table(self._path("phases.csv"), _PHASES_COLUMNS)
+
+    def breakages(self) -> pd.DataFrame:
+        """``breakage.csv``: one row per broken grain (time_s, step, id, diameter_m, cause,
+        sigma_Pa, sigma_lim_Pa, fragments, removed_fragments, fragment_ids, x_m, y_m, z_m);
+        empty without ``[crushing]`` or before the first breakage."""
+        return read_table(self._path("breakage.csv"), _BREAKAGE_COLUMNS)
+
+    def table(self, name: str) -> pd.DataFrame:
+        """The CSV file ``name`` of the run (``"grading"`` or ``"grading.csv"``) as a
+        DataFrame, typed as the methods above; FileNotFoundError when the run has none."""
+        return read_table(self._path(name if name.endswith(".csv") else name + ".csv"))
 
     def __repr__(self) -> str:
         return f"crushdem.lab.Result({self.directory!r})"
+
+
+# The columns of the tables a run writes only when they apply (an empty table has them).
+_EVENTS_COLUMNS = ("ageing_time_s", "stage", "dynamic_phase")
+_PHASES_COLUMNS = ("stage", "dynamic_phase", "cycle", "ageing_time_s", "time_s",
+                   "axial_stress_Pa", "lateral_stress_Pa", "deviator_stress_Pa",
+                   "confining_fluctuation", "volumetric_strain_phase", "axial_strain_phase",
+                   "unbalanced_force_ratio", "breakages_instant", "breakages_crack",
+                   "n_particles")
+_BREAKAGE_COLUMNS = ("time_s", "step", "id", "diameter_m", "cause", "sigma_Pa", "sigma_lim_Pa",
+                     "fragments", "removed_fragments", "fragment_ids", "x_m", "y_m", "z_m")
+# Columns of counts and indices (besides n_*, breakages_* and *_contacts) and of text.
+_INTEGER_COLUMNS = frozenset({"step", "stage", "dynamic_phase", "cycle", "id", "fragments",
+                              "removed_fragments", "phase", "bin", "ring", "grains",
+                              "contacts", "strokes", "moving", "direction"})
+_TEXT_COLUMNS = ("cause", "fragment_ids")
+
+
+def _is_integer_column(name: str) -> bool:
+    """Whether the column ``name`` of a run's CSV files holds counts or indices (the engine
+    writes every value as a number; these are whole)."""
+    return (name in _INTEGER_COLUMNS or name.startswith(("n_", "breakages_"))
+            or name.endswith("_contacts"))
+
+
+def read_table(path: Union[str, os.PathLike],
+               columns: Optional[Sequence[str]] = None) -> pd.DataFrame:
+    """The CSV file ``path`` of a run as a DataFrame: counts and indices int64 (float64 where a
+    value is missing), ``cause`` and ``fragment_ids`` strings, the rest float64. With
+    ``columns``, a missing or empty file is a DataFrame of no rows with those columns; without,
+    a missing file raises FileNotFoundError."""
+    import pandas as pd
+
+    path = os.fspath(path)
+    if columns is None and not os.path.isfile(path):
+        raise FileNotFoundError(f"{path}: no such file in the run directory")
+    try:
+        raw = pd.read_csv(path, dtype={c: str for c in _TEXT_COLUMNS})
+    except (FileNotFoundError, pd.errors.EmptyDataError):  # not written (yet)
+        raw = pd.DataFrame({c: pd.Series(dtype=object) for c in columns or ()})
+    typed = {}
+    for name in raw.columns:
+        col = raw[name]
+        if name in _TEXT_COLUMNS:
+            typed[name] = col.astype(str) if col.empty else col
+            continue
+        if _is_integer_column(name) and pd.api.types.is_integer_dtype(col.dtype):
+            typed[name] = col.astype("int64")  # as read: ids beyond 2**53 stay exact
+            continue
+        values = pd.to_numeric(col, errors="coerce").astype("float64")
+        whole = values.notna().all() and (values == values.round()).all()
+        typed[name] = values.astype("int64") if _is_integer_column(name) and whole else values
+    return pd.DataFrame(typed, index=raw.index, columns=raw.columns)
 
 
 def _check_steps(key: str, value: Any) -> None:

@@ -9,10 +9,18 @@ stage types then come from DIR/config.toml and the figures show the rows written
 Stresses are drawn in MPa and strains in %. Figures written (PNG, into DIR unless ``--out`` is
 given):
 
-* ``stress_time.png``      wall normal stresses (and mean stress p) [MPa] against time [s]; the
-                           "age" stages against ageing time on a second panel (see below)
+* ``stress_time.png``      wall normal stresses [MPa] against time [s], a row of panels per axis
+                           (x, y, z walls, one stress scale) with the mean stress p dotted: the
+                           low wall (xmin, ...) a wide pale solid line with filled circles, the
+                           high one dashed with open squares, so that both show where they carry
+                           the same stress; the "age" stages against ageing time on panels to
+                           the right (see below)
 * ``strain_stress.png``    deviator stress q (or axial wall stress) [MPa] against axial strain [%],
-                           with volumetric strain [%] on a second panel when present
+                           with volumetric strain [%] on a second panel when present; for an
+                           oedometric test (every stage oedometric, hold or age, whose
+                           volumetric strain is its axial strain) sigma_v and sigma_h [MPa]
+                           against axial strain [%] and the stress path sigma_h against sigma_v
+                           with each oedometric stage's K0 line
 * ``void_ratio.png``       void ratio e against mean stress p [MPa] on a log axis (the e - log p
                            compression curve), one colour per test stage when there is a
                            ``stage`` column
@@ -75,7 +83,9 @@ vertical lines mark 1 h and 1 day when they lie within the ageing time reached:
                               on a twin axis (which grows in creep, when the axial wall is
                               servo-controlled)
 * ``relaxation_forces.png``   standard deviations of the contact normal and tangential forces
-                              [N] (solid), with their means (dashed)
+                              (solid), with their means (dashed), each over its value at t = 0
+                              (in N in the legend), the axis spanning what they reach, so that a
+                              change of a percent shows
 * ``relaxation_breakage.png`` cumulative breakages by cause (instant, crack) with the number of
                               particles on a second axis
 

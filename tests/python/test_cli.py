@@ -54,8 +54,11 @@ def test_misuse_exits_with_2_and_names_the_option(capfd):
 def test_backends_are_named_and_an_unknown_or_missing_one_is_refused(tmp_path, capfd):
     from crushdem import _core
 
-    names = _core.backends()
+    names = _core.backends()  # the engine's sentence, which its messages use
     assert names in ("cpu or emulated", "cpu, emulated or cuda")
+    # The package's: a tuple of the names, each a --backend value.
+    assert crushdem.backends() == (("cpu", "emulated") if names == "cpu or emulated"
+                                   else ("cpu", "emulated", "cuda"))
     config = tmp_path / "tiny.toml"
     config.write_text(data_text("tiny_run.toml"))
     code, _, err = _run(["run", str(config), "--out", str(tmp_path / "a"), "--backend", "gpu"],

@@ -1,7 +1,9 @@
 """The documentation stays true to the code: docs/api.md is what scripts/api_reference.py
 generates from the docstrings, every relative link in the Markdown files leads to a file (and
-heading) that exists, every path to a page or an example named in their text exists, and every
-example configuration passes `crushdem check`. All fast: nothing is run."""
+heading) that exists, every path to a page or an example named in their text exists, every
+example configuration passes `crushdem check`, and the README's first Python example prints what
+the README says it prints. All fast: the one thing run is that example (27 grains, a tenth of a
+second)."""
 
 import glob
 import os
@@ -137,3 +139,29 @@ def test_example_passes_crushdem_check(path, example_tree):
     proc = subprocess.run([sys.executable, "-m", "crushdem", "check", str(target)],
                           cwd=example_tree, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, f"crushdem check {_rel(path)}:\n{proc.stdout}{proc.stderr}"
+
+
+def _python_blocks(path):
+    """The fenced ```python blocks of a Markdown file, in order."""
+    with open(path, encoding="utf-8") as f:
+        return re.findall(r"^```python\n(.*?)^```", f.read(), flags=re.M | re.S)
+
+
+def test_readme_first_python_example_prints_what_it_says():
+    # The README's first example is the one a new user runs: it must show grains in contact and
+    # the stress the servo wall reached (it once printed one grain's position and an empty
+    # array of contact forces).
+    readme = os.path.join(ROOT, "README.md")
+    code = _python_blocks(readme)[0]
+    assert "crushdem.Simulation(" in code
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    lines = proc.stdout.splitlines()
+    with open(readme, encoding="utf-8") as f:
+        said = re.search(r"^prints `([^`]*)`", f.read(), flags=re.M)
+    assert said and lines[0] == said.group(1), (lines, said)
+    # The contacts grouped by is_wall: 18 between grains and 18 with the walls, 1/9 N each.
+    table = {line.split()[0]: line.split()[1:] for line in lines[1:] if line.split()}
+    assert table["False"][0] == table["True"][0] == "18"
+    assert float(table["False"][1]) == pytest.approx(1.0 / 9.0, rel=1e-6)

@@ -1,7 +1,9 @@
 """The laboratory functions of crushdem.lab come from the engine's stage kinds: their keyword
 arguments that are stage keys take type, default and meaning from the C++ tables, their
 keyword arguments are those callers have always used, and they build the stages they always
-built. Nothing here runs a simulation (``lab.run`` is replaced by a recorder)."""
+built; `lab.Result` reads each table of a run directory as a DataFrame of the right column
+types. Nothing here runs a simulation (``lab.run`` is replaced by a recorder, the run
+directories are written by hand)."""
 
 import importlib.util
 import inspect
@@ -235,3 +237,121 @@ def test_a_negative_hold_is_refused(tmp_path):
         lab.oedometric_test(tmp_path / "o", str(tmp_path / "none.txt"), stress=1e6, hold_steps=-1)
     with pytest.raises(crushdem.ConfigError, match="hold_steps"):
         lab.triaxial_test(tmp_path / "t", str(tmp_path / "none.txt"), sigma_3=1e6, hold_steps=2.5)
+
+
+# --- crushdem.lab.Result: a run directory's tables as DataFrames --------------------------------
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def _result_dir(tmp_path):
+    """A run directory as the engine writes it (every value a number in %.17g, so a float column
+    whose values happen to be whole, such as a wall at 0, reads like integers)."""
+    run = tmp_path / "run"
+    run.mkdir()
+    _write(run / "timeseries.csv",
+           "time_s,step,wall_zmin_position_m,wall_zmax_stress_Pa,n_contacts,stage,void_ratio\n"
+           "0,0,0,0,0,0,0.75\n"
+           "1.0000000000000001e-05,1000,0,250000.5,812,0,0.74\n"
+           "2.0000000000000002e-05,2000,0,500001,830,1,0.73\n")
+    _write(run / "events.csv", "ageing_time_s,stage,dynamic_phase,time_s,step,n_particles\n"
+                               "0,1,0,2e-05,2000,500\n4.5,1,1,3e-05,3000,511\n")
+    _write(run / "phases.csv", ",".join(lab._PHASES_COLUMNS) + "\n"
+           + "1,0,0,0,2e-05,1e6,5e5,5e5,0,0,0,0.5,0,0,500\n"
+           + "1,0,500,0,2.5e-05,9e5,5e5,4e5,-0.01,1e-4,0,0.1,1,0,511\n")
+    _write(run / "breakage.csv", ",".join(lab._BREAKAGE_COLUMNS) + "\n"
+           + "1e-05,1000,17,0.0002,instant,4e8,3.9e8,1,13,500,0.1,0.2,0.3\n"
+           + "2e-05,2000,3,0.0001,crack,3e8,2.9e8,2,12,501 502,0.4,0.5,0.6\n")
+    _write(run / "grading.csv", "time_s,step,passing_1e-05_m,passing_0.001_m\n0,0,0,1\n")
+    _write(run / "summary.json", '{"stages": [{"name": "loading"}, {"name": "relaxation"}]}')
+    _write(run / "timing.json", '{"wall_seconds": 1.5}')
+    _write(run / "sample.txt", "0 0 0 0 1e-4\n")
+    return run
+
+
+def test_result_properties_are_small_and_tables_are_methods():
+    # The rule of the class docstring: metadata as properties, each table a method.
+    members = {name: value for name, value in vars(lab.Result).items()
+               if not name.startswith("_")}
+    properties = {name for name, value in members.items() if isinstance(value, property)}
+    assert properties == {"summary", "timing", "stages", "sample_file"}
+    tables = set(members) - properties
+    assert tables == {"timeseries", "events", "phases", "breakages", "table"}
+    for name in tables:
+        assert inspect.signature(members[name]).return_annotation == "pd.DataFrame", name
+
+
+def test_result_reads_each_table_as_a_dataframe(tmp_path):
+    import numpy as np
+    import pandas as pd
+
+    run = _result_dir(tmp_path)
+    r = lab.Result(run)  # a path-like works
+    assert r.directory == str(run)
+    assert r.stages == [{"name": "loading"}, {"name": "relaxation"}]
+    assert r.timing["wall_seconds"] == 1.5 and r.sample_file == str(run / "sample.txt")
+    ts = r.timeseries()
+    assert isinstance(ts, pd.DataFrame) and len(ts) == 3
+    assert list(ts.columns) == ["time_s", "step", "wall_zmin_position_m", "wall_zmax_stress_Pa",
+                                "n_contacts", "stage", "void_ratio"]
+    # Counts and indices are integers; a measure stays float even where its values are whole.
+    assert {c: str(t) for c, t in ts.dtypes.items()} == {
+        "time_s": "float64", "step": "int64", "wall_zmin_position_m": "float64",
+        "wall_zmax_stress_Pa": "float64", "n_contacts": "int64", "stage": "int64",
+        "void_ratio": "float64"}
+    assert ts["step"].tolist() == [0, 1000, 2000]
+    assert ts["time_s"].iloc[1] == 1.0000000000000001e-05  # the bits as written
+    ev = r.events()
+    assert ev["dynamic_phase"].tolist() == [0, 1] and ev["n_particles"].dtype == np.int64
+    assert ev["ageing_time_s"].tolist() == [0.0, 4.5]
+    ph = r.phases()
+    assert list(ph.columns) == list(lab._PHASES_COLUMNS)
+    assert ph["cycle"].tolist() == [0, 500] and ph["breakages_instant"].dtype == np.int64
+    br = r.breakages()
+    assert br["id"].tolist() == [17, 3] and br["fragments"].dtype == np.int64
+    assert br["cause"].tolist() == ["instant", "crack"]
+    assert br["fragment_ids"].tolist() == ["500", "501 502"]  # text, one id or several
+    assert br["x_m"].tolist() == [0.1, 0.4]
+    grading = r.table("grading")
+    assert grading.equals(r.table("grading.csv")) and grading["passing_1e-05_m"].dtype == float
+    # Read anew on every call: a run still going gives the rows written so far.
+    with open(run / "events.csv", "a") as f:
+        f.write("9,1,2,4e-05,4000,520\n")
+    assert len(r.events()) == 3
+
+
+def test_result_tables_a_run_did_not_write_are_empty_with_their_columns(tmp_path):
+    import numpy as np
+
+    run = tmp_path / "plain"
+    run.mkdir()
+    r = lab.Result(str(run))
+    with pytest.raises(FileNotFoundError, match="timeseries.csv"):
+        r.timeseries()
+    with pytest.raises(FileNotFoundError, match="grading.csv"):
+        r.table("grading")
+    assert r.sample_file is None
+    br = r.breakages()  # no [crushing]
+    assert len(br) == 0 and list(br.columns) == list(lab._BREAKAGE_COLUMNS)
+    assert br["id"].dtype == np.int64 and br["diameter_m"].dtype == np.float64
+    assert len(r.phases()) == 0 and list(r.phases().columns) == list(lab._PHASES_COLUMNS)
+    ev = r.events()  # no age stage: the columns every events.csv starts with
+    assert len(ev) == 0 and list(ev.columns) == ["ageing_time_s", "stage", "dynamic_phase"]
+    # Written but empty (created, header not yet there) or header only: no rows either.
+    _write(run / "events.csv", "")
+    assert list(r.events().columns) == ["ageing_time_s", "stage", "dynamic_phase"]
+    _write(run / "breakage.csv", ",".join(lab._BREAKAGE_COLUMNS) + "\n")
+    br = r.breakages()
+    assert len(br) == 0 and br["step"].dtype == np.int64 and br["x_m"].dtype == np.float64
+
+
+def test_a_count_with_a_missing_value_is_float(tmp_path):
+    import numpy as np
+
+    path = _write(tmp_path / "t.csv", "step,n_contacts,mean_Fn_N\n0,,nan\n10,5,0.5\n")
+    t = lab.read_table(path)
+    assert t["step"].dtype == np.int64
+    assert t["n_contacts"].dtype == np.float64 and np.isnan(t["n_contacts"].iloc[0])
+    assert np.isnan(t["mean_Fn_N"].iloc[0]) and t["mean_Fn_N"].iloc[1] == 0.5

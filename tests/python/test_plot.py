@@ -270,14 +270,17 @@ def test_plain_run_keeps_old_figures(tmp_path):
     names = _plots(run, tmp_path / "figs")
     assert OLD_FIGURES <= names
     assert not names & LAB_FIGURES
-    # Each wall's stress and the mean stress [MPa] against time; e against p on a log axis.
+    # Each wall's stress and the mean stress [MPa] against time, a panel per axis (see
+    # test_opposite_walls_are_both_visible); e against p on a log axis.
     d = rundir.read_run(run).timeseries
     fig = figures.figure_stress_time(run)
-    (ax,) = fig.axes
-    for w in WALLS:
-        assert_drawn(labelled(ax, w), d["time_s"], d[f"wall_{w}_stress_Pa"] * MPA)
-    assert_drawn(labelled(ax, "mean $p$"), d["time_s"], d["mean_stress_Pa"] * MPA)
-    assert ax.get_xlabel() == "time $t$ [s]" and "[MPa]" in ax.get_ylabel()
+    assert [ax.get_title() for ax in fig.axes] == ["x walls", "y walls", "z walls"]
+    for ax, axis in zip(fig.axes, "xyz"):
+        for w in (axis + "min", axis + "max"):
+            assert_drawn(labelled(ax, w), d["time_s"], d[f"wall_{w}_stress_Pa"] * MPA)
+        assert_drawn(labelled(ax, "mean $p$"), d["time_s"], d["mean_stress_Pa"] * MPA)
+        assert "[MPa]" in ax.get_ylabel()
+    assert fig.axes[-1].get_xlabel() == "time $t$ [s]"
     _close(fig)
     fig = figures.figure_void_ratio(run)
     (ax,) = fig.axes
@@ -291,6 +294,85 @@ def test_plain_run_without_summary(tmp_path):
     run = _plain_run(tmp_path / "plain")
     os.remove(os.path.join(run, "summary.json"))
     assert OLD_FIGURES <= _plots(run, tmp_path / "figs")
+
+
+def _marker_positions(line):
+    """The x of the points of ``line`` that carry a marker (its ``markevery``)."""
+    x = np.asarray(line.get_xdata(), dtype=float)
+    every = line.get_markevery()
+    if every is None:
+        return x
+    start, step = every if isinstance(every, tuple) else (0, every)
+    return x[start::step]
+
+
+def test_opposite_walls_are_both_visible(tmp_path):
+    # The walls of an axis carry the same stress in these runs (and nearly so in most): each
+    # pair is drawn so that both show, solid and dashed, with markers of other shapes and fills
+    # at other points, and the pairs of the three axes in panels of their own.
+    import matplotlib.colors as mcolors
+
+    for run in (_plain_run(tmp_path / "plain"), _oedometer_run(tmp_path / "oedometer")):
+        fig = figures.figure_stress_time(run)
+        assert len(fig.axes) == 3
+        for ax, axis in zip(fig.axes, "xyz"):
+            low, high = labelled(ax, axis + "min"), labelled(ax, axis + "max")
+            np.testing.assert_array_equal(low.get_ydata(), high.get_ydata())  # on each other
+            assert low.get_linestyle() == "-" and high.get_linestyle() == "--"
+            assert low.get_linewidth() > high.get_linewidth()  # the solid one shows around
+            assert low.get_marker() != high.get_marker()
+            assert mcolors.to_hex(low.get_color()) == mcolors.to_hex(high.get_color())
+            assert high.get_markerfacecolor() == "none" != low.get_markerfacecolor()
+            assert not set(_marker_positions(low)) & set(_marker_positions(high))
+            assert {axis + "min", axis + "max", "mean $p$"} <= set(legend_texts(ax))
+            # The other axes' walls are not on this panel.
+            assert not [ln for ln in ax.get_lines() if ln.get_label()[:1] in set("xyz") - {axis}]
+        _close(fig)
+    # Many rows: markers spread along the curve, a dozen or so, still alternating.
+    rows = [_row(i * 1e-6, 1e6, 2e6, 0.0, 0.0, 0.7) for i in range(240)]
+    fig = figures.figure_stress_time(_write_run(tmp_path / "long", rows))
+    low, high = labelled(fig.axes[0], "xmin"), labelled(fig.axes[0], "xmax")
+    assert 10 <= len(_marker_positions(low)) <= 14
+    assert not set(_marker_positions(low)) & set(_marker_positions(high))
+    _close(fig)
+
+
+def test_oedometric_strain_stress_is_the_stress_path(tmp_path):
+    # An oedometer's volumetric strain is its axial strain (the lateral walls do not move): a
+    # 1:1 line says nothing. Its strain_stress.png draws sigma_v and sigma_h against the axial
+    # strain and the stress path sigma_h against sigma_v, with each stage's K0 line.
+    run = _oedometer_run(tmp_path / "oedometer")
+    data = rundir.read_run(run)
+    d = data.timeseries
+    assert [k for k, _, _ in figures.oedometric_stages(data)] == [0, 1, 2]
+    fig = figures.figure_strain_stress(data)
+    ax_e, ax_p = fig.axes
+    assert ax_e.get_xlabel() == "axial strain $\\varepsilon_a$ [%]"
+    assert ax_p.get_xlabel() == "vertical stress $\\sigma_v$ [MPa]"
+    assert ax_p.get_ylabel() == "lateral stress $\\sigma_h$ [MPa]"
+    assert not any("volumetric" in ax.get_ylabel() for ax in fig.axes)
+    sigma_v = analysis.vertical_stress(d) * MPA
+    sigma_h = analysis.lateral_stress(d) * MPA
+    for k, label in ((0, "stage 0: oedometric, loading, $K_0$ = 0.600"),
+                     (1, "stage 1: oedometric, unloading, $K_0$ = 0.850")):
+        rows = d["stage"] == k
+        assert_drawn(labelled(ax_p, label), sigma_v[rows], sigma_h[rows])
+        assert_drawn(labelled(ax_e, label), d["axial_strain"][rows] * 100.0, sigma_v[rows])
+    # The K0 lines, from the origin to the largest sigma_v, and the isotropic line.
+    top = float(np.max(sigma_v))
+    k0_lines = sorted(tuple(ln.get_ydata()) for ln in ax_p.get_lines()
+                      if ln.get_linestyle() == "--")
+    assert k0_lines == [(0.0, 0.6 * top), (0.0, 0.85 * top)]
+    assert list(labelled(ax_p, "$\\sigma_h = \\sigma_v$ (isotropic)").get_ydata()) == [0.0, top]
+    _close(fig)
+    # A triaxial test keeps q against axial strain with its volumetric strain.
+    tri = rundir.read_run(_triaxial_run(tmp_path / "triaxial"))
+    assert figures.oedometric_stages(tri) == []
+    fig = figures.figure_strain_stress(tri)
+    ax_q, ax_v = fig.axes
+    assert ax_v.get_ylabel().startswith("volumetric strain")
+    assert labelled(ax_q, "deviator $q$") is not None
+    _close(fig)
 
 
 def _crushing_run(path, breakages=True):
@@ -504,12 +586,47 @@ def test_ageing_run_writes_relaxation_figures(tmp_path):
     assert any("plausible at 1 day: 0.70-0.97" in text for text in legend_texts(ax))
     assert ax.get_ylabel() == "$\\sigma_v(t) / \\sigma_v$(4 s) [-]"
     _close(fig)
-    # relaxation_forces.png: the force statistics of events.csv at the same phases.
+    # relaxation_forces.png: the force statistics of events.csv at the same phases, each over
+    # its value at t = 0 (given in N in the legend).
     fig = figures.figure_relaxation_forces(run)
     (ax,) = fig.axes
     for col, label in (("std_Fn_N", "std. dev. normal force $F_n$"),
                        ("mean_Ft_N", "mean tangential force $F_t$")):
-        assert_drawn(labelled(ax, label), t[later], ev[col][later])
+        f0 = ev[col][0]
+        line = labelled(ax, f"{label}, $F(0)$ = {f0:.3g} N")
+        assert_drawn(line, t[later], ev[col][later] / f0)
+    _close(fig)
+
+
+def test_relaxation_forces_show_a_change_of_a_percent(tmp_path):
+    # Forces that change by about 1 % in a day: on an axis from 0 to the largest force the
+    # curves would be flat lines; over their values at t = 0, on an axis that spans what they
+    # reach, the change fills most of the height.
+    run = _ageing_run(tmp_path / "relaxation")
+    path = os.path.join(run, "events.csv")
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        drop = 0.01 * math.log10(1.0 + float(r["ageing_time_s"])) / math.log10(86401.0)
+        r["mean_Fn_N"] = repr(2.0 * (1.0 - drop))
+        r["std_Fn_N"] = repr(2.5 * (1.0 - 1.2 * drop))
+        r["mean_Ft_N"] = repr(0.4 * (1.0 - 0.5 * drop))
+        r["std_Ft_N"] = repr(0.5 * (1.0 - 0.8 * drop))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    fig = figures.figure_relaxation_forces(run)
+    (ax,) = fig.axes
+    curves = [ln for ln in ax.get_lines() if "$F(0)$" in str(ln.get_label())]
+    assert len(curves) == 4
+    y = np.concatenate([ln.get_ydata() for ln in curves])
+    lo, hi = ax.get_ylim()
+    assert lo <= y.min() and y.max() <= hi  # every point on the axis
+    assert lo > 0.9  # not from 0
+    # The 1.2 % drop of the normal force's spread takes most of the axis height.
+    assert (1.0 - y.min()) / (hi - lo) > 0.6
+    assert ax.get_ylabel() == "contact force $F(t) / F(0)$ [-]"
     _close(fig)
 
 
@@ -649,22 +766,36 @@ def test_stress_time_of_an_age_run_is_against_ageing_time(tmp_path):
 
     run = _ageing_run(tmp_path / "relaxation")
     fig = figures.figure_stress_time(run)
-    log_axes = [ax for ax in fig.axes if ax.get_xscale() == "log"]
-    dem_axes = [ax for ax in fig.axes if ax.get_xscale() == "linear"]
-    assert len(log_axes) == 1 and len(dem_axes) == 1
-    x_age = np.concatenate([ln.get_xdata() for ln in log_axes[0].get_lines()
-                            if len(ln.get_xdata()) > 2])
-    assert np.nanmax(x_age) > 1000.0 and np.nanmax(x_age) == pytest.approx(86400.0)
-    # The DEM-time panel holds the loading stage, up to the age stage's first row (in a run,
+    # A row per axis: DEM time on the left, ageing time on the right.
+    assert [ax.get_xscale() for ax in fig.axes] == ["linear", "log"] * 3
+    log_axes, dem_axes = fig.axes[1::2], fig.axes[0::2]
+    ev = plot.read_events(run)
+    for ax, axis in zip(log_axes, "xyz"):
+        x_age = np.concatenate([ln.get_xdata() for ln in ax.get_lines()
+                                if len(ln.get_xdata()) > 2])
+        assert np.nanmax(x_age) > 1000.0 and np.nanmax(x_age) == pytest.approx(86400.0)
+        # Both walls of the axis, at the phases after t = 0 (the walls' own markers).
+        later = ev["ageing_time_s"] > 0
+        ys = [ln.get_ydata() for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
+        for w in (axis + "min", axis + "max"):
+            want = ev[f"wall_{w}_stress_Pa"][later] * MPA
+            assert any(np.array_equal(y, want) for y in ys), w
+        assert {ln.get_marker() for ln in ax.get_lines() if len(ln.get_xdata()) > 2} >= {"o", "s"}
+    # The DEM-time panels hold the loading stage, up to the age stage's first row (in a run,
     # the same state as the loading's last row).
     d = plot.read_timeseries(run)
     age_rows = np.flatnonzero(d["stage"] == 1)
-    x_dem = np.concatenate([ln.get_xdata()[np.isfinite(ln.get_ydata())]
-                            for ln in dem_axes[0].get_lines()])
-    assert np.nanmax(x_dem) == d["time_s"][age_rows[0]] < d["time_s"][age_rows[1]]
+    for ax in dem_axes:
+        x_dem = np.concatenate([ln.get_xdata()[np.isfinite(ln.get_ydata())]
+                                for ln in ax.get_lines() if len(ln.get_xdata())])
+        assert np.nanmax(x_dem) == d["time_s"][age_rows[0]] < d["time_s"][age_rows[1]]
     plt.close(fig)
-    # Without an age stage: one panel against DEM time.
+    # Without an age stage: panels against DEM time only.
     fig = figures.figure_stress_time(_oedometer_run(tmp_path / "oedometer"))
+    assert [ax.get_xscale() for ax in fig.axes] == ["linear"] * 3
+    plt.close(fig)
+    # One panel for a figure of one curve.
+    fig = figures.figure_coordination(_oedometer_run(tmp_path / "oedometer2"))
     assert [ax.get_xscale() for ax in fig.axes] == ["linear"]
     plt.close(fig)
 

@@ -106,16 +106,67 @@ def test_array_shapes_and_dtypes():
     assert lw.shape == (3, 3) and lw.dtype == np.float64
 
     c = sim.contacts()
-    assert set(c) == {"id_i", "id_j", "is_wall", "overlap", "normal_force", "normal",
-                      "tangential_force", "rolling_moment"}
+    assert list(c) == CONTACT_COLUMNS
     assert c["id_i"].dtype == np.uint64 and c["is_wall"].dtype == np.bool_
-    assert c["normal"].shape == (0, 3) and c["rolling_moment"].shape == (0, 3)
+    assert all(v.shape == (0,) for v in c.values())
 
     with pytest.raises(ValueError, match="positions"):
         sim.add_particles(np.zeros((2, 2)), np.ones(2) * 1e-5)
     with pytest.raises(ValueError, match="radi"):
         sim.add_particles(np.full((1, 3), 5e-4), [-1.0])
     assert sim.num_particles == n
+
+
+# Simulation.contacts(): one column per scalar, three (x, y, z) per vector.
+CONTACT_COLUMNS = ["id_i", "id_j", "is_wall", "overlap", "normal_force",
+                   "normal_x", "normal_y", "normal_z",
+                   "tangential_force_x", "tangential_force_y", "tangential_force_z",
+                   "rolling_moment_x", "rolling_moment_y", "rolling_moment_z"]
+
+
+def test_contacts_are_columns_a_dataframe_takes():
+    import pandas as pd
+
+    sim = hertz_sim(material={"shear_modulus": G, "poisson_ratio": NU, "friction": 0.3})
+    r = 1e-4
+    # Two grains stacked on the bottom wall, each overlap 2e-7 m: a contact between them, then
+    # one with the wall.
+    sim.add_particles(np.array([[5e-4, 5e-4, r - 2e-7], [5e-4, 5e-4, 3 * r - 4e-7]]),
+                      np.array([r, r]))
+    sim.compute_forces()
+    c = sim.contacts()
+    assert list(c) == CONTACT_COLUMNS and len({len(v) for v in c.values()}) == 1
+    assert all(v.ndim == 1 for v in c.values())
+    df = pd.DataFrame(c)
+    assert list(df.columns) == CONTACT_COLUMNS and len(df) == 2
+    assert df["id_i"].dtype == np.uint64 and df["is_wall"].dtype == np.bool_
+    assert df["is_wall"].tolist() == [False, True] and sim.num_contacts == 1
+    pair = df[~df["is_wall"]].iloc[0]
+    normal = pair[["normal_x", "normal_y", "normal_z"]].to_numpy(float)
+    np.testing.assert_allclose(np.abs(normal), [0.0, 0.0, 1.0], atol=1e-12)
+    np.testing.assert_allclose(df["overlap"], [2e-7, 2e-7], rtol=1e-6)
+    assert (df["normal_force"] > 0).all()
+
+
+def test_properties_are_the_counts_and_the_clock():
+    # The rule of the class docstring: what the simulation keeps as a scalar is a property,
+    # whatever copies, computes or takes arguments a method.
+    properties = {name for name, value in vars(crushdem.Simulation).items()
+                  if isinstance(value, property)}
+    assert properties == {"num_particles", "num_contacts", "time", "step_count", "dt", "core"}
+    for name in ("positions", "contacts", "wall_stresses", "kinetic_energy", "rayleigh_dt"):
+        assert callable(vars(crushdem.Simulation)[name]), name
+
+
+def test_num_contacts_is_a_property_still_callable_with_a_warning():
+    sim = hertz_sim()
+    sim.add_particles(np.array([[3e-4, 5e-4, 5e-4], [3e-4 + 2e-4 - 1e-7, 5e-4, 5e-4]]),
+                      np.array([1e-4, 1e-4]))
+    sim.compute_forces()
+    assert sim.num_contacts == 1 and isinstance(sim.num_contacts, int)
+    assert sim.num_contacts + 1 == 2 and f"{sim.num_contacts}" == "1"
+    with pytest.warns(DeprecationWarning, match="num_contacts is a property"):
+        assert sim.num_contacts() == 1
 
 
 def test_wall_contact_is_hertz():
@@ -132,7 +183,8 @@ def test_wall_contact_is_hertz():
     assert c["overlap"][0] == pytest.approx(delta, rel=1e-9)
     expected = 4.0 / 3.0 * E_STAR * math.sqrt(r) * delta**1.5
     assert abs(c["normal_force"][0] - expected) <= 1e-9 * expected
-    np.testing.assert_allclose(c["normal"][0], [0.0, 0.0, -1.0], atol=1e-15)
+    np.testing.assert_allclose([c["normal_x"][0], c["normal_y"][0], c["normal_z"][0]],
+                               [0.0, 0.0, -1.0], atol=1e-15)
     # The wall pushes the grain up with that force; the wall feels the reaction.
     assert sim.forces()[0, 2] == pytest.approx(expected, rel=1e-9)
     assert sim.wall_forces()[4, 2] == pytest.approx(-expected, rel=1e-9)
@@ -155,7 +207,7 @@ def test_rolling_moment_is_readable_and_capped():
         sim.step(5)
         c = sim.contacts()
         for k in np.flatnonzero(~c["is_wall"]):
-            m = float(np.linalg.norm(c["rolling_moment"][k]))
+            m = float(np.linalg.norm([c[f"rolling_moment_{a}"][k] for a in "xyz"]))
             largest = max(largest, m)
             cap = mu_r * (r1 * r2 / (r1 + r2)) * c["normal_force"][k]
             ratio = max(ratio, m / cap if cap > 0 else 0.0)
@@ -360,8 +412,9 @@ def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
     assert [s["type"] for s in tri.stages] == ["isotropic", "triaxial", "hold"]
     assert tri.stages[1]["max_lateral_stress_error"] < 0.01
     assert tri.stages[1]["q_max_Pa"] > 0
-    ts = tri.timeseries
-    assert ts["stage"].max() == 2
+    ts = tri.timeseries()  # a DataFrame: counts and indices are integers
+    assert ts["stage"].max() == 2 and ts["stage"].dtype == np.int64
+    assert ts["step"].dtype == np.int64 and ts["void_ratio"].dtype == np.float64
     assert np.all(np.isfinite(ts["inertial_number"][ts["stage"] == 1]))
     # Crushing is on (Table 1 strengths: few or no grains break at 1 MPa); its outputs exist.
     assert "relative_breakage_Br" in ts and "void_ratio_with_fines" in ts
@@ -395,6 +448,13 @@ def test_creep_and_relaxation_functions(tmp_path, small_sample):
     t_age = [float(r.split(",")[0]) for r in rows[1:]]
     assert t_age[0] == 0.0 and all(b > a for a, b in zip(t_age, t_age[1:]))
     assert t_age[-1] == pytest.approx(3600.0)
+    # The same tables as DataFrames.
+    events = creep.events()
+    assert list(events["ageing_time_s"]) == t_age
+    assert list(events["dynamic_phase"]) == list(range(len(t_age)))
+    phases = creep.phases()
+    assert set(phases["dynamic_phase"]) == set(range(len(t_age)))
+    assert phases["cycle"].dtype == np.int64 and phases["cycle"].min() == 0
     # The solid mass balance (density scaling on: the stored masses of the small fragments are
     # not their solid masses, the balance is of volumes times the material density).
     co = creep.summary["crushing"]
@@ -406,6 +466,9 @@ def test_creep_and_relaxation_functions(tmp_path, small_sample):
         co["retained_solid_mass_kg"] + co["removed_solid_mass_kg"], rel=1e-12)
     assert abs(co["mass_balance_relative_error"]) < 1e-12
     assert co["retained_solid_mass_kg"] < co["initial_solid_mass_kg"]
+    broken = creep.breakages()
+    assert len(broken) == co["breakages_instant"] + co["breakages_crack"]
+    assert set(broken["cause"]) <= {"instant", "crack"} and broken["id"].dtype == np.int64
 
 
 def _needed_libraries(path):

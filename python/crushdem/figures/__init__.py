@@ -28,13 +28,13 @@ import os
 from typing import Any, Callable, Dict, List, Tuple
 
 from .ageing import figure_relaxation, figure_relaxation_breakage, figure_relaxation_forces
-from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, Run,  # noqa: F401
-                     as_run, label_axes, mark_times, plain_log_ticks, pyplot, stacked_axes,
+from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, WALL_STYLES,  # noqa: F401
+                     Run, as_run, label_axes, mark_times, plain_log_ticks, pyplot, stacked_axes,
                      stage_color, time_axis, unique_legend)
 from .crushing import figure_breakage, figure_breakage_sizes, figure_grading
 from .laboratory import (figure_inertial_number, figure_oedometer, figure_preparation,
                          figure_q_p_path, figure_strain_stress, figure_triaxial,
-                         figure_void_ratio, oedometer_label)
+                         figure_void_ratio, oedometer_label, oedometric_stages)
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
 from .penetration import figure_breakage_field, figure_penetration, figure_shaft_stress
@@ -49,7 +49,8 @@ __all__ = [
     "mark_times", "stage_color", "time_axis",
     "figure_stress_time", "figure_coordination", "figure_kinetic_energy",
     "figure_strain_stress", "figure_void_ratio", "figure_triaxial", "figure_q_p_path",
-    "oedometer_label", "figure_oedometer", "figure_inertial_number", "figure_preparation",
+    "oedometer_label", "oedometric_stages", "figure_oedometer", "figure_inertial_number",
+    "figure_preparation",
     "figure_grading", "figure_breakage", "figure_breakage_sizes",
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",

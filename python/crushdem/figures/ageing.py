@@ -121,7 +121,9 @@ def figure_relaxation(run: Run) -> Optional[Figure]:
 
 def figure_relaxation_forces(run: Run) -> Optional[Figure]:
     """relaxation_forces.png: standard deviations (solid) and means (dashed) of the contact
-    normal and tangential forces [N] against ageing time."""
+    normal and tangential forces against ageing time, each over its value at t = 0 (the start
+    of the age stage; in N in the legend), on an axis that spans what the curves reach, so that
+    a change of a percent shows."""
     run = as_run(run)
     drawn = _ageing_groups_drawn(run)
     if drawn is None:
@@ -137,15 +139,29 @@ def figure_relaxation_forces(run: Run) -> Optional[Figure]:
     plt = pyplot()
     multi = len(groups) > 1
     fig, ax = plt.subplots(figsize=(7, 4.8))
-    for i, (label, idx, _ref) in enumerate(groups):
+    reached = [1.0]
+    for i, (label, idx, ref) in enumerate(groups):
         p = idx[t_age[idx] > 0]
         m = MARKERS[i % len(MARKERS)]
         for c, lab, color, ls in cols:
-            ax.semilogx(t_age[p], ev[c][p], marker=m, ls=ls, ms=4, color=color,
+            f0 = ev[c][ref]
+            if not (math.isfinite(f0) and f0 != 0.0):
+                continue
+            ratio = ev[c][p] / f0
+            reached += [float(v) for v in ratio if math.isfinite(v)]
+            ax.semilogx(t_age[p], ratio, marker=m, ls=ls, ms=4, color=color,
                         mfc=color if ls == "-" else "none",
-                        label=f"{lab} ({label})" if multi else lab)
-    label_axes(ax, AGEING_TIME_LABEL, "contact force [N]", f"{run.title}: ageing, contact forces",
-               fontsize=8, loc="best")
+                        label=f"{lab}{f' ({label})' if multi else ''}, $F(0)$ = {f0:.3g} N")
+    if len(reached) == 1:
+        plt.close(fig)
+        return None
+    ax.axhline(1.0, color="0.5", lw=0.8)
+    lo, hi = min(reached), max(reached)
+    pad = max(0.08 * (hi - lo), 1e-4)  # flat curves still get an axis of their own scale
+    ax.set_ylim(lo - pad, hi + pad)
+    ax.ticklabel_format(axis="y", useOffset=False)
+    label_axes(ax, AGEING_TIME_LABEL, "contact force $F(t) / F(0)$ [-]",
+               f"{run.title}: ageing, contact forces", fontsize=8, loc="best")
     mark_times([ax], label_ax=ax)
     fig.tight_layout()
     return fig

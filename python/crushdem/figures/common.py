@@ -18,7 +18,13 @@ if TYPE_CHECKING:
 MPA = 1e-6
 Run = Union[RunData, PathLike]
 AGEING_TIME_LABEL = "ageing time $t$ [s] (log scale)"
-WALL_COLORS = {w: f"C{i}" for i, w in enumerate(WALLS)}
+# A colour per axis, the same for its two walls; what tells them apart (figures.time_series):
+# the low wall wide, pale and solid with filled circles, the high one dashed with open squares
+# half a marker spacing on, so that both show where they lie on each other.
+WALL_COLORS = {w: f"C{k // 2}" for k, w in enumerate(WALLS)}
+WALL_STYLES: Dict[str, Dict[str, Any]] = {
+    "min": dict(ls="-", lw=3.0, alpha=0.5, marker="o"),
+    "max": dict(ls="--", lw=1.4, marker="s", open=True, phase=0.5)}
 MARKERS = ("o", "s", "^", "D", "v")
 
 

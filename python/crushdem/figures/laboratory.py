@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING, Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..analysis import WALLS, as_float, has_values, stage_label, stage_rows, vertical_stress
+from ..analysis import (WALLS, as_float, has_values, lateral_stress, stage_label, stage_rows,
+                        vertical_stress)
+from ..rundir import RunData
 from .common import (MPA, Run, as_run, label_axes, pyplot, stacked_axes, stage_color,
                      time_axis, unique_legend)
 
@@ -17,13 +19,35 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+# The stage kinds that keep the lateral walls fixed: a run of these alone (one oedometric at
+# least) is an oedometric test, whose volumetric strain is its axial strain.
+_LATERALLY_FIXED = {"oedometric", "hold", "age"}
+
+
+def oedometric_stages(run: RunData) -> List[Tuple[int, np.ndarray, Dict[str, Any]]]:
+    """The stages of ``run`` with rows (:func:`~crushdem.analysis.stage_rows`) when it is an
+    oedometric test: every stage oedometric, hold or age (its type from summary.json, or
+    config.toml for a run still going), one oedometric at least; [] otherwise."""
+    stages = [(k, rows, info) for k, rows, info in stage_rows(run.timeseries, run.summary)
+              if rows.any()]
+    types = {info.get("type") for _, _, info in stages}
+    return stages if "oedometric" in types and types <= _LATERALLY_FIXED else []
+
+
 def figure_strain_stress(run: Run) -> Optional[Figure]:
     """strain_stress.png: deviator stress q (or the axial wall stress) [MPa] against axial
-    strain [%], with the volumetric strain [%] on a second panel when present."""
+    strain [%], with the volumetric strain [%] on a second panel when present. For an
+    oedometric test (:func:`oedometric_stages`), whose volumetric strain is its axial strain,
+    the vertical and lateral stress [MPa] against axial strain [%] and the stress path sigma_h
+    against sigma_v [MPa] with each oedometric stage's K0 line instead."""
     run = as_run(run)
     d = run.timeseries
     if not has_values(d, "axial_strain"):
         return None
+    oedometric = oedometric_stages(run)
+    sigma_v, sigma_h = vertical_stress(d), lateral_stress(d)
+    if oedometric and sigma_v is not None and sigma_h is not None:
+        return _oedometric_strain_stress(run, oedometric, sigma_v, sigma_h)
     eps_a = d["axial_strain"] * 100.0
     curves = []
     if has_values(d, "deviator_stress_Pa"):
@@ -49,6 +73,46 @@ def figure_strain_stress(run: Run) -> Optional[Figure]:
         axes[1, 0].set_ylabel("volumetric strain $\\varepsilon_v$ [%]")
         axes[1, 0].grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("axial strain $\\varepsilon_a$ [%]")
+    fig.tight_layout()
+    return fig
+
+
+def _oedometric_strain_stress(run: RunData, stages: List[Tuple[int, np.ndarray, Dict[str, Any]]],
+                              sigma_v: np.ndarray, sigma_h: np.ndarray) -> Figure:
+    """strain_stress.png of an oedometric test: sigma_v (solid) and sigma_h (dashed) [MPa]
+    against axial strain [%], and the stress path sigma_h against sigma_v [MPa], a colour per
+    stage, with the K0 line of each oedometric stage (dashed) and the isotropic line
+    (dotted)."""
+    eps = run.timeseries["axial_strain"] * 100.0
+    sv, sh = sigma_v * MPA, sigma_h * MPA
+    drawn = np.zeros(len(sv), dtype=bool)
+    for _, rows, _ in stages:
+        drawn |= rows
+    top = float(np.nanmax(sv[drawn], initial=0.0))
+    plt = pyplot()
+    fig, (ax_e, ax_p) = plt.subplots(1, 2, figsize=(11, 4.8))
+    for k, rows, info in stages:
+        color = stage_color(k)
+        oedometric = info.get("type") == "oedometric"
+        label = oedometer_label(k, info, sv[rows]) if oedometric else stage_label(k, info)
+        ax_e.plot(eps[rows], sv[rows], "-", color=color, label=label)
+        ax_e.plot(eps[rows], sh[rows], "--", color=color)
+        ax_p.plot(sv[rows], sh[rows], "o-", ms=2.5, color=color, label=label)
+        k0 = as_float(info.get("K0_end"))
+        if oedometric and math.isfinite(k0) and top > 0:
+            ax_p.plot([0.0, top], [0.0, k0 * top], "--", lw=0.9, color=color)
+    ax_e.plot([], [], "-", color="0.3", label="vertical $\\sigma_v$ (solid)")
+    ax_e.plot([], [], "--", color="0.3", label="lateral $\\sigma_h$ (dashed)")
+    label_axes(ax_e, "axial strain $\\varepsilon_a$ [%]", "stress [MPa]",
+               "stress against axial strain", fontsize=8)
+    if top > 0:
+        ax_p.plot([0.0, top], [0.0, top], ":", color="0.5", lw=1.0,
+                  label="$\\sigma_h = \\sigma_v$ (isotropic)")
+    ax_p.set_xlim(left=0.0)
+    ax_p.set_ylim(bottom=0.0)
+    label_axes(ax_p, "vertical stress $\\sigma_v$ [MPa]", "lateral stress $\\sigma_h$ [MPa]",
+               "stress path (dashed: $\\sigma_h = K_0\\,\\sigma_v$ of the stage)", fontsize=8)
+    fig.suptitle(f"{run.title}: oedometric test, stresses")
     fig.tight_layout()
     return fig
 

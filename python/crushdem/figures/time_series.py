@@ -5,20 +5,44 @@ panel (events.csv, one point per dynamic phase, log axis)."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, List, Optional, Sequence, Tuple
+from typing import TYPE_CHECKING, Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..analysis import WALLS, age_stage_indices, ageing_groups, has_values
 from ..rundir import RunData
-from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, Run, as_run, mark_times,
-                     pyplot, time_axis, unique_legend)
+from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, WALL_STYLES, Run, as_run,
+                     mark_times, pyplot, time_axis, unique_legend)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
-Series = Tuple[str, str, str, str]  # column, label, colour, line style
+class Series(NamedTuple):
+    """A curve of a figure against time: its column, label, colour and line style, and how it
+    stays visible where another lies on it (a wall and the one opposite carry the same stress):
+    a width and opacity, markers (on the DEM-time panel; on the ageing panel the markers tell
+    the age stages apart), open or filled, starting ``phase`` of a marker spacing along the
+    curve so that two curves' markers alternate."""
+
+    column: str
+    label: str
+    color: str
+    ls: str = "-"
+    lw: float = 1.5
+    alpha: float = 1.0
+    marker: Optional[str] = None
+    open: bool = False
+    phase: float = 0.0
+
+    def style(self) -> Dict[str, Any]:
+        """The keywords of ``Axes.plot`` for the line, its markers filled or open."""
+        return dict(ls=self.ls, lw=self.lw, alpha=self.alpha, color=self.color,
+                    mfc="none" if self.open else self.color)
+
+
+# Markers along a curve on the DEM-time panel.
+_MARKS_PER_CURVE = 12
 
 
 def _ageing_plan(run: RunData):
@@ -43,88 +67,140 @@ def _ageing_plan(run: RunData):
     return all_rows, groups
 
 
-def _time_figure(run: RunData, series: Sequence[Series], y_label: str, title: str,
+Row = Tuple[str, Sequence[Series]]  # a row of panels: its title ("" for none), its curves
+
+
+def _time_figure(run: RunData, rows: Sequence[Row], y_label: str, title: str,
                  log_y: bool = False):
-    """``series`` against DEM time (the stages before and between age stages) and, for the age
-    stages, against ageing time on a second panel (log axis, one point per dynamic phase, the
-    t = 0 phase drawn open at a tenth of the first ageing time)."""
+    """Each row's ``series`` against DEM time (the stages before and between age stages) and,
+    for the age stages, against ageing time on a panel to the right (log axis, one point per
+    dynamic phase, the t = 0 phase drawn open at a tenth of the first ageing time). The rows
+    share their axes."""
     plt = pyplot()
     d, ev = run.timeseries, run.events
     dem_rows, groups = _ageing_plan(run)
-    series_ev = [s for s in series if ev is not None and has_values(ev, s[0])] if groups else []
-    with_dem = bool(dem_rows.any()) and any(has_values(d, s[0]) for s in series)
-    with_age = bool(series_ev)
+
+    def on_age_panel(s: Series) -> bool:
+        return bool(groups) and ev is not None and has_values(ev, s.column)
+
+    rows = [(name, series) for name, series in rows
+            if any(has_values(d, s.column) or on_age_panel(s) for s in series)]
+    every = [s for _, series in rows for s in series]
+    with_dem = bool(dem_rows.any()) and any(has_values(d, s.column) for s in every)
+    with_age = any(on_age_panel(s) for s in every)
     if not (with_dem or with_age):
         return None
-    n_panels = int(with_dem) + int(with_age)
-    fig, axes = plt.subplots(1, n_panels, figsize=(7 if n_panels == 1 else 11, 4.5),
-                             sharey=True, squeeze=False)
-    axes = list(axes[0])
-    if with_dem:
-        ax = axes[0]
-        t, t_label = time_axis(d)
-        for col, label, color, ls in series:
-            if not has_values(d, col):
-                continue
-            y = np.where(dem_rows, d[col], math.nan)
-            keep = np.isfinite(y) & (y > 0) if log_y else np.ones(len(y), dtype=bool)
-            ax.plot(t[keep], y[keep], ls=ls, color=color, label=label)
-        if log_y:
-            ax.set_yscale("log")
-        ax.set_xlabel(t_label + (" (stages before ageing)" if with_age else ""))
-        ax.set_ylabel(y_label)
-        ax.grid(True, which="both", alpha=0.3)
-        unique_legend(ax, fontsize=9)
-    if with_age:
-        ax = axes[-1]
-        t_age = ev["ageing_time_s"]
-        multi = len(groups) > 1
-        zero_label = "t = 0 (before the first jump), drawn open"
-        for i, (group, idx, ref) in enumerate(groups):
-            pos = idx[t_age[idx] > 0]
-            m = MARKERS[i % len(MARKERS)]
-            for col, label, color, ls in series_ev:
-                y = ev[col]
-                # The DEM-time panel's legend names the colours already.
-                lab = f"{label} ({group})" if multi else None if with_dem else label
-                ax.plot(t_age[pos], y[pos], marker=m, ms=4, ls=ls, lw=0.9, color=color,
-                        label=lab)
-            # The state before the first jump has no place on a log axis: drawn open at a
-            # tenth of the first ageing time, joined by a dotted line.
-            if t_age[ref] <= 0 and pos.size:
-                x0 = t_age[pos[0]] / 10.0
-                for col, _label, color, _ls in series_ev:
-                    y = ev[col]
-                    ax.plot([x0, t_age[pos[0]]], [y[ref], y[pos[0]]], ls=":", lw=0.8,
-                            color=color)
-                    ax.plot([x0], [y[ref]], marker=m, ms=4, mfc="none", ls="none",
-                            color=color, label=zero_label)
-        ax.set_xscale("log")
-        if log_y:
-            ax.set_yscale("log")
-        ax.set_xlabel(AGEING_TIME_LABEL)
-        if not with_dem:
+    n_cols = int(with_dem) + int(with_age)
+    fig, axes = plt.subplots(len(rows), n_cols, figsize=(7 if n_cols == 1 else 11,
+                                                         4.5 if len(rows) == 1
+                                                         else 1.0 + 2.6 * len(rows)),
+                             sharex="col", sharey=True, squeeze=False)
+    for r, (name, series) in enumerate(rows):
+        bottom = r == len(rows) - 1
+        if with_dem:
+            ax = axes[r, 0]
+            t, t_label = time_axis(d)
+            _draw_dem(ax, t, d, dem_rows, series, log_y)
+            if bottom:
+                ax.set_xlabel(t_label + (" (stages before ageing)" if with_age else ""))
             ax.set_ylabel(y_label)
-        ax.set_title("age stages: one point per dynamic phase", fontsize=10)
-        ax.grid(True, which="both", alpha=0.3)
-        unique_legend(ax, fontsize=8)
-        mark_times([ax], label_ax=ax)
+            if name:
+                ax.set_title(name, fontsize=10)
+        if with_age:
+            ax = axes[r, -1]
+            _draw_ageing(ax, ev, groups, [s for s in series if on_age_panel(s)], with_dem,
+                         log_y)
+            if bottom:
+                ax.set_xlabel(AGEING_TIME_LABEL)
+            if not with_dem:
+                ax.set_ylabel(y_label)
+            parts = [] if with_dem else [name]  # the row's name is on its DEM panel
+            parts += ["age stages: one point per dynamic phase"] if r == 0 else []
+            ax.set_title(", ".join(p for p in parts if p), fontsize=10)
+            mark_times([ax], label_ax=ax if r == 0 else None)
     fig.suptitle(title)
     fig.tight_layout()
     return fig
 
 
+def _draw_dem(ax, t: np.ndarray, d, dem_rows: np.ndarray, series: Sequence[Series],
+              log_y: bool) -> None:
+    """The DEM-time panel: each series at the rows on the DEM clock, its markers spread along
+    it."""
+    for s in series:
+        if not has_values(d, s.column):
+            continue
+        y = np.where(dem_rows, d[s.column], math.nan)
+        keep = np.isfinite(y) & (y > 0) if log_y else np.ones(len(y), dtype=bool)
+        marks: Dict[str, Any] = {}
+        if s.marker is not None:
+            # Every other point at least, so that two curves' markers can alternate.
+            every = max(2, int(np.count_nonzero(keep)) // _MARKS_PER_CURVE)
+            marks = dict(marker=s.marker, ms=5, markevery=(int(s.phase * every), every))
+        ax.plot(t[keep], y[keep], label=s.label, **s.style(), **marks)
+    if log_y:
+        ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    unique_legend(ax, fontsize=9)
+
+
+def _draw_ageing(ax, ev, groups, series: Sequence[Series], with_dem: bool,
+                 log_y: bool) -> None:
+    """The ageing-time panel: each series at the dynamic phases with t > 0 (with several age
+    stages, a marker shape per stage), the t = 0 phase open at the left."""
+    t_age = ev["ageing_time_s"]
+    multi = len(groups) > 1
+    zero_label = "t = 0 (before the first jump), drawn open"
+    for i, (group, idx, ref) in enumerate(groups):
+        pos = idx[t_age[idx] > 0]
+        m = MARKERS[i % len(MARKERS)]
+        for s in series:
+            y = ev[s.column]
+            # The DEM-time panel's legend names the colours already.
+            lab = f"{s.label} ({group})" if multi else None if with_dem else s.label
+            # The series' own marker, unless the shapes must tell several age stages apart.
+            marker = s.marker if s.marker is not None and not multi else m
+            ms = 5 if s.open else 3.5 if s.marker is not None else 4
+            ax.plot(t_age[pos], y[pos], marker=marker, ms=ms, **dict(s.style(), lw=0.6 * s.lw),
+                    label=lab)
+        # The state before the first jump has no place on a log axis: drawn open at a tenth
+        # of the first ageing time, joined by a dotted line.
+        if t_age[ref] <= 0 and pos.size:
+            x0 = t_age[pos[0]] / 10.0
+            for s in series:
+                y = ev[s.column]
+                ax.plot([x0, t_age[pos[0]]], [y[ref], y[pos[0]]], ls=":", lw=0.8,
+                        color=s.color)
+                ax.plot([x0], [y[ref]], marker=m, ms=4, mfc="none", ls="none",
+                        color=s.color, label=zero_label)
+    ax.set_xscale("log")
+    if log_y:
+        ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    unique_legend(ax, fontsize=8)
+
+
 def figure_stress_time(run: Run) -> Optional[Figure]:
-    """stress_time.png: the wall normal stresses and the mean stress p [MPa] against time (age
-    stages against ageing time, on a second panel)."""
+    """stress_time.png: the wall normal stresses [MPa] against time (age stages against ageing
+    time, on panels to the right), a row of panels per axis (x, y, z walls; one stress scale),
+    each with the mean stress p dotted. The two walls of an axis, which often carry the same
+    stress, are both visible: the low one (xmin, ymin, zmin) a wide pale solid line with filled
+    circles, the high one a dashed line with open squares between them."""
     run = as_run(run)
     d = run.timeseries
     cols = [f"wall_{w}_stress_Pa" for w in WALLS] + ["mean_stress_Pa"]
     if not any(has_values(d, c) for c in cols):
         return None
-    series: List[Series] = [(f"wall_{w}_stress_Pa", w, WALL_COLORS[w], "-") for w in WALLS]
-    series.append(("mean_stress_Pa", "mean $p$", "k", "--"))
-    return _time_figure(_scaled(run, cols, MPA), series, "normal stress $\\sigma$ [MPa]",
+    mean = Series("mean_stress_Pa", "mean $p$", "k", ls=":", lw=1.5)
+    rows: List[Row] = []
+    for axis in "xyz":
+        walls = [Series(f"wall_{w}_stress_Pa", w, WALL_COLORS[w], **WALL_STYLES[w[1:]])
+                 for w in (axis + "min", axis + "max")]
+        rows.append((f"{axis} walls", walls + [mean]))
+    # Only the mean where no wall has a column.
+    rows = [row for row in rows if any(has_values(d, s.column) for s in row[1][:2])] or \
+        [("", [mean])]
+    return _time_figure(_scaled(run, cols, MPA), rows, "normal stress $\\sigma$ [MPa]",
                         f"{run.title}: wall stresses")
 
 
@@ -147,7 +223,8 @@ def figure_coordination(run: Run) -> Optional[Figure]:
     run = as_run(run)
     if not has_values(run.timeseries, "coordination_number"):
         return None
-    return _time_figure(run, [("coordination_number", "coordination number $Z$", "C0", "-")],
+    return _time_figure(run, [("", [Series("coordination_number", "coordination number $Z$",
+                                            "C0")])],
                         "coordination number $Z$ [-]", f"{run.title}: coordination number")
 
 
@@ -159,5 +236,5 @@ def figure_kinetic_energy(run: Run) -> Optional[Figure]:
     if not has_values(d, "kinetic_energy_J"):
         return None
     log_y = bool(np.any(d["kinetic_energy_J"] > 0))
-    return _time_figure(run, [("kinetic_energy_J", "kinetic energy", "C0", "-")],
+    return _time_figure(run, [("", [Series("kinetic_energy_J", "kinetic energy", "C0")])],
                         "kinetic energy [J]", f"{run.title}: kinetic energy", log_y=log_y)
