@@ -94,6 +94,7 @@ TEST(Impact, ObliqueSphereWallGrossSliding) {
   SimulationConfig cfg = testing::box_config(-1e-3, 1e-3);
   cfg.timestep.dt = 2e-10;
   cfg.contact.wall_friction = 0.1;
+  cfg.contact.rotation = Rotation::Free;  // the spin w' is what is checked
   Simulation sim(cfg);
   const double R = 1e-4, v_n = 0.1, v_t = 0.2, mu = 0.1;
   sim.add_particle({0, 0, -1e-3 + R + 1e-8}, R, {v_t, 0, -v_n});

@@ -134,7 +134,12 @@ std::string error_of(const std::string& contact_keys) {
 }
 
 TEST(RotationConfig, ReadWrittenAndInferredFromRollingFriction) {
-  EXPECT_EQ(parse("").simulation.contact.rotation, Rotation::Free);
+  // The default parameter set blocks rotation; Table 1 as printed turns grains freely.
+  EXPECT_EQ(parse("").simulation.contact.rotation, Rotation::Blocked);
+  const std::string table1 = "parameters = \"table1\"\n" + kBase;
+  EXPECT_EQ(run_config_from_toml(toml::parse(table1, "cfg.toml"), "cfg.toml", ".")
+                .simulation.contact.rotation,
+            Rotation::Free);
   EXPECT_EQ(parse("rotation = \"blocked\"\n").simulation.contact.rotation, Rotation::Blocked);
   const RunConfig rolling = parse("rotation = \"rolling\"\nrolling_friction = 0.3\n");
   EXPECT_EQ(rolling.simulation.contact.rotation, Rotation::Rolling);

@@ -7,7 +7,9 @@ Each function writes a run directory (``timeseries.csv``, ``summary.json``, ``co
 (``sample.txt`` from :func:`prepare_sample`) or a dict of ``[sample]`` keys, in which case the
 sample is prepared first in the same run. ``material``, ``contact``, ``damping``, ``timestep``,
 ``neighbor`` and ``output`` are the sections of docs/configuration.md; ``stage`` is a dict of
-keys passed to every stage (the keys every kind has, listed below). SI units throughout.
+keys passed to every stage (the keys every kind has, listed below); ``parameters="table1"``
+selects Table 1 as printed instead of crushdem's parameter set, the default (rotation blocked,
+d0 = 1.07 mm; docs/configuration.md). SI units throughout.
 ``backend`` chooses what advances the run: ``"cpu"`` (default), ``"cuda"`` (a GPU, in a build
 with CUDA) or ``"emulated"`` (the GPU's step run on the host: its results without a GPU); every
 laboratory function, sample preparation and resuming take it.
@@ -283,7 +285,9 @@ def _keys_doc(keys: List[_Key]) -> str:
 
 
 def _base(sample: SampleSpec, sections: Mapping[str, Any]) -> Dict[str, Any]:
-    cfg: Dict[str, Any] = {k: dict(v) for k, v in sections.items() if v is not None}
+    # A section is a mapping; a top-level key (``parameters="table1"``) passes as it is.
+    cfg: Dict[str, Any] = {k: dict(v) if isinstance(v, Mapping) else v
+                           for k, v in sections.items() if v is not None}
     if isinstance(sample, Mapping):
         cfg["sample"] = dict(sample)
     else:
@@ -379,12 +383,14 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
                    overwrite: bool = False, backend: str = "cpu",
                    material: Optional[Mapping[str, Any]] = None,
                    contact: Optional[Mapping[str, Any]] = None,
-                   output: Optional[Mapping[str, Any]] = None, **sample_keys: Any) -> Result:
+                   output: Optional[Mapping[str, Any]] = None,
+                   parameters: Optional[str] = None, **sample_keys: Any) -> Result:
     """Prepares a sample from a grading curve (``[sample]``); ``Result.sample_file`` is the
     reusable ``sample.txt``. ``grading`` = {"diameter": [...m], "passing": [...0-1]}; default
     NE34-like. Other ``[sample]`` keys pass through: ``shape="cylinder"`` (with
     ``height_ratio``) prepares a cylinder in a servo-controlled chamber (docs/chamber.md),
-    ``tolerance``, ``friction_start``, ..."""
+    ``tolerance``, ``friction_start``, ... ``parameters`` names the parameter set (default
+    crushdem's, docs/configuration.md)."""
     s: Dict[str, Any] = {"void_ratio": void_ratio, "seed": seed, "stress": stress}
     if side is not None:
         s["side"] = side
@@ -393,7 +399,8 @@ def prepare_sample(out: Union[str, os.PathLike], *, side: Optional[float] = None
     if grading is not None:
         s["grading"] = dict(grading)
     s.update(sample_keys)
-    cfg = _base(s, {"material": material, "contact": contact, "output": output})
+    cfg = _base(s, {"parameters": parameters, "material": material, "contact": contact,
+                    "output": output})
     return run(cfg, out, progress=progress, overwrite=overwrite, backend=backend)
 
 

@@ -14,10 +14,11 @@ import json
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 # Table 1 of the study (docs/model.md 1-3) with the first reconstruction choices: free rotation
-# (no key: the engine's default) and d0 = d50 (no key). The crushing keys are those of
-# examples/*crushing.toml.
+# and d0 = d50 (0), the engine's parameter set "table1" (`parameters = "table1"`; a test checks
+# that the two agree).
 MATERIAL = {"density": 2650.0, "shear_modulus": 32e9, "poisson_ratio": 0.19, "friction": 0.275}
-TABLE1_CONTACT = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
+ROUGH_LAW = {"law": "rough", "roughness_Sq": 0.6e-6, "k1": 0.05, "k2": 5.0}
+TABLE1_CONTACT = {**ROUGH_LAW, "rotation": "free"}
 NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e-3],
         "passing": [0.0, 0.10, 0.30, 0.50, 0.70, 0.90, 1.0]}
 # density_scaling as in examples/relaxation_small.toml and the runs of docs/crushing.md: the
@@ -26,8 +27,9 @@ NE34 = {"diameter": [0.12e-3, 0.15e-3, 0.18e-3, 0.21e-3, 0.23e-3, 0.25e-3, 0.27e
 # inertial number is reported per stage.
 TABLE1_CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distribution": "normal",
                    "r_prime": "R_star", "dc_ratio": 0.55, "d_min": 0.01e-3, "crack_growth": True,
-                   "v0": 0.1, "n": 60.0, "density_scaling": True}
-# crushdem's parameter set for the study, chosen by the decision study of docs/crushing.md
+                   "v0": 0.1, "n": 60.0, "density_scaling": True, "d0": 0.0}
+# crushdem's parameter set for the study (the engine's default set, "crushdem"), chosen by the
+# decision study of docs/crushing.md
 # ("Which rotation model and which grain strength"): Table 1 with rotation blocked (Table 1 lists
 # no rotation model; free spheres cannot reach the study's strength) and d0 = 1.07 mm (a d50
 # grain breaks between platens at F / d^2 = 0.50 GPa, the top of the 0.05-0.5 GPa accepted for

@@ -692,6 +692,18 @@ NB_MODULE(_core, m) {
   m.def("backends", &stepper_names,
         "The backends this build can run: \"cpu or emulated\", or \"cpu, emulated or cuda\".");
   m.def(
+      "parameter_sets",
+      [] {
+        nb::list out;
+        for (const ParameterSet& set : parameter_sets()) {
+          out.append(nb::make_tuple(std::string(set.name), std::string(set.doc),
+                                    toml::serialize(set.values)));
+        }
+        return out;
+      },
+      "The named parameter sets (the top-level key `parameters`), the default first, as "
+      "(name, description, TOML of the [contact] and [crushing] values) tuples.");
+  m.def(
       "resolved_run_config",
       [](nb::dict config, const std::string& base_dir) {
         return toml::serialize(

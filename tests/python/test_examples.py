@@ -72,8 +72,7 @@ def test_example_is_the_study_material_at_the_scale_its_name_says(path):
         cfg = tomllib.load(f)
     name = os.path.basename(path)
     assert cfg["material"] == study.MATERIAL
-    assert {k: v for k, v in cfg["contact"].items() if k in study.TABLE1_CONTACT} == \
-        study.TABLE1_CONTACT
+    assert {k: v for k, v in cfg["contact"].items() if k in study.ROUGH_LAW} == study.ROUGH_LAW
     sample, particles = cfg.get("sample", {}), cfg.get("particles", {})
     if "grading" in sample:
         assert sample["grading"] == study.NE34
@@ -101,4 +100,7 @@ def test_example_passes_check(path, tmp_path, capfd):
     sample.parent.mkdir(parents=True)
     sample.write_text(SAMPLE)
     rc = crushdem.cli_main(["check", str(target)])
-    assert rc == 0, capfd.readouterr().err
+    out, err = capfd.readouterr()
+    assert rc == 0, err
+    # Every example runs crushdem's parameter set, and check says so.
+    assert 'parameters = "crushdem" (the default)' in out, out

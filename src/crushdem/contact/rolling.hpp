@@ -47,8 +47,10 @@ inline const char* to_string(Rotation r) {
 
 /// The keys of [contact] on the grains' rotation and the rolling resistance.
 struct RotationConfig {
-  double rolling_friction = 0.0;       // mu_r of grain-grain rolling resistance (CHOICE; 0 = off)
-  Rotation rotation = Rotation::Free;  // "free" | "rolling" (needs mu_r > 0) | "blocked"
+  double rolling_friction = 0.0;  // mu_r of grain-grain rolling resistance (CHOICE; 0 = off)
+  // "free" | "rolling" (needs mu_r > 0) | "blocked": crushdem's parameter set (the default,
+  // io/parameter_sets.hpp); Table 1 as printed is "free".
+  Rotation rotation = Rotation::Blocked;
   static const ParamTable<RotationConfig>& config_params() {
     using C = RotationConfig;
     static const ParamTable<C> table = {
@@ -64,8 +66,9 @@ struct RotationConfig {
          "`\"rolling\"` free spins plus the rolling resistance of `rolling_friction` (> 0); "
          "`\"blocked\"` spins held at zero and contact moments ignored (the rotation-prohibited "
          "spheres of Arroyo et al. 2011), sliding friction still acting. Grains and fragments "
-         "alike. Without the key, `rolling_friction` > 0 means `\"rolling\"`; crushdem's study "
-         "parameter set uses `\"blocked\"` (docs/model.md 1.5)"},
+         "alike. Without the key, `rolling_friction` > 0 means `\"rolling\"`. The default, "
+         "`\"blocked\"`, is crushdem's parameter set (docs/model.md 1.5); `parameters = "
+         "\"table1\"` gives `\"free\"`"},
     };
     return table;
   }

@@ -88,8 +88,9 @@ const ParamTable<CrushingConfig>& crushing_params() {
        "f ~ normal(1, var) truncated to [0.05, 1 + 3 var] (CHOICE), or `\"uniform\"` on "
        "[1 - var, 1 + var]"},
       {"d0", &K::d0, "m",
-       "reference diameter; 0 = d50 of the grains present when the test starts (CHOICE; "
-       "crushdem's study parameter set: 1.07 mm, docs/model.md 2.1)",
+       "reference diameter; 0 = d50 of the grains present when the test starts. The default, "
+       "1.07 mm, is crushdem's parameter set (CHOICE, docs/model.md 2.1: a d50 grain of NE34 "
+       "breaks at F / d^2 = 0.50 GPa); `parameters = \"table1\"` gives 0",
        non_negative, "a reference diameter in m (0 = d50 of the initial grains)"},
       {"r_prime",
        ParamChoice<K>{[](const K& k) { return k.r_prime; },

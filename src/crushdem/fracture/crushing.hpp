@@ -38,7 +38,9 @@ struct CrushingConfig {
   double weibull_m = 12.0;     // Weibull modulus m [-] (STUDY)
   double var = 0.38;           // strength variability [-] (STUDY)
   StrengthDistribution distribution = StrengthDistribution::Normal;  // "normal" | "uniform"
-  double d0 = 0.0;                 // reference diameter [m]; 0 = d50 of the initial grains (CHOICE)
+  // Reference diameter [m]: crushdem's parameter set (the default, io/parameter_sets.hpp);
+  // 0 = d50 of the initial grains (Table 1 as printed, `parameters = "table1"`).
+  double d0 = 1.07e-3;
   std::string r_prime = "R_star";  // "R_star" (CHOICE) | "2R_star"
   double dc_ratio = 0.55;          // d_c = dc_ratio * d50 of the initial grains (STUDY)
   double d_min = 0.01e-3;          // fragments smaller than this are removed [m] (STUDY)

@@ -11,6 +11,7 @@
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/io/param_io.hpp"
+#include "crushdem/io/parameter_sets.hpp"
 
 namespace crushdem {
 namespace {
@@ -115,17 +116,19 @@ Value cnt(std::uint64_t v) {
 
 SimulationConfig simulation_config_from_toml(const toml::Table& root, const std::string& source) {
   SimulationConfig c;
+  CrushingConfig crushing;  // the set's [crushing] values: no crushing here
+  read_parameter_set(root, source, c.contact, crushing);
   Section r(&root, "", source);
   read_simulation(r, c);
   // Only the simulation sections are read here; the caller owns the others.
   for (const auto& [k, v] : root) {
-    static const std::set<std::string> mine = {"material", "contact",  "damping",
-                                               "timestep", "neighbor", "box",
-                                               "walls",    "body",     "gravity"};
+    static const std::set<std::string> mine = {"parameters", "material", "contact", "damping",
+                                               "timestep",   "neighbor", "box",     "walls",
+                                               "body",       "gravity"};
     if (!mine.count(k)) {
       throw ConfigError(r.where(v) + "unknown key '" + k +
-                        "' (valid sections: material, contact, damping, timestep, neighbor, "
-                        "box, walls, body, gravity)");
+                        "' (valid: parameters and the sections material, contact, damping, "
+                        "timestep, neighbor, box, walls, body, gravity)");
     }
   }
   c.validate();
@@ -189,7 +192,9 @@ void place_sample_box(RunConfig& c) {
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
                                const std::string& base_dir) {
   RunConfig c;
+  c.parameters = read_parameter_set(root, source, c.simulation.contact, c.crushing);
   Section r(&root, "", source);
+  r.find("parameters");  // read above
   read_simulation(r, c.simulation, /*box_required=*/false);
   c.has_sample = root.count("sample") > 0;
   const bool has_particles = root.count("particles") > 0;
@@ -701,6 +706,8 @@ toml::Table output_table(const OutputConfig& o) {
 
 toml::Table to_toml(const RunConfig& c) {
   Table t = to_toml(c.simulation);
+  // Every key of the set is written as well; the name says where they came from.
+  t["parameters"] = Value::make_string(c.parameters.name);
   if (c.has_sample || !c.stages.empty()) t.erase("walls");  // the stages set the walls
   if (c.has_sample) {
     t.erase("box");

@@ -14,6 +14,7 @@
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/param_io.hpp"
+#include "crushdem/io/parameter_sets.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem {
@@ -82,6 +83,7 @@ struct UpscalingConfig {
 const ParamTable<UpscalingConfig>& upscaling_params();
 
 struct RunConfig {
+  ParameterSetUse parameters;  // the top-level key `parameters` (io/parameter_sets.hpp)
   SimulationConfig simulation;
   ParticlesConfig particles;  // unless has_sample
   bool has_sample = false;    // [sample]: prepare a sample from a grading curve first

@@ -146,10 +146,15 @@ class Run {
                              : branching_ ? "branch"
                                           : "run") +
                      " with crushdem " + CRUSHDEM_VERSION + " (" + build_commit() + "), backend " +
-                     opt_.backend + ", " + std::to_string(max_team_size()) + " threads" +
+                     opt_.backend + ", " + std::to_string(max_team_size()) +
+                     (max_team_size() == 1 ? " thread" : " threads") +
                      (branching_ ? ", from " + from_.string() + " stage " + opt_.branch_stage
                                  : std::string()),
                  false);
+    for (const std::string& line : parameter_set_report(cfg_.parameters, cfg_.simulation.contact,
+                                                        cfg_.crushing, cfg_.crushing.enabled)) {
+      driver_->say(line, false);
+    }
     if (!opt_.resume) {  // a branch may change keys that warn (v0, n): its own
       for (const std::string& w : cfg_.warnings()) {
         if (std::find(pos_.warnings.begin(), pos_.warnings.end(), w) != pos_.warnings.end()) {
