@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds crushdem and runs every test: the C++ suite (GoogleTest via CTest) and the Python
-# suite (pytest on the pip-installed package). Installs what it needs on a fresh Debian 12
-# machine. Usage: bash scripts/test.sh            (from the repository root)
+# suite (pytest on the pip-installed package, the notebooks included), then the docs site
+# (scripts/docs.sh). Installs what it needs on a fresh Debian 12 machine.
+# Usage: bash scripts/test.sh            (from the repository root)
 # Env: JOBS (build parallelism, default nproc). The study-scale validation runs are opt-in
 #      (hours): CRUSHDEM_VALIDATION_DIR=DIR .venv/bin/python -m pytest tests/python/test_validation.py
 set -euo pipefail
@@ -32,3 +33,6 @@ echo "== Python: install the package into .venv, run pytest"
 ensure_venv
 .venv/bin/python -m pip install --quiet ".[test]"
 .venv/bin/python -m pytest tests/python -q
+
+echo "== Docs: the site, strict (the notebooks ran in pytest above: test_notebooks.py)"
+bash scripts/docs.sh
