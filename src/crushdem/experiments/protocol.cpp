@@ -306,10 +306,21 @@ bool PreparationController::update(Simulation& sim) {
     case Phase::Settle:
       if (!equilibrium) return false;
       if (std::abs(e_ - e_target) > cfg_.tolerance) {
-        warning_ = "prepared void ratio " + show_number(e_) +
-                   " differs from sample.void_ratio = " + show_number(e_target) +
-                   " by more than sample.tolerance = " + show_number(cfg_.tolerance) +
-                   (e_ < e_target ? " (too dense: raise sample.friction_start)" : " (too loose)");
+        // The compaction reached the target; the difference comes from the settling at the
+        // material's friction, which the preparation's own friction cannot change.
+        warning_ =
+            "prepared void ratio " + show_number(e_) +
+            " differs from sample.void_ratio = " + show_number(e_target) +
+            " by more than sample.tolerance = " + show_number(cfg_.tolerance) +
+            (e_ < e_target
+                 ? ": the grains reached the target and then settled, at the material's "
+                   "friction (material.friction = " +
+                       show_number(mu_material_) +
+                       ") under sample.stress = " + show_number(cfg_.stress) +
+                       " Pa, to this denser packing; a packing looser than that does not "
+                       "stand with this friction at this stress (ask for e <= " +
+                       show_number(std::floor(e_ * 100.0) / 100.0) + " or a lower sample.stress)"
+                 : std::string(" (too loose)"));
       }
       phase_ = Phase::Done;
       return true;

@@ -155,6 +155,36 @@ void Simulation::invalidate() {
   ++layout_version_;
 }
 
+std::string Simulation::left_the_box(std::size_t i, int k) const {
+  // What one step moved the grain and the wall, in the grain's radii: which of the usual causes
+  // it was.
+  const double r = p_.radius[i], dt = time_step_.value();
+  const double v = std::sqrt(p_.vx[i] * p_.vx[i] + p_.vy[i] * p_.vy[i] + p_.vz[i] * p_.vz[i]);
+  // Positive: the wall moves towards the grains (a low wall up, a high wall down).
+  const double v_wall = (wall_is_low(k) ? 1.0 : -1.0) * walls_.state(k).velocity;
+  const double grain_per_step = v * dt / r, wall_per_step = v_wall * dt / r;
+  std::string cause;
+  if (grain_per_step > 0.1) {
+    cause = "the grain moved " + show_number(grain_per_step) +
+            " of its radius in the last step (|v| = " + show_number(v) +
+            " m/s): the grains blew up, from a time step too large for the contact stiffness "
+            "(timestep keys) or from deep overlaps in the sample";
+  } else if (wall_per_step > 0.01) {
+    cause = "the wall moves " + show_number(wall_per_step) +
+            " of the grain's radius per step towards the grains (" + show_number(v_wall) +
+            " m/s): faster than the grains can follow; lower the strain rate or the servo's "
+            "speed limit";
+  } else {
+    cause = "it was pressed through the wall slowly (|v| = " + show_number(v) +
+            " m/s, the wall at " + show_number(v_wall) +
+            " m/s towards the grains): a wall stress far beyond what the contact law holds "
+            "for a grain of this size (check the target stresses and the grains' sizes)";
+  }
+  return "particle id " + std::to_string(p_.id[i]) + " (radius " + show_number(r) +
+         " m) left the box through wall " + wall_name(k) + " at t = " + show_number(time_) +
+         " s: " + cause;
+}
+
 void Simulation::rebuild_neighbors() {
   const PartScope timed(part_clock_, Part::NeighborSearch);
   if (nl_valid_) history_.capture(p_, nl_, wc_);
@@ -172,9 +202,7 @@ void Simulation::rebuild_neighbors() {
     }
     for (int k = 0; k < kNumWalls; ++k) {
       if (!(wall_gap(k, walls_.position(k), p_.x[i], p_.y[i], p_.z[i]) > -p_.radius[i])) {
-        throw RuntimeFailure("particle id " + std::to_string(p_.id[i]) +
-                             " left the box through wall " + wall_name(k) +
-                             " at t = " + show_number(time_) + " s");
+        throw RuntimeFailure(left_the_box(i, k));
       }
     }
   }

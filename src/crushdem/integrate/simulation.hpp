@@ -210,6 +210,8 @@ class Simulation {
   NormalForce normal_force(double delta, double R_star, bool wall) const;
 
  private:
+  /// The message for grain i found beyond wall k, with the likely cause.
+  std::string left_the_box(std::size_t i, int k) const;
   void check_loaded_state() const;
   ContactRecord pair_record(std::size_t e) const;
   /// drift_next: also the next step's first half kick and drift (into next_drift_).

@@ -97,6 +97,14 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
       throw ConfigError(std::string("missing key 'box.") + (has_lo ? "max" : "min") +
                         "': expected an array of 3 numbers [x, y, z] in m");
     }
+    for (int a = 0; a < 3; ++a) {
+      for (const auto& [name, v] : {std::pair{"min", lo[a]}, std::pair{"max", hi[a]}}) {
+        if (!std::isfinite(v)) {
+          throw ConfigError(bad_value("box." + std::string(name) + "[" + std::to_string(a) + "]",
+                                      show_number(v), "a finite coordinate in m"));
+        }
+      }
+    }
     s.finish();
     for (int a = 0; a < 3; ++a) {
       c.walls[static_cast<std::size_t>(2 * a)].position = lo[a];
@@ -602,10 +610,13 @@ std::vector<std::string> RunConfig::warnings() const {
 }
 
 void RunConfig::validate() const {
-  simulation.validate();
+  // The sample before the walls: a sample's walls come from its keys (void_ratio, grading), so
+  // a bad one is named by its own key, not by the wall position it made.
+  validate_params(simulation.material, material_params(), "material");
   validate_params(upscaling, upscaling_params(), "upscaling");
   // The sample as the run makes it: with upscaled grains.
   if (has_sample) upscaled(*this).sample.validate(simulation);
+  simulation.validate();
   if (has_sample || file_chamber_radius > 0.0) {
     for (std::size_t i = 0; i < simulation.bodies.size(); ++i) {
       const std::string& n = simulation.bodies[i].name;

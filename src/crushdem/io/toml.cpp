@@ -331,6 +331,28 @@ void write_body(std::string& out, const Table& t, const std::string& path) {
   }
 }
 
+/// toml++'s message for a key given twice prints a quoted key garbled ('"a a b" ' for "a b"):
+/// the key as the line writes it instead, or the message as it is when the line is not found.
+std::string parse_message(std::string_view text, const ::toml::parse_error& e) {
+  std::string message(e.description());
+  if (message.find("cannot redefine existing") == std::string::npos) return message;
+  std::size_t begin = 0;
+  for (std::uint32_t line = 1; line < e.source().begin.line; ++line) {
+    begin = text.find('\n', begin);
+    if (begin == std::string_view::npos) return message;
+    ++begin;
+  }
+  std::string_view line = text.substr(begin, text.find('\n', begin) - begin);
+  const std::size_t eq = line.find('=');
+  if (eq == std::string_view::npos) return message;
+  line = line.substr(0, eq);
+  while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
+  while (!line.empty() && (line.back() == ' ' || line.back() == '\t')) line.remove_suffix(1);
+  if (line.empty()) return message;
+  return "key " + std::string(line) +
+         " is given twice in its table (TOML allows each key once; remove one)";
+}
+
 }  // namespace
 
 Table parse(std::string_view text, const std::string& source_name) {
@@ -338,7 +360,7 @@ Table parse(std::string_view text, const std::string& source_name) {
     const ::toml::table root = ::toml::parse(text, std::string_view(source_name));
     return convert_table(root, "", source_name, 0);
   } catch (const ::toml::parse_error& e) {
-    throw ConfigError(where(source_name, e.source()) + std::string(e.description()));
+    throw ConfigError(where(source_name, e.source()) + parse_message(text, e));
   }
 }
 
