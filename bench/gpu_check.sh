@@ -74,7 +74,7 @@ PACKING="$OUT/packing.txt"
 if want bench; then
   gunzip -c "$DEPS/packing.txt.gz" > "$PACKING"
   python3 bench/tile_packing.py 5 "$OUT/packing_5.txt" "$PACKING"
-  # The peer problem's constants (../shared/bench-peers/common/lib.sh), as bench/lib.sh
+  # The peer problem's constants (bench/peers/common/lib.sh), as bench/lib.sh
   # exports them.
   export RHO=2500 G_SHEAR=2.6e9 NU=0.3 MU=0.5 REST=0.5 DT=5e-8 SKIN=3.75e-5
   for law in hertz rough; do

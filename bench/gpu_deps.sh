@@ -15,7 +15,7 @@ DEPS=${2:-build/gpu-deps}
 mkdir -p "$DEPS/include"
 cp -r /usr/include/toml++ "$DEPS/include/"
 cp -r /usr/include/CLI "$DEPS/include/"
-cp ../shared/bench-peers/common/packing.txt.gz "$DEPS/packing.txt.gz"
+cp bench/peers/common/packing.txt.gz "$DEPS/packing.txt.gz"
 cp "$REPRO/sample/sample.txt" "$DEPS/sample_rev.txt"
 for run in oedometric_relaxation triaxial_relaxation; do
   [ -f "$REPRO/$run/config.toml" ] || { echo "gpu_deps: no $REPRO/$run/config.toml" >&2; continue; }

@@ -11,7 +11,7 @@
 # shared host whose speed drifts by 20-30 % over minutes, the two medians then come from
 # different host states and their ratio moves by as much. Pairs made a minute apart see nearly
 # the same host; the median of the per-round ratios is the figure to compare builds with. The
-# problem, protocol and LAMMPS input are the shared ones (../shared/bench-peers), unchanged.
+# problem, protocol and LAMMPS input are the shared ones (bench/peers), unchanged.
 # Background `crushdem run`/`resume` jobs are stopped (SIGSTOP) while it runs and continued after.
 set -euo pipefail
 # shellcheck source=bench/lib.sh

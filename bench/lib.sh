@@ -2,11 +2,11 @@
 # Helpers shared by the benchmark scripts that time crushdem repeatedly on the peer reference
 # problem (alternate.sh, interleaved_peers.sh). Sourced, not run.
 
-# The peer problem's constants (../shared/bench-peers/common/lib.sh: PACKING, DT, SKIN, ...),
+# The peer problem's constants (bench/peers/common/lib.sh: PACKING, DT, SKIN, ...),
 # exported for `crushdem bench`, which reads them from the environment as the peers do.
 bench_setup() {
   ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-  PEER_DIR="${PEER_DIR:-$ROOT/../shared/bench-peers}"
+  PEER_DIR="${PEER_DIR:-$ROOT/bench/peers}"
   # shellcheck source=/dev/null
   source "$PEER_DIR/common/lib.sh"
   ensure_packing

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ENGINE_CMD for ../shared/bench-peers/run_all.sh: runs `crushdem bench` on the reference
+# ENGINE_CMD for bench/peers/run_all.sh: runs `crushdem bench` on the reference
 # problem with the harness's environment (PACKING DT STEPS WARM THREADS RHO G_SHEAR NU MU REST
 # SKIN STATE_OUT are read by `crushdem bench` itself). Law: CRUSHDEM_LAW (hertz | rough).
 set -euo pipefail

@@ -13,7 +13,7 @@ def main() -> None:
     if len(sys.argv) < 3:
         sys.exit(__doc__)
     n, out = int(sys.argv[1]), sys.argv[2]
-    src = sys.argv[3] if len(sys.argv) > 3 else "../shared/bench-peers/common/packing.txt.gz"
+    src = sys.argv[3] if len(sys.argv) > 3 else "bench/peers/common/packing.txt.gz"
     if n < 1:
         sys.exit(f"N = {n}: expected a repeat count >= 1")
     opener = gzip.open if src.endswith(".gz") else open

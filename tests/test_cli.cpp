@@ -58,10 +58,13 @@ TEST(Cli, EveryCommandHasHelp) {
       EXPECT_EQ(o.rc, 0) << command << " " << flag << ": " << o.err;
       EXPECT_TRUE(has(o.out, "Usage: crushdem " + command)) << o.out;
       for (const std::string& opt : expected) EXPECT_TRUE(has(o.out, opt)) << command << opt;
+      // A command's help is its own: the list of the Python package's commands is the top's.
+      EXPECT_FALSE(has(o.out, "Commands of the Python package")) << command << o.out;
     }
   }
   const Outcome top = cli({"--help"});
   EXPECT_EQ(top.rc, 0);
+  EXPECT_TRUE(has(top.out, "Commands of the Python package")) << top.out;
   for (const char* c : {"run", "resume", "check", "bench", "plot", "reproduce", "sensitivity"}) {
     EXPECT_TRUE(has(top.out, c)) << c;
   }

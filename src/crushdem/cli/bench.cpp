@@ -123,7 +123,8 @@ int bench_main(const BenchArgs& a) {
   cfg.contact.law = parse_normal_law(law, "--law");
   cfg.contact.wall_friction = cfg.material.friction;
   cfg.contact.restitution = env_number("REST", 0.5);
-  cfg.damping.local_alpha = 0.0;  // the peers use viscous contact damping only
+  cfg.contact.rotation = Rotation::Free;  // the peers' spheres turn freely
+  cfg.damping.local_alpha = 0.0;          // the peers use viscous contact damping only
   cfg.timestep.dt = env_number("DT", 1.494169e-8);
   cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
   cfg.neighbor.prune = prune != 0;

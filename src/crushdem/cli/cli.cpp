@@ -62,7 +62,6 @@ int cli_main(const std::vector<std::string>& args) {
                ": discrete element simulation of crushable sand (grains that break over time)",
                "crushdem");
   app.set_version_flag("--version", "crushdem " CRUSHDEM_VERSION);
-  app.footer(kPythonCommands);
   app.fallthrough();  // --version after a subcommand too
   app.require_subcommand(0, 1);
 
@@ -128,6 +127,9 @@ int cli_main(const std::vector<std::string>& args) {
   c_bench->add_option("--prune", bench.prune, "1: pruned neighbour list; 0: the full list")
       ->envname("PRUNE")
       ->check(CLI::IsMember({0, 1}));
+
+  // Set after the subcommands, which would inherit it: their help is theirs alone.
+  app.footer(kPythonCommands);
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 reads them reversed
   try {
