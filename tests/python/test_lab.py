@@ -44,7 +44,7 @@ def test_every_stage_kind_has_its_table_and_docs():
 # The keyword arguments callers use (reproduce.py, sensitivity.py, the docs, the examples).
 SIGNATURES = {
     "prepare_sample": "out side count void_ratio grading seed stress progress overwrite backend "
-                      "material contact output sample_keys",
+                      "material contact output parameters sample_keys",
     "isotropic_test": "out sample stress progress overwrite backend stage sections",
     "oedometric_test": "out sample stress strain_rate hold_steps unload_to progress overwrite "
                        "backend stage sections",

@@ -60,7 +60,8 @@ def test_required_dependencies_are_minimal_and_the_rest_are_extras():
     assert sorted(extras["sweep"]) == ["dask[distributed]", "pyarrow"]
     assert sorted(extras["calibrate"]) == ["dask[distributed]", "scipy"]
     assert extras["all"] == ["crushdem[plot,sweep,calibrate]"]
-    assert "crushdem[all]" in extras["test"] and "pytest" in _names(extras["test"])
+    assert any(e.startswith("crushdem[") and "all" in e[len("crushdem["):-1].split(",")
+               for e in extras["test"]) and "pytest" in _names(extras["test"])
     # The message of a missing package names an extra that exists.
     from crushdem import _optional
 

@@ -172,3 +172,52 @@ def test_bodies_are_surfaces_where_their_degrees_of_freedom_put_them(chamber_dir
     apex = cells[offsets[0]]  # the cone's first triangle starts at its apex
     np.testing.assert_allclose(points[apex], [row["tip_x_m"], row["tip_y_m"], row["tip_z_m"]],
                                rtol=0, atol=1e-15)
+
+
+def test_frames_mark_the_prepared_sample_each_stage_start_and_each_dynamic_phase(tmp_path):
+    # The small creep test of tests/data: a hold, then an age stage of a day. The frames are the
+    # first state, the age stage's start, the end of every dynamic phase (at its ageing time:
+    # the .pvd's time is the DEM time plus the ageing clock), the periodic ones and the end.
+    import csv
+
+    from _data import data_text
+
+    config = tmp_path / "creep.toml"
+    config.write_text(data_text("grains_300.toml", "creep_300.toml"))
+    out = tmp_path / "run"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+                          str(out), "--quiet"], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    entries = _collection(out / "vtk" / "particles.pvd")
+    frames = {int(name[len("particles_"):-4]): t for t, name in entries}
+    times = [t for t, _ in entries]
+    assert all(b > a for a, b in zip(times, times[1:]))
+    with open(out / "summary.json") as f:
+        summary = json.load(f)
+    assert 25000 in frames  # the age stage's start (after the 25,000-step hold)
+    with open(out / "events.csv") as f:
+        events = list(csv.DictReader(f))
+    assert len(events) >= 3
+    for row in events:
+        step = int(row["step"])
+        assert step in frames, step
+        assert frames[step] == pytest.approx(float(row["time_s"]) + float(row["ageing_time_s"]),
+                                             rel=1e-12)
+    assert times[-1] == pytest.approx(summary["time_s"] + 86400.0, rel=1e-9)
+
+
+def test_the_first_frame_of_a_prepared_sample_is_the_sample_not_the_loose_cloud(tmp_path):
+    config = tmp_path / "sample.toml"
+    config.write_text('[sample]\ncount = 500\nvoid_ratio = 0.8\nseed = 3\n'
+                      '[output]\nprogress_seconds = 0\n')
+    out = tmp_path / "run"
+    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+                          str(out), "--quiet"], capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    entries = _collection(out / "vtk" / "particles.pvd")
+    with open(out / "summary.json") as f:
+        summary = json.load(f)
+    first = int(entries[0][1][len("particles_"):-4])
+    assert first == summary["steps"] > 0  # the prepared state: the preparation's last step
+    grains = _read(out / "vtk" / entries[0][1])
+    assert grains.GetNumberOfPoints() == summary["particles"]

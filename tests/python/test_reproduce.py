@@ -768,13 +768,15 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
     before = study.settings(quick=False, parameters="blocked_d0_1mm")
     assert before["crushing"] == {**chosen["crushing"], "d0": 1e-3}
     assert before["contact"] == chosen["contact"]
-    # The earlier defaults: the engine's free rotation and d0 = d50 (no key), recorded by name.
-    assert "rotation" not in table1["contact"] and "d0" not in table1["crushing"]
+    # Table 1 as printed: free rotation and d0 = d50, named (the engine's default set blocks
+    # rotation and sets d0 = 1.07 mm), and recorded by name.
+    assert table1["contact"]["rotation"] == "free" and table1["crushing"]["d0"] == 0.0
     assert table1["parameters"] == "table1" and "parameters" not in chosen
     # Apart from those two choices the sets are the same Table 1.
     for section in ("contact", "crushing"):
-        rest = {k: v for k, v in chosen[section].items() if k not in ("rotation", "d0")}
-        assert rest == table1[section]
+        def rest(s):
+            return {k: v for k, v in s.items() if k not in ("rotation", "d0")}
+        assert rest(chosen[section]) == rest(table1[section])
     with pytest.raises(ValueError, match="expected one of crushdem, blocked_d0_1mm, table1"):
         study.settings(quick=True, parameters="pfc")
     res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",

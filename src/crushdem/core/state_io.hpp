@@ -22,7 +22,7 @@ namespace crushdem {
 /// the ParaView snapshots by step and time (for the .pvd collections); 6 records a checksum of
 /// each result file's bytes and the size and checksum of every file written whole before it
 /// (sample, snapshots, stage states), which resume and branches check.
-constexpr int kStateVersion = 6;
+constexpr int kStateVersion = 7;
 
 /// The start value of fnv1a64, for a hash continued over pieces.
 inline constexpr std::uint64_t kFnvOffset = 14695981039346656037ULL;

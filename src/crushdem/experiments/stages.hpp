@@ -182,6 +182,10 @@ class StageOutputs {
   virtual Measurement measure(const Simulation& sim) const = 0;
   /// A checkpoint once the current check is over (an ageing event).
   virtual void request_checkpoint() = 0;
+  /// The run's ageing clock now [s]: the time later ParaView frames add to the DEM time.
+  virtual void set_ageing_clock(double ageing_time) = 0;
+  /// A ParaView frame of the state now (the end of a dynamic phase).
+  virtual void snapshot() = 0;
 };
 
 /// What every stage kind shares: its start (walls fixed, then the kind's set_walls), the peaks

@@ -493,8 +493,9 @@ const ParamTable<OutputConfig>& output_params() {
       {"interval", &O::interval, "", "steps between rows of `timeseries.csv`",
        [](double v) { return v > 0.0; }, "a positive number of steps"},
       {"vtk_interval", &O::vtk_interval, "",
-       "steps between ParaView snapshots (counted from step 0); 0 = the first and last state "
-       "only"},
+       "steps between ParaView snapshots (counted from step 0); 0 = none between the frames "
+       "always written: the first state (a prepared sample once prepared), each stage's start, "
+       "each dynamic phase's end and the last state"},
       {"progress_seconds", &O::progress_seconds, "s",
        "wall-clock seconds between progress lines on the terminal; 0 = none",
        [](double v) { return v >= 0.0; }, "a time >= 0 in s"},

@@ -335,7 +335,11 @@ void write_body(std::string& out, const Table& t, const std::string& path) {
 /// the key as the line writes it instead, or the message as it is when the line is not found.
 std::string parse_message(std::string_view text, const ::toml::parse_error& e) {
   std::string message(e.description());
-  if (message.find("cannot redefine existing") == std::string::npos) return message;
+  // Only a quoted key comes out garbled; a bare one is named well.
+  if (message.find("cannot redefine existing") == std::string::npos ||
+      message.find('"') == std::string::npos) {
+    return message;
+  }
   std::size_t begin = 0;
   for (std::uint32_t line = 1; line < e.source().begin.line; ++line) {
     begin = text.find('\n', begin);
@@ -348,9 +352,10 @@ std::string parse_message(std::string_view text, const ::toml::parse_error& e) {
   line = line.substr(0, eq);
   while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
   while (!line.empty() && (line.back() == ' ' || line.back() == '\t')) line.remove_suffix(1);
-  if (line.empty()) return message;
-  return "key " + std::string(line) +
-         " is given twice in its table (TOML allows each key once; remove one)";
+  // A key = value line with a quoted key; anything else (an inline table) keeps the message.
+  if (line.empty() || line.front() != '"' || line.back() != '"') return message;
+  return "key '" + std::string(line) +
+         "' is given twice in its table (TOML allows each key once; remove one)";
 }
 
 }  // namespace

@@ -75,7 +75,7 @@ CsvWriter& Driver::file(const std::string& name) {
 
 void Driver::snapshot() {
   const PartScope timed(sim_.part_clock(), Part::Output);
-  const Snapshot now{sim_.step_count(), sim_.time()};
+  const Snapshot now{sim_.step_count(), sim_.time(), ageing_clock_};
   if (!snapshots_.empty() && snapshots_.back().step == now.step) return;  // written already
   const std::filesystem::path vtk = dir_ / "vtk";
   const std::string k = step_stamp(now.step);
@@ -104,7 +104,7 @@ void Driver::write_collections() const {
   for (const std::string& kind : snapshot_kinds()) {
     std::vector<PvdEntry> entries;
     for (const Snapshot& s : snapshots_) {
-      entries.push_back({s.time, kind + "_" + step_stamp(s.step) + ".vtp"});
+      entries.push_back({s.time + s.ageing, kind + "_" + step_stamp(s.step) + ".vtp"});
     }
     write_pvd((dir_ / "vtk" / (kind + ".pvd")).string(), entries);
   }
@@ -241,8 +241,12 @@ void Driver::state(StateArchive& a) {
   if (a.version() >= 5) {
     const auto count = a.count(snapshots_.size(), "snapshot count");
     if (a.loading()) snapshots_.resize(count);
-    for (Snapshot& snap : snapshots_) a(snap.step, snap.time);
+    for (Snapshot& snap : snapshots_) {
+      a(snap.step, snap.time);
+      a.since(7, snap.ageing);
+    }
   }
+  a.since(7, ageing_clock_);
   // Each result file: its name, its length and its columns, from format 6 on its checksum.
   const auto n = a.count(files_.size(), "result file count");
   if (!a.loading()) {

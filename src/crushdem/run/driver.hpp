@@ -31,10 +31,13 @@ std::string ordinal_stamp(std::size_t k);
 /// Snapshot file names carry the step, zero-padded so that they sort in order.
 std::string step_stamp(std::uint64_t step);
 
-/// A ParaView snapshot: the step (its files' names) and the simulated time (the .pvd's).
+/// A ParaView snapshot: the step (its files' names), the simulated (DEM) time and the run's
+/// ageing clock then. The .pvd's time is their sum, the physical time: the DEM time plus every
+/// ageing jump before it, so that the frames of an age stage stand at their ageing times.
 struct Snapshot {
   std::uint64_t step = 0;
   double time = 0.0;
+  double ageing = 0.0;  // [s]
 };
 inline constexpr const char* kSnapshotKinds[] = {"particles", "contacts", "box"};
 
@@ -76,8 +79,12 @@ class Driver {
   RunManifest* manifest = nullptr;
 
   /// The state as ParaView files named by step (vtk/particles_, contacts_ and box_STEP.vtp),
-  /// listed with their times in vtk/particles.pvd, contacts.pvd and box.pvd.
+  /// listed with their times (DEM time plus the ageing clock) in vtk/particles.pvd,
+  /// contacts.pvd and box.pvd. The runner takes one when the sample is prepared, at each stage's
+  /// start and at the end; an age stage at the end of each dynamic phase.
   void snapshot();
+  /// The run's ageing clock now (the ageing jumps so far) [s]: the time the frames add.
+  void set_ageing_clock(double t) { ageing_clock_ = t; }
   /// vtk/KIND.pvd for each kind of snapshot file, from the snapshots written so far.
   void write_collections() const;
 
@@ -153,6 +160,7 @@ class Driver {
   std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
   std::filesystem::path dir_;
   std::vector<Snapshot> snapshots_;
+  double ageing_clock_ = 0.0;
   std::vector<KeptFile> kept_;
   std::size_t legacy_snapshots_ = 0;
   bool checkpoint_requested_ = false;

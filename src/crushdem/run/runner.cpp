@@ -100,6 +100,8 @@ class RunFiles final : public StageOutputs {
     return m;
   }
   void request_checkpoint() override { driver_.request_checkpoint(); }
+  void set_ageing_clock(double ageing_time) override { driver_.set_ageing_clock(ageing_time); }
+  void snapshot() override { driver_.snapshot(); }
 
  private:
   Driver& driver_;
@@ -392,7 +394,7 @@ class Run {
       }
       check_bodies_clear(sim.walls(), sim.particles());
       sim.compute_forces();
-      driver_->snapshot();
+      // No frame of the loose cloud: the first is the prepared sample (below).
       pos_.ref0 = StrainReference::from(sim.walls());
       pos_.part = kPartPreparation;
     }
@@ -430,6 +432,7 @@ class Run {
     manifest_.add("sample.txt");
     write_packing((dir_ / "sample.txt").string(), pk);
     driver_->keep("sample.txt");
+    driver_->snapshot();
     pos_.sample_json = sample_json(sim, cfg_.sample, prep);
     pos_.has_sample_json = true;
     if (!prep.warning().empty()) {
@@ -501,7 +504,12 @@ class Run {
       if (std::isfinite(t)) clock += t;
     }
     stage.set_ageing_clock(clock);
-    if (cont) load_state(stage, *in_);
+    if (cont) {
+      load_state(stage, *in_);
+    } else {
+      driver_->set_ageing_clock(clock);
+      driver_->snapshot();  // the stage's start (none twice: the last stage's end is the same)
+    }
     driver_->drive(
         stage, driver_->file("timeseries.csv"),
         [&]() {

@@ -71,6 +71,7 @@ class AgeStage final : public Stage {
     const double left = target() - ageing_time_;
     const AgeingJump j = ageing_jump(sim, *crusher_, cfg_.n_break, left);
     ageing_time_ = j.dt >= left ? target() : ageing_time_ + j.dt;
+    if (StageOutputs* out = outputs()) out->set_ageing_clock(ageing_time_);
     start_phase(sim);
     return nullptr;
   }
@@ -137,6 +138,7 @@ class AgeStage final : public Stage {
     for (auto& kv : out->measure(sim)) m.push_back(kv);
     out->write("events.csv", m);
     if (!cfg_.body.empty()) record_pile(sim, phase, *out);
+    out->snapshot();
     out->request_checkpoint();
   }
 
