@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "crushdem/io/config.hpp"
+#include "crushdem/run/run_directory.hpp"
 #include "helpers.hpp"
 
 namespace crushdem {
@@ -66,6 +67,13 @@ TEST(ParameterSets, CheckSaysWhereEachKeyCameFrom) {
   EXPECT_NE(lines[1].find("contact.rotation = \"free\" (from the set)"), std::string::npos)
       << lines[1];
   EXPECT_NE(lines[2].find("crushing.d0 = 0.002 (set by the file)"), std::string::npos) << lines[2];
+  // rolling_friction > 0 without a rotation key implies rolling: not the set's value.
+  const RunConfig rolling = parse("", "[contact]\nrolling_friction = 0.3\n");
+  const auto implied =
+      parameter_set_report(rolling.parameters, rolling.simulation.contact, rolling.crushing, false);
+  EXPECT_NE(implied[1].find("contact.rotation = \"rolling\" (implied by contact.rolling_friction"),
+            std::string::npos)
+      << implied[1];
   // Without crushing, d0 is not in use and not reported.
   const RunConfig plain = parse("");
   const auto short_report =
@@ -86,6 +94,19 @@ TEST(ParameterSets, TheResolvedConfigurationNamesItsSetAndReadsBackTheSame) {
   EXPECT_EQ(toml::serialize(to_toml(again)), text);
 }
 
+TEST(ParameterSets, ARunDirectorysConfigurationWithoutTheKeyIsReadAsTheEarlierDefaults) {
+  // A config.toml written before `parameters` existed was resolved under the earlier defaults.
+  const std::string text = testing::tiny_run_toml() + "[crushing]\n";
+  const RunConfig saved = saved_run_config_from_toml(toml::parse(text, "c"), "c", ".");
+  EXPECT_EQ(saved.parameters.name, "table1");
+  EXPECT_EQ(saved.simulation.contact.rotation, Rotation::Free);
+  EXPECT_EQ(saved.crushing.d0, 0.0);
+  // One that names its set keeps it.
+  const RunConfig named =
+      saved_run_config_from_toml(toml::parse("parameters = \"crushdem\"\n" + text, "c"), "c", ".");
+  EXPECT_EQ(named.simulation.contact.rotation, Rotation::Blocked);
+}
+
 TEST(ParameterSets, AnUnknownSetOrAWrongTypeIsRefusedNamingTheKey) {
   const std::string unknown = error_of("parameters = \"table2\"\n");
   EXPECT_NE(unknown.find("cfg.toml:1: "), std::string::npos) << unknown;
@@ -103,6 +124,33 @@ TEST(ParameterSets, TheSimulationReaderTakesTheKeyToo) {
   EXPECT_EQ(simulation_config_from_toml(toml::parse("parameters = \"table1\"\n" + box, "s"), "s")
                 .contact.rotation,
             Rotation::Free);
+}
+
+}  // namespace
+}  // namespace crushdem
+
+namespace crushdem {
+namespace {
+
+TEST(ParameterSets, ABranchComparesTheSetsValuesNotItsName) {
+  const std::string base =
+      "[box]\nmin = [0.0, 0.0, 0.0]\nmax = [1e-3, 1e-3, 1e-3]\n"
+      "[particles.generate]\ncount = 10\ndiameter_min = 1e-4\ndiameter_max = 2e-4\n"
+      "[[stage]]\ntype = \"hold\"\nsteps = 10\n[[stage]]\ntype = \"hold\"\nsteps = 10\n";
+  const std::string original = "parameters = \"table1\"\n" + base;
+  const auto cfg = [&](const std::string& contact) {
+    const std::string text = base + "[contact]\n" + contact;
+    return run_config_from_toml(toml::parse(text, "b.toml"), "b.toml", ".");
+  };
+  // The same values, given key by key instead of by the set's name: the branch may start.
+  EXPECT_EQ(branch_stage(original, cfg("rotation = \"free\"\n"), "1", "."), 1u);
+  // Another value is refused, naming the key.
+  try {
+    branch_stage(original, cfg(""), "1", ".");
+    ADD_FAILURE() << "a branch with rotation blocked from a run with free rotation";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("contact.rotation"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -37,7 +37,7 @@ import operator
 import re
 import threading
 import warnings
-from typing import Any, Dict, Iterator, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterator, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -97,13 +97,21 @@ def backends() -> Tuple[str, ...]:
 
 class _ContactCount(int):
     """``Simulation.num_contacts``, a property that was a method: an int that may still be
-    called, until the next release, with a DeprecationWarning."""
+    called, until the next release, with a DeprecationWarning. A call counts again, as the
+    method did: a stored ``sim.num_contacts`` called after ``step()`` gives the new count."""
+
+    _count: Any
+
+    def __new__(cls, count: Callable[[], int]) -> "_ContactCount":
+        obj = super().__new__(cls, count())
+        obj._count = count
+        return obj
 
     def __call__(self) -> int:
         warnings.warn("Simulation.num_contacts is a property: write sim.num_contacts without the "
                       "parentheses (calling it stops working in the next release)",
                       DeprecationWarning, stacklevel=2)
-        return int(self)
+        return int(self._count())
 
 
 def _step_count(what: str, n: Any) -> int:
@@ -384,7 +392,7 @@ class Simulation:
     def num_contacts(self) -> int:
         """Grain-grain contacts with positive overlap. A property (it was a method:
         ``sim.num_contacts()`` still works until the next release, with a DeprecationWarning)."""
-        return _ContactCount(self._sim.num_contacts())
+        return _ContactCount(self._sim.num_contacts)
 
     def wall_positions(self) -> np.ndarray:
         """Wall plane coordinates (6,) [m], in WALL_NAMES order."""

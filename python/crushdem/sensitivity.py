@@ -40,7 +40,7 @@ import numpy as np
 from .analysis import as_float
 from .rundir import read_summary, read_timeseries, read_timing
 from .study import (MATERIAL, SIGMA_3_PA, STUDY_Q_MAX_PA,  # noqa: F401  (re-exported)
-                    TABLE1_CONTACT, TABLE1_CRUSHING)
+                    TABLE1_CONTACT, TABLE1_CRUSHING, with_earlier_defaults)
 from .study_analysis import triaxial_stage
 
 # name: (what it changes, [contact] keys, [crushing] keys). One choice per variant, the rest as
@@ -331,7 +331,10 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
         if before.get("sample") not in (None, os.path.abspath(sample)):
             raise ValueError(f"--sample '{sample}': {out} holds variants run on "
                              f"{before['sample']}; use that sample or another --out")
-        if before.get("base") not in (None, json.loads(json.dumps(base))):
+        earlier = before.get("base")
+        if earlier is not None:
+            earlier = with_earlier_defaults(earlier)
+        if earlier not in (None, json.loads(json.dumps(base))):
             raise ValueError(f"{out} holds variants run with other base settings (sigma_3, "
                              "strain rate, axial strain or defaults); use another --out")
         variants = before.get("variants", {})

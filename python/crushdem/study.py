@@ -108,6 +108,19 @@ def settings(quick: bool, parameters: str = "crushdem", backend: str = "cpu") ->
     return s
 
 
+def with_earlier_defaults(settings: Mapping[str, Any]) -> Dict[str, Any]:
+    """Settings written before the engine's defaults became crushdem's set named neither
+    contact.rotation nor crushing.d0 where they ran the engine's earlier defaults, free rotation
+    and d0 = d50 (0): ``settings`` with those two keys filled in where absent, to compare with
+    settings of today."""
+    out = json.loads(json.dumps(settings))
+    if isinstance(out.get("contact"), dict):
+        out["contact"].setdefault("rotation", "free")
+    if isinstance(out.get("crushing"), dict):
+        out["crushing"].setdefault("d0", 0.0)
+    return out
+
+
 # Sections of settings() that --set may change, and whether it may add keys to them (the
 # configuration sections are checked by the engine's reader, which names a bad key).
 SETTABLE = {"material": True, "contact": True, "crushing": True, "age_stage": True,

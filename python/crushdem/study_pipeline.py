@@ -19,7 +19,8 @@ from .figures.study import (figure_dynamic_phase, figure_force_statistics,
                             figure_oedometric_relaxation, figure_triaxial_relaxation)
 from .rundir import has_stage_state, is_finished, read_summary
 from .runs import run_step, set_threads, timing_record
-from .study import RUNS, TESTS, apply_overrides, settings, settings_changes, show_setting
+from .study import (RUNS, TESTS, apply_overrides, settings, settings_changes, show_setting,
+                    with_earlier_defaults)
 from .study_analysis import (FigureData, age_counts, dynamic_phase, force_statistics,
                              oedometric_relaxation, shear_figures, triaxial_relaxation)
 
@@ -218,7 +219,7 @@ def _keep_settings(out: str, cfg: Mapping[str, Any]) -> None:
     settings_path = os.path.join(out, "settings.json")
     if os.path.isfile(settings_path):
         with open(settings_path) as f:
-            before = json.load(f)
+            before = with_earlier_defaults(json.load(f))
         changed = settings_changes(before, json.loads(json.dumps(cfg)))
         if changed:
             differ = "; ".join(f"{k} = {show_setting(a)} there, {show_setting(b)} in this call"

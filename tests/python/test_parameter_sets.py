@@ -65,3 +65,16 @@ def test_a_laboratory_configuration_takes_the_set_by_name():
         resolved = tomllib.loads(_core.resolved_run_config(cfg))
         assert resolved["contact"]["rotation"] == rotation
         assert resolved["parameters"] == kw.get("parameters", "crushdem")
+
+
+def test_settings_of_an_earlier_table1_reproduction_still_match():
+    # settings.json of a `reproduce --parameters table1` made when free rotation and d0 = d50
+    # were the engine's defaults names neither key; read with those, it matches today's.
+    today = study.settings(quick=True, parameters="table1")
+    earlier = {**today, "contact": {k: v for k, v in today["contact"].items() if k != "rotation"},
+               "crushing": {k: v for k, v in today["crushing"].items() if k != "d0"}}
+    assert study.settings_changes(earlier, today)
+    assert not study.settings_changes(study.with_earlier_defaults(earlier), today)
+    # crushdem's set names both keys: nothing is filled in.
+    chosen = study.settings(quick=True)
+    assert study.with_earlier_defaults(chosen) == chosen

@@ -167,6 +167,12 @@ def test_num_contacts_is_a_property_still_callable_with_a_warning():
     assert sim.num_contacts + 1 == 2 and f"{sim.num_contacts}" == "1"
     with pytest.warns(DeprecationWarning, match="num_contacts is a property"):
         assert sim.num_contacts() == 1
+    # The method a caller kept counts again when called, as it did.
+    stored = sim.num_contacts
+    sim.add_particles(np.array([[3e-4 + 4e-4 - 2e-7, 5e-4, 5e-4]]), np.array([1e-4]))
+    sim.compute_forces()
+    with pytest.warns(DeprecationWarning):
+        assert stored() == 2
 
 
 def test_wall_contact_is_hertz():

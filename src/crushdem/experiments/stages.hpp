@@ -199,6 +199,8 @@ class Stage : public Controller {
   void attach(StageOutputs& outputs, std::size_t index);
   /// The run's ageing clock at this stage's start: the ageing of the age stages before it [s].
   void set_ageing_clock(double t) { ageing_clock_ = t; }
+  /// The run's ageing clock now [s]: the clock at the start, which an age stage advances.
+  virtual double ageing_clock_now() const { return ageing_clock_; }
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;

@@ -418,6 +418,17 @@ RunConfig load_run_config(const std::string& path) {
   return run_config_from_toml(t, path, base.empty() ? "." : base);
 }
 
+RunConfig saved_run_config_from_toml(toml::Table root, const std::string& source,
+                                     const std::string& base_dir) {
+  if (!root.count("parameters")) root["parameters"] = Value::make_string("table1");
+  return run_config_from_toml(root, source, base_dir);
+}
+
+RunConfig load_saved_run_config(const std::string& path) {
+  const auto base = std::filesystem::path(path).parent_path().string();
+  return saved_run_config_from_toml(toml::parse_file(path), path, base.empty() ? "." : base);
+}
+
 std::array<double, 6> RunConfig::box() const {
   std::array<double, 6> b{};
   for (int k = 0; k < kNumWalls; ++k) {

@@ -120,6 +120,12 @@ SimulationConfig simulation_config_from_toml(const toml::Table& root, const std:
 RunConfig run_config_from_toml(const toml::Table& root, const std::string& source,
                                const std::string& base_dir);
 RunConfig load_run_config(const std::string& path);
+/// A run directory's own configuration (its config.toml, or the text a checkpoint keeps): one
+/// written before the key `parameters` existed was resolved under the earlier defaults, which
+/// are the set "table1", and is read with that set.
+RunConfig saved_run_config_from_toml(toml::Table root, const std::string& source,
+                                     const std::string& base_dir);
+RunConfig load_saved_run_config(const std::string& path);
 
 /// The configuration a run uses: `c` with the grain lengths multiplied by the upscaling factor
 /// and the strength rule set (UpscalingConfig); `c` itself when the factor is 1. The run's

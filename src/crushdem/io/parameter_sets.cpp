@@ -119,8 +119,15 @@ std::vector<std::string> parameter_set_report(const ParameterSetUse& use,
       bool given = false;
       for (const std::string& g : use.given) given = given || g == full;
       const auto v = now.find(key);
-      out.push_back("  " + full + " = " + (v == now.end() ? "?" : param_io::show(v->second)) +
-                    (given ? " (set by the file)" : " (from the set)"));
+      const std::string shown = v == now.end() ? "?" : param_io::show(v->second);
+      // Not given and not the set's: another key implied it (rolling_friction > 0 without a
+      // rotation key means "rolling").
+      const char* origin = given                            ? " (set by the file)"
+                           : shown == param_io::show(value) ? " (from the set)"
+                           : full == "contact.rotation"
+                               ? " (implied by contact.rolling_friction > 0)"
+                               : " (implied by other keys)";
+      out.push_back("  " + full + " = " + shown + origin);
     }
   }
   return out;

@@ -123,7 +123,8 @@ bool same_resolved_config(const std::string& saved, const std::string& current,
                           const std::filesystem::path& dir) {
   try {
     const std::string source = (dir / "checkpoint.bin").string();
-    const RunConfig again = run_config_from_toml(toml::parse(saved, source), source, dir.string());
+    const RunConfig again =
+        saved_run_config_from_toml(toml::parse(saved, source), source, dir.string());
     return toml::serialize(to_toml(again)) == current;
   } catch (const std::exception&) {
     return false;  // not readable as a configuration any more: certainly not the same run

@@ -244,7 +244,8 @@ DirectoryLock::~DirectoryLock() {
 std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
                          const std::string& spec, const std::filesystem::path& from) {
   const std::string src = (from / "config.toml").string();
-  const RunConfig old = run_config_from_toml(toml::parse(original_text, src), src, from.string());
+  const RunConfig old =
+      saved_run_config_from_toml(toml::parse(original_text, src), src, from.string());
   const toml::Table a = to_toml(old), b = to_toml(cfg);
   const auto stages_of = [](const toml::Table& t) {
     const auto it = t.find("stage");
@@ -293,7 +294,8 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
   for (const auto& [key, v] : a) sections.insert(key);
   for (const auto& [key, v] : b) sections.insert(key);
   for (const std::string& key : sections) {
-    if (key == "stage" || key == "output") continue;
+    // `parameters` names where the keys came from; their values are compared in their sections.
+    if (key == "stage" || key == "output" || key == "parameters") continue;
     const auto ia = a.find(key), ib = b.find(key);
     const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
                                            ib == b.end() ? nullptr : &ib->second, key,

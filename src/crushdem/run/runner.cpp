@@ -506,6 +506,7 @@ class Run {
     stage.set_ageing_clock(clock);
     if (cont) {
       load_state(stage, *in_);
+      driver_->set_ageing_clock(stage.ageing_clock_now());  // a format-6 checkpoint lacks it
     } else {
       driver_->set_ageing_clock(clock);
       driver_->snapshot();  // the stage's start (none twice: the last stage's end is the same)
@@ -610,7 +611,7 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
   if (!fs::exists(path)) {
     throw ConfigError("crushdem resume: '" + dir + "' has no config.toml (not a crushdem run)");
   }
-  const RunConfig cfg = load_run_config(path);
+  const RunConfig cfg = load_saved_run_config(path);
   RunOptions o = opt;
   o.out_dir = dir;
   o.resume = true;

@@ -39,6 +39,8 @@ class AgeStage final : public Stage {
     start_phase(sim);
   }
 
+  double ageing_clock_now() const override { return ageing_time_; }
+
   /// The ageing done on a log scale (the jumps grow about geometrically).
   double fraction(const Simulation&) const override {
     const double span = target() - ageing_clock_;
