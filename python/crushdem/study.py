@@ -115,9 +115,9 @@ def with_earlier_defaults(settings: Mapping[str, Any]) -> Dict[str, Any]:
     settings of today."""
     out = json.loads(json.dumps(settings))
     if isinstance(out.get("contact"), dict):
-        out["contact"].setdefault("rotation", "free")
+        out["contact"].setdefault("rotation", TABLE1_CONTACT["rotation"])
     if isinstance(out.get("crushing"), dict):
-        out["crushing"].setdefault("d0", 0.0)
+        out["crushing"].setdefault("d0", TABLE1_CRUSHING["d0"])
     return out
 
 

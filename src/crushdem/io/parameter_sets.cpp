@@ -1,5 +1,7 @@
 #include "crushdem/io/parameter_sets.hpp"
 
+#include <algorithm>
+
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/param_io.hpp"
 
@@ -75,17 +77,16 @@ ParameterSetUse read_parameter_set(const toml::Table& root, const std::string& s
   const auto it = root.find("parameters");
   if (it != root.end()) {
     const Value& v = it->second;
-    const std::string where =
-        v.line > 0 ? source + ":" + std::to_string(v.line) + ": " : source + ": ";
+    const param_io::Section top(&root, "", source);
     if (v.type != toml::Type::String) {
-      throw ConfigError(where + bad_value("parameters", param_io::show(v),
-                                          "the name of a parameter set: " + set_names()));
+      top.fail("parameters", v, "the name of a parameter set: " + set_names());
     }
-    try {
-      use.name = parameter_set(v.str).name;
-    } catch (const ConfigError& e) {
-      throw ConfigError(where + e.what());
+    const auto& sets = parameter_sets();
+    if (std::none_of(sets.begin(), sets.end(),
+                     [&](const ParameterSet& s) { return s.name == v.str; })) {
+      top.fail("parameters", v, "a parameter set: " + set_names());
     }
+    use.name = v.str;
     use.named = true;
   }
   const ParameterSet& set = parameter_set(use.name);
