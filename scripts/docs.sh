@@ -23,8 +23,8 @@ import tomllib
 extras = tomllib.load(open("pyproject.toml", "rb"))["project"]["optional-dependencies"]
 def expand(name, seen=set()):
     for req in extras[name]:
-        if req.startswith("crushdem["):
-            for sub in req[len("crushdem["):-1].split(","):
+        if req.startswith("crushdem-sand["):
+            for sub in req[len("crushdem-sand["):-1].split(","):
                 if sub not in seen:
                     seen.add(sub)
                     yield from expand(sub.strip())

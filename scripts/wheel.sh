@@ -12,4 +12,4 @@ ensure_venv
 CMAKE_ARGS="${CMAKE_ARGS:-} -DCRUSHDEM_NATIVE=OFF" \
   .venv/bin/python -m pip wheel . --no-deps --wheel-dir dist \
   --config-settings=build-dir="build-wheel/{wheel_tag}"
-ls dist/crushdem-*.whl
+ls dist/crushdem_sand-*.whl

@@ -30,11 +30,12 @@ struct Outcome {
   std::string out, err;
 };
 
-Outcome cli(const std::vector<std::string>& args) {
+Outcome cli(const std::vector<std::string>& args,
+            const std::vector<cli::FrontEndCommand>& front_end = {}) {
   ::testing::internal::CaptureStdout();
   ::testing::internal::CaptureStderr();
   Outcome o;
-  o.rc = cli::cli_main(args);
+  o.rc = cli::cli_main(args, front_end);
   std::fflush(stdout);
   std::fflush(stderr);
   o.out = ::testing::internal::GetCapturedStdout();
@@ -58,16 +59,27 @@ TEST(Cli, EveryCommandHasHelp) {
       EXPECT_EQ(o.rc, 0) << command << " " << flag << ": " << o.err;
       EXPECT_TRUE(has(o.out, "Usage: crushdem " + command)) << o.out;
       for (const std::string& opt : expected) EXPECT_TRUE(has(o.out, opt)) << command << opt;
-      // A command's help is its own: the list of the Python package's commands is the top's.
-      EXPECT_FALSE(has(o.out, "Commands of the Python package")) << command << o.out;
+      // A command's help is its own: the footer naming the Python package's commands is the
+      // top's.
+      EXPECT_FALSE(has(o.out, "come with the Python package")) << command << o.out;
     }
   }
   const Outcome top = cli({"--help"});
   EXPECT_EQ(top.rc, 0);
-  EXPECT_TRUE(has(top.out, "Commands of the Python package")) << top.out;
+  EXPECT_TRUE(has(top.out, "come with the Python package")) << top.out;
   for (const char* c : {"run", "resume", "check", "bench", "plot", "reproduce", "sensitivity"}) {
     EXPECT_TRUE(has(top.out, c)) << c;
   }
+  // A front end's commands join the one list of subcommands, described in its words; one it
+  // failed to handle itself is refused, not run.
+  const std::vector<cli::FrontEndCommand> front_end = {{"plot", "draw the figures of a run"}};
+  const Outcome listed = cli({"--help"}, front_end);
+  EXPECT_EQ(listed.rc, 0);
+  const std::string subcommands = listed.out.substr(listed.out.find("Subcommands:"));
+  EXPECT_TRUE(has(subcommands, "plot")) << listed.out;
+  EXPECT_TRUE(has(subcommands, "draw the figures of a run")) << listed.out;
+  EXPECT_FALSE(has(listed.out, "come with the Python package")) << listed.out;
+  EXPECT_EQ(cli({"plot", "DIR"}, front_end).rc, 2);
   EXPECT_EQ(cli({"help"}).rc, 0);
   const Outcome bare = cli({});
   EXPECT_EQ(bare.rc, 2);

@@ -81,7 +81,9 @@ def main(argv: Optional[List[str]] = None) -> None:
     # order (_core.cli_main flushes the C streams before it returns).
     sys.stdout.flush()
     sys.stderr.flush()
-    sys.exit(_core.cli_main(args))
+    from ._cli import COMMANDS
+
+    sys.exit(_core.cli_main(args, list(COMMANDS.items())))
 
 
 if __name__ == "__main__":

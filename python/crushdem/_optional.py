@@ -18,8 +18,8 @@ class MissingDependency(ImportError):
 
 
 def message(package: str, feature: str, extra: Optional[str] = None) -> str:
-    """``FEATURE needs PACKAGE: pip install "crushdem[EXTRA]"``."""
-    return f'{feature} needs {package}: pip install "crushdem[{extra or EXTRAS[package]}]"'
+    """``FEATURE needs PACKAGE: pip install "crushdem-sand[EXTRA]"``."""
+    return f'{feature} needs {package}: pip install "crushdem-sand[{extra or EXTRAS[package]}]"'
 
 
 def available(package: str) -> bool:

@@ -218,7 +218,7 @@ def _figure(evaluations: List[Dict[str, Any]], path: str, tol: float) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem calibrate CALIBRATION.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
-    parser = cluster_parser("crushdem calibrate", __doc__, "calibration", "CALIBRATION.toml")
+    parser = cluster_parser("calibrate", __doc__, "calibration", "CALIBRATION.toml")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:

@@ -23,7 +23,6 @@ are kept, interrupted ones resumed, and the tables redrawn.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -34,6 +33,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 
+from ._cli import CommandParser
 from .rundir import read_summary
 
 
@@ -241,13 +241,15 @@ def _raise_stop(signum, _frame):
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem pile CONFIG --out DIR [--threads N] [--backend B]``."""
-    parser = argparse.ArgumentParser(prog="crushdem pile", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("config", metavar="CONFIG")
-    parser.add_argument("--out", required=True, metavar="DIR")
+    parser = CommandParser("pile", __doc__)
+    parser.add_argument("config", metavar="CONFIG",
+                        help="the pile's run configuration: installation, age stages, a load test")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="directory for DIR/main, the branches and the set-up fit")
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads of each run (they run one after the other)")
-    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"))
+    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
+                        help="what advances the runs: cpu (default), cuda or emulated")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:

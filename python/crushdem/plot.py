@@ -118,11 +118,11 @@ Figure (``figure_stress_time(run_dir)``, ...), drawn under the backend in use; o
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from typing import List, Optional, Sequence
 
+from ._cli import CommandParser
 from .analysis import WALLS  # noqa: F401  (re-exported)
 from .figures import (FIGURES, MPA, as_run, figure_breakage,  # noqa: F401  (re-exported)
                       figure_breakage_sizes, figure_coordination, figure_grading,
@@ -163,9 +163,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem plot DIR [--out OUT]``; returns the exit status."""
-    parser = argparse.ArgumentParser(
-        prog="crushdem plot",
-        description="Draw the time series of a crushdem run (DIR/timeseries.csv) as PNG files.")
+    parser = CommandParser("plot")
     parser.add_argument("dir", metavar="DIR", help="run directory containing timeseries.csv")
     parser.add_argument("--out", default=None, help="directory for the PNGs (default: DIR)")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))

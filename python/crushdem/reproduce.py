@@ -58,12 +58,12 @@ numbers :mod:`crushdem.study_analysis` (one reproduction) and :mod:`crushdem.stu
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
 from typing import Any, Mapping, Optional, Sequence
 
+from ._cli import CommandParser
 from .figures import MPA, use_file_backend_without_display
 from .study import PARAMETER_SETS, RUNS, SETTABLE, TESTS, show_setting
 from .study_pipeline import reproduce, write_json
@@ -242,9 +242,7 @@ _AGAINST = (
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem reproduce --out DIR [--quick] [--threads N] [--sample FILE]``."""
-    parser = argparse.ArgumentParser(prog="crushdem reproduce", description=_DESCRIPTION,
-                                     epilog=_EPILOG,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = CommandParser("reproduce", _DESCRIPTION + "\n\n" + _EPILOG)
     parser.add_argument("--out", metavar="DIR", help="directory for everything (required "
                         "unless --summarize; with it, where samples.json and samples.md go)")
     parser.add_argument("--quick", action="store_true",

@@ -26,7 +26,6 @@ end up in one table.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import csv
 import json
@@ -37,6 +36,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 
+from ._cli import CommandParser
 from .analysis import as_float
 from .rundir import read_summary, read_timeseries, read_timing
 from .study import (MATERIAL, SIGMA_3_PA, STUDY_Q_MAX_PA,  # noqa: F401  (re-exported)
@@ -360,18 +360,21 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem sensitivity --out DIR --sample FILE [--only A,B] [--axial-strain E]``."""
-    parser = argparse.ArgumentParser(prog="crushdem sensitivity", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", required=True, metavar="DIR")
+    parser = CommandParser("sensitivity", __doc__)
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="directory for the variants' runs and the tables")
     parser.add_argument("--sample", required=True, metavar="FILE",
                         help="a prepared sample.txt (e.g. runs/sample_rev/sample.txt)")
     parser.add_argument("--only", default=None, metavar="A,B",
                         help=f"variants to run, comma-separated (default all: "
                              f"{', '.join(VARIANTS)}); join names with '+' to combine "
                              f"their changes")
-    parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E")
-    parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R")
-    parser.add_argument("--sigma-3", type=float, default=SIGMA_3_PA, metavar="PA")
+    parser.add_argument("--axial-strain", type=float, default=0.30, metavar="E",
+                        help="axial strain the shear ends at (default 0.30)")
+    parser.add_argument("--strain-rate", type=float, default=50.0, metavar="R",
+                        help="axial strain rate of the shear, 1/s (default 50)")
+    parser.add_argument("--sigma-3", type=float, default=SIGMA_3_PA, metavar="PA",
+                        help="confining stress, Pa (default: the study's 10 MPa)")
     parser.add_argument("--threads", type=int, default=None, metavar="N",
                         help="OpenMP threads of each variant run (default 1)")
     parser.add_argument("--workers", type=int, default=None, metavar="N",

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, 
 
 import numpy as np
 
+from ._cli import CommandParser
 from ._optional import available, message, require
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
 from .rundir import read_events, read_summary, read_timing
@@ -528,18 +529,19 @@ def _follow(client, futures, errors, progress, log) -> None:
         bar.close()
 
 
-def cluster_parser(prog: str, description: str, file: str,
+def cluster_parser(command: str, details: Optional[str], file: str,
                    metavar: str) -> argparse.ArgumentParser:
     """The command line of a command whose runs are sweep tasks (``crushdem sweep``,
     ``crushdem calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
     --workers, --threads-per-run, --scheduler."""
-    parser = argparse.ArgumentParser(prog=prog, description=description,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument(file, metavar=metavar)
-    parser.add_argument("--out", required=True, metavar="DIR")
+    parser = CommandParser(command, details)
+    parser.add_argument(file, metavar=metavar, help=f"the {file} file")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="directory for the runs (DIR/runs) and the result tables")
     parser.add_argument("--workers", type=int, default=None, metavar="N",
                         help="local worker processes (default: cores / threads per run)")
-    parser.add_argument("--threads-per-run", type=int, default=1, metavar="T")
+    parser.add_argument("--threads-per-run", type=int, default=1, metavar="T",
+                        help="OpenMP threads of each run (default 1)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="an existing Dask scheduler (tcp://host:port) instead of a local "
                              "cluster")
@@ -549,7 +551,7 @@ def cluster_parser(prog: str, description: str, file: str,
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
-    parser = cluster_parser("crushdem sweep", __doc__, "sweep", "SWEEP.toml")
+    parser = cluster_parser("sweep", __doc__, "sweep", "SWEEP.toml")
     parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
                         help="what advances every run: cpu (default), cuda (a GPU, in a build "
                              "with CUDA; one worker per GPU) or emulated")

@@ -249,11 +249,12 @@ void set_wall(Simulation& sim, const std::string& name, std::optional<std::strin
 
 // --- the module --------------------------------------------------------------------------------
 
-int run_cli(const std::vector<std::string>& args) {
+int run_cli(const std::vector<std::string>& args,
+            const std::vector<cli::FrontEndCommand>& commands) {
   int rc;
   {
     nb::gil_scoped_release release;
-    rc = cli::cli_main(args);
+    rc = cli::cli_main(args, commands);
     std::fflush(stdout);
     std::fflush(stderr);
   }
@@ -648,8 +649,9 @@ NB_MODULE(_core, m) {
           [](const Simulation& sim) { return toml::serialize(to_toml(sim.config())); },
           "The configuration the simulation was built with, every key resolved, as TOML.");
 
-  m.def("cli_main", &run_cli, "args"_a,
-        "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code.");
+  m.def("cli_main", &run_cli, "args"_a, "commands"_a = std::vector<cli::FrontEndCommand>{},
+        "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code. "
+        "`commands`: (name, description) of the caller's own commands, listed in the help.");
   m.def(
       "run",
       [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress,

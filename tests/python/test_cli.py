@@ -5,6 +5,7 @@ the backends, refuses others, and the emulated device follows the CPU to roundin
 
 import csv
 import os
+import re
 
 import numpy as np
 import pytest
@@ -32,10 +33,53 @@ def test_every_command_has_help(command, option, capfd):
 
 
 def test_top_level_help_lists_every_command(capfd):
+    from crushdem._cli import COMMANDS
+
     code, out, _ = _run(["--help"], capfd)
     assert code == 0
-    for command in ("run", "resume", "check", "bench", "plot", "reproduce", "sensitivity"):
-        assert command in out
+    # One list: the Python package's commands among the C++ ones, each with its description.
+    listed = out[out.index("Subcommands:"):]
+    for command in ("run", "resume", "check", "bench"):
+        assert f"\n  {command} " in listed, out
+    for command, description in COMMANDS.items():
+        assert f"\n  {command} " in listed and description in listed, out
+    assert "come with the Python package" not in out
+
+
+C_COMMANDS = ("run", "resume", "check", "bench")
+PY_COMMANDS = ("plot", "reproduce", "sensitivity", "sweep", "calibrate", "pile")
+
+
+@pytest.mark.parametrize("command", C_COMMANDS + PY_COMMANDS)
+def test_one_help_style(command, capfd):
+    """Every command's help has CLI11's layout, whichever language parses it: the one-line
+    description, the usage, the positionals with their type, the options with -h,--help first
+    and the value's type and REQUIRED beside each name."""
+    code, out, _ = _run([command, "--help"], capfd)
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[1].startswith(f"Usage: crushdem {command} [OPTIONS]"), out
+    assert lines[2] == "", out
+    assert "\nOptions:\n  -h,--help                   Print this help message and exit\n" in out
+    if command in PY_COMMANDS:
+        from crushdem._cli import COMMANDS
+
+        assert lines[0] == COMMANDS[command]
+    assert "usage:" not in out and "optional arguments" not in out and "options:" not in out
+    # A required option says so, as CLI11 writes it.
+    if command in ("run", "sensitivity", "sweep", "calibrate", "pile"):
+        assert re.search(r"\n  --out \S+ REQUIRED", out), out
+
+
+@pytest.mark.parametrize("args", [["run", "a.toml", "--out", "d", "--bogus"],
+                                  ["reproduce", "--bogus"], ["pile", "c.toml", "--bogus"],
+                                  ["plot"], ["sweep", "s.toml"]])
+def test_misuse_reads_the_same_in_every_command(args, capfd):
+    code, out, err = _run(args, capfd)
+    assert code == 2, (out, err)
+    command = args[0]
+    assert err.startswith(f"crushdem {command}: error: "), err
+    assert err.endswith(f"Run 'crushdem {command} --help' for the options.\n"), err
 
 
 @pytest.mark.parametrize("args", [["--version"], ["plot", "DIR", "--version"],

@@ -59,8 +59,8 @@ def test_required_dependencies_are_minimal_and_the_rest_are_extras():
     assert extras["plot"] == ["matplotlib"]
     assert sorted(extras["sweep"]) == ["dask[distributed]", "pyarrow"]
     assert sorted(extras["calibrate"]) == ["dask[distributed]", "scipy"]
-    assert extras["all"] == ["crushdem[plot,sweep,calibrate]"]
-    assert any(e.startswith("crushdem[") and "all" in e[len("crushdem["):-1].split(",")
+    assert extras["all"] == ["crushdem-sand[plot,sweep,calibrate]"]
+    assert any(e.startswith("crushdem-sand[") and "all" in e[len("crushdem-sand["):-1].split(",")
                for e in extras["test"]) and "pytest" in _names(extras["test"])
     # The message of a missing package names an extra that exists.
     from crushdem import _optional
@@ -83,12 +83,12 @@ def test_importing_crushdem_imports_no_optional_package():
 # Each command with a missing optional package: exit status 2 before it runs anything, and the
 # package and the pip command of its extra on stderr.
 @pytest.mark.parametrize("missing, command, message", [
-    ("matplotlib", "plot", 'crushdem plot needs matplotlib: pip install "crushdem[plot]"'),
+    ("matplotlib", "plot", 'crushdem plot needs matplotlib: pip install "crushdem-sand[plot]"'),
     ("matplotlib", "reproduce",
-     'crushdem reproduce needs matplotlib: pip install "crushdem[plot]"'),
-    ("distributed", "sweep", 'crushdem sweep needs distributed: pip install "crushdem[sweep]"'),
+     'crushdem reproduce needs matplotlib: pip install "crushdem-sand[plot]"'),
+    ("distributed", "sweep", 'crushdem sweep needs distributed: pip install "crushdem-sand[sweep]"'),
     ("scipy", "calibrate",
-     'crushdem calibrate needs scipy: pip install "crushdem[calibrate]"'),
+     'crushdem calibrate needs scipy: pip install "crushdem-sand[calibrate]"'),
 ])
 def test_a_command_names_the_extra_of_a_missing_package(missing, command, message, tmp_path):
     r = _python(f"import sys; sys.modules[{missing!r}] = None\n"
@@ -115,8 +115,8 @@ def test_the_python_api_names_the_extra_of_a_missing_package(tmp_path):
                 "        print(e)\n", str(tmp_path))
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines() == [
-        'crushdem plot needs matplotlib: pip install "crushdem[plot]"',
-        'crushdem\'s figures needs matplotlib: pip install "crushdem[plot]"']
+        'crushdem plot needs matplotlib: pip install "crushdem-sand[plot]"',
+        'crushdem\'s figures needs matplotlib: pip install "crushdem-sand[plot]"']
 
 
 @pytest.mark.skipif(not (shutil.which("cmake")
@@ -141,3 +141,16 @@ def test_installed_cmake_package_passes_no_march(tmp_path):
     flags = glob.glob(str(build / "CMakeFiles" / "crushdem.dir" / "flags.make"))
     flags += glob.glob(str(build / "build.ninja"))
     assert flags and any("-march=native" in open(p).read() for p in flags)
+
+
+def test_the_distribution_is_crushdem_sand_and_installs_the_crushdem_package():
+    """The distribution's name is not the import package's (the PyPI name crushdem is another
+    project's); the compiled module lands in the import package all the same."""
+    import importlib.metadata as metadata
+
+    dist = metadata.distribution("crushdem-sand")
+    files = {str(f) for f in dist.files or ()}
+    assert any(f.startswith("crushdem/_core") and f.endswith(".so") for f in files), files
+    assert "crushdem/__init__.py" in files
+    assert not any(f.startswith("crushdem_sand/") for f in files), files
+    assert dist.entry_points.select(group="console_scripts", name="crushdem")

@@ -34,15 +34,11 @@ int current_threads() {
 
 namespace {
 
+// The standalone executable's footer; through the Python package's `crushdem` the same commands
+// are listed with the others (cli_main's front_end_commands).
 constexpr const char* kPythonCommands =
-    "\nCommands of the Python package's `crushdem` (pip install .):\n"
-    "  plot DIR                                  draw DIR/timeseries.csv as PNG figures\n"
-    "  reproduce --out DIR [--quick]             run the study's section 3, draw its figures\n"
-    "  sensitivity --out DIR --sample FILE       q_max under each uncertain choice\n"
-    "  sweep SWEEP.toml --out DIR                many variants of one configuration on Dask\n"
-    "  calibrate CALIBRATION.toml --out DIR      fit parameters to targets with sweep runs\n"
-    "  pile CONFIG --out DIR                     a pile aged and load-tested at each ageing time\n"
-    "Each command has its own --help.\n";
+    "\nplot, reproduce, sensitivity, sweep, calibrate and pile come with the Python package's\n"
+    "crushdem command (pip install .). Each command has its own --help.\n";
 
 constexpr const char* kBackendHelp =
     "what advances the simulation: cpu (default), cuda (a GPU, in a build with CUDA) or emulated "
@@ -57,7 +53,7 @@ void add_threads(CLI::App* c, long& threads) {
 
 }  // namespace
 
-int cli_main(const std::vector<std::string>& args) {
+int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCommand>& front_end) {
   CLI::App app("crushdem " CRUSHDEM_VERSION
                ": discrete element simulation of crushable sand (grains that break over time)",
                "crushdem");
@@ -128,8 +124,13 @@ int cli_main(const std::vector<std::string>& args) {
       ->envname("PRUNE")
       ->check(CLI::IsMember({0, 1}));
 
+  // The commands a front end runs itself (the Python package's), in the same list: it handles
+  // them before this parser sees its arguments.
+  for (const auto& [name, description] : front_end) {
+    app.add_subcommand(name, description)->allow_extras();
+  }
   // Set after the subcommands, which would inherit it: their help is theirs alone.
-  app.footer(kPythonCommands);
+  app.footer(front_end.empty() ? kPythonCommands : "\nEach command has its own --help.\n");
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 reads them reversed
   try {
@@ -152,6 +153,12 @@ int cli_main(const std::vector<std::string>& args) {
     return 2;
   }
   const std::string cmd = app.get_subcommands().front()->get_name();
+  for (const auto& command : front_end) {
+    if (command.first == cmd) {
+      std::fprintf(stderr, "crushdem %s: run by the front end, not by this parser\n", cmd.c_str());
+      return 2;
+    }
+  }
   try {
     if (c_run->parsed()) return run_main(run);
     if (c_resume->parsed()) return resume_main(resume);

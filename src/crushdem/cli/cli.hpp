@@ -3,13 +3,20 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace crushdem::cli {
 
+/// A command that a front end runs itself, listed in the top-level help with the others:
+/// its name and one line of description.
+using FrontEndCommand = std::pair<std::string, std::string>;
+
 /// Entry point; returns the process exit code (0, 2 for bad input, 1 for a failed run, 128 + the
-/// signal for a run stopped by SIGINT / SIGTERM).
-int cli_main(const std::vector<std::string>& args);
+/// signal for a run stopped by SIGINT / SIGTERM). `front_end`: the commands of the caller (the
+/// Python package), listed in the help; without them the help names them in a footer.
+int cli_main(const std::vector<std::string>& args,
+             const std::vector<FrontEndCommand>& front_end = {});
 
 struct RunArgs {
   std::string config, out, backend = "cpu", from;

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# Checks that a wheel built by scripts/wheel.sh suits any x86-64 machine of the last decade:
+#  1. pip installs it into a fresh environment with --only-binary=:all:, so nothing is compiled
+#     (a step that needed a compiler would fail);
+#  2. its compiled module holds no VEX or EVEX instruction (AVX, AVX2, AVX-512: any mnemonic of
+#     the v-prefixed forms or a ymm/zmm register), only the x86-64 baseline;
+#  3. under QEMU's user-mode emulation of a Westmere CPU (2010: SSE4.2, no AVX), `crushdem run`
+#     and a Simulation of 200 grains from Python work.
+# Installs qemu-user from Debian when it is missing. Usage: bash scripts/wheel_check.sh [WHEEL]
+# (default: the newest dist/crushdem_sand-*.whl).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+wheel=${1:-$(ls -t dist/crushdem_sand-*.whl 2>/dev/null | head -1)}
+[ -f "$wheel" ] || { echo "no wheel: run bash scripts/wheel.sh first" >&2; exit 2; }
+if ! command -v qemu-x86_64 >/dev/null; then
+  SUDO=$([ "$(id -u)" = 0 ] || echo sudo)
+  $SUDO apt-get install -y -qq qemu-user >/dev/null
+fi
+
+env_dir=$(mktemp -d)
+trap 'rm -rf "$env_dir"' EXIT
+python3 -m venv "$env_dir/venv"
+echo "== 1. pip install --only-binary=:all: $wheel"
+"$env_dir/venv/bin/python" -m pip install --quiet --only-binary=:all: "$wheel"
+
+echo "== 2. the compiled module's instructions"
+core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem/_core*.so)
+objdump -d --no-show-raw-insn "$core" >"$env_dir/core.asm"
+total=$(grep -c $'^ *[0-9a-f]*:\t' "$env_dir/core.asm" || true)
+vex=$(grep -cE $'^ *[0-9a-f]*:\tv[a-z0-9]+ |%[yz]mm[0-9]' "$env_dir/core.asm" || true)
+echo "$core: $total instructions, $vex of them AVX/AVX2/AVX-512"
+if [ "$vex" != 0 ]; then
+  grep -E $'^ *[0-9a-f]*:\tv[a-z0-9]+ |%[yz]mm[0-9]' "$env_dir/core.asm" | head -5 >&2
+  echo "the wheel's module needs AVX: it was built with -march=native?" >&2
+  exit 1
+fi
+
+if "$env_dir/venv/bin/python" -c 'import crushdem, sys; sys.exit("cuda" not in crushdem.backends())'; then
+  # The architectures of the kernels: named in the fat binary's section (no cuobjdump needed).
+  objcopy -O binary --only-section=.nv_fatbin "$core" "$env_dir/fatbin"
+  archs=$(grep -ao 'sm_[0-9]*a\?' "$env_dir/fatbin" | sort -u | tr '\n' ' ' || true)
+  echo "the CUDA backend is in the wheel${archs:+, with kernels for $archs}"
+else
+  echo "the wheel has no CUDA backend (built without nvcc)"
+fi
+
+echo "== 3. run under qemu-x86_64 -cpu Westmere (no AVX)"
+py="$env_dir/venv/bin/python"
+qemu-x86_64 -cpu Westmere "$py" -m crushdem check examples/compression_small.toml >/dev/null
+# The README's first example: 27 grains pressed by a servo wall to 1 MPa.
+qemu-x86_64 -cpu Westmere "$py" - <<'EOF'
+import numpy as np
+
+import crushdem
+
+sim = crushdem.Simulation(
+    contact={"law": "hertz"},
+    box={"min": [0, 0, 0], "max": [1e-3, 1e-3, 1e-3]},
+    walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
+)
+g = (np.arange(3) + 0.5) / 3 * 1e-3
+sim.add_particles(np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3), 1.65e-4)
+sim.step(10_000)
+stress = sim.wall_stresses()[5]
+print(f"crushdem {crushdem.__version__} on a CPU without AVX: {sim.num_contacts} contacts, "
+      f"top wall at {stress:.4g} Pa")
+assert abs(stress - 1e6) < 1e3, stress
+EOF
+echo "wheel check passed: $wheel"
