@@ -338,8 +338,9 @@ def test_cli_check(tmp_path, capfd):
 def test_console_script_help():
     out = subprocess.run([sys.executable, "-m", "crushdem", "--help"], capture_output=True,
                          text=True, check=True).stdout
-    assert "Usage: crushdem" in out and "check" in out and "plot DIR" in out
-    assert out.index("Usage") < out.index("plot DIR")  # one usage, the Python commands in it
+    assert "Usage: crushdem" in out and "\n  check " in out and "\n  plot " in out
+    # One usage, the Python commands in its list of subcommands.
+    assert out.index("Usage") < out.index("Subcommands:") < out.index("\n  plot ")
 
 
 def test_plot_writes_png(tmp_path):
