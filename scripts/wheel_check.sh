@@ -2,24 +2,25 @@
 # Checks that a wheel built by scripts/wheel.sh suits any x86-64 machine of the last decade:
 #  1. pip installs it into a fresh environment with --only-binary=:all:, so nothing is compiled
 #     (a step that needed a compiler would fail);
-#  2. its compiled module holds no VEX or EVEX instruction (AVX, AVX2, AVX-512: any mnemonic of
-#     the v-prefixed forms or a ymm/zmm register), only the x86-64 baseline;
-#  3. under QEMU's user-mode emulation of a Westmere CPU (2010: SSE4.2, no AVX), `crushdem run`
-#     and a Simulation of 200 grains from Python work.
+#  2. its compiled module holds no instruction beyond what a Westmere CPU has: no VEX or EVEX
+#     form (AVX, AVX2, AVX-512: a v-prefixed mnemonic or a ymm/zmm register), no BMI1/BMI2,
+#     LZCNT, TZCNT or MOVBE (LZCNT and TZCNT would not even fault there: they run as BSR/BSF and
+#     give other results, which step 3 could not see);
+#  3. under QEMU's user-mode emulation of a Westmere CPU (2010: SSE4.2, no AVX), `crushdem check`
+#     and the README's first Python example (27 grains) work.
 # Installs qemu-user from Debian when it is missing. Usage: bash scripts/wheel_check.sh [WHEEL]
 # (default: the newest dist/crushdem_sand-*.whl).
 set -euo pipefail
+wheel=${1:+$(realpath "$1")}  # given from any directory
 cd "$(dirname "$0")/.."
-wheel=${1:-$(ls -t dist/crushdem_sand-*.whl 2>/dev/null | head -1)}
+wheel=${wheel:-$(ls -t dist/crushdem_sand-*.whl 2>/dev/null | head -1 || true)}
 [ -f "$wheel" ] || { echo "no wheel: run bash scripts/wheel.sh first" >&2; exit 2; }
-if ! command -v qemu-x86_64 >/dev/null; then
-  SUDO=$([ "$(id -u)" = 0 ] || echo sudo)
-  $SUDO apt-get install -y -qq qemu-user >/dev/null
-fi
+source scripts/deps.sh
+apt_install_missing qemu-user binutils python3-venv
 
 env_dir=$(mktemp -d)
 trap 'rm -rf "$env_dir"' EXIT
-python3 -m venv "$env_dir/venv"
+"${PYTHON:-python3}" -m venv "$env_dir/venv"  # the interpreter scripts/wheel.sh built for
 echo "== 1. pip install --only-binary=:all: $wheel"
 "$env_dir/venv/bin/python" -m pip install --quiet --only-binary=:all: "$wheel"
 
@@ -27,18 +28,19 @@ echo "== 2. the compiled module's instructions"
 core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem/_core*.so)
 objdump -d --no-show-raw-insn "$core" >"$env_dir/core.asm"
 total=$(grep -c $'^ *[0-9a-f]*:\t' "$env_dir/core.asm" || true)
-vex=$(grep -cE $'^ *[0-9a-f]*:\tv[a-z0-9]+ |%[yz]mm[0-9]' "$env_dir/core.asm" || true)
-echo "$core: $total instructions, $vex of them AVX/AVX2/AVX-512"
-if [ "$vex" != 0 ]; then
-  grep -E $'^ *[0-9a-f]*:\tv[a-z0-9]+ |%[yz]mm[0-9]' "$env_dir/core.asm" | head -5 >&2
-  echo "the wheel's module needs AVX: it was built with -march=native?" >&2
+beyond=$'^ *[0-9a-f]*:\t(v[a-z0-9]+|andn|bextr|blsi|blsmsk|blsr|bzhi|mulx|pdep|pext|rorx|sarx|shlx|shrx|lzcnt|tzcnt|movbe)( |$)|%[yz]mm[0-9]'
+newer=$(grep -cE "$beyond" "$env_dir/core.asm" || true)
+echo "$core: $total instructions, $newer of them beyond Westmere (AVX, AVX2, AVX-512, BMI, LZCNT, MOVBE)"
+if [ "$newer" != 0 ]; then
+  grep -m5 -E "$beyond" "$env_dir/core.asm" >&2 || true
+  echo "the wheel's module needs a newer CPU: was it built with -march=native?" >&2
   exit 1
 fi
 
 if "$env_dir/venv/bin/python" -c 'import crushdem, sys; sys.exit("cuda" not in crushdem.backends())'; then
   # The architectures of the kernels: named in the fat binary's section (no cuobjdump needed).
   objcopy -O binary --only-section=.nv_fatbin "$core" "$env_dir/fatbin"
-  archs=$(grep -ao 'sm_[0-9]*a\?' "$env_dir/fatbin" | sort -u | tr '\n' ' ' || true)
+  archs=$(grep -ao 'sm_[0-9]\+a\?' "$env_dir/fatbin" | sort -u | tr '\n' ' ' || true)
   echo "the CUDA backend is in the wheel${archs:+, with kernels for $archs}"
 else
   echo "the wheel has no CUDA backend (built without nvcc)"

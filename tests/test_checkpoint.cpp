@@ -294,6 +294,26 @@ TEST(Checkpoint, ALoadedStateIsCheckedNotOnlyItsChecksum) {
   const double far = 1.0, nan = std::nan("");
   expect_refused(edit(raw(sim.particles().x), 2, &far, sizeof far), "a grain outside the box");
   expect_refused(edit(raw(sim.particles().radius), 3, &nan, sizeof nan), "a NaN radius");
+  // Edits of arrays whose bytes need not be unique in the state (zero velocities, say): the
+  // simulation changed in memory, saved, and put back.
+  const auto edited = [&](auto& value, auto bad) {
+    const auto kept = value;
+    value = bad;
+    StateWriter w;
+    save_state(sim, w);
+    value = kept;
+    return w.bytes();
+  };
+  expect_refused(edited(sim.particles().vy[4], nan), "a NaN velocity");
+  // The wall contacts, read by grain through their offsets (CSR).
+  WallContacts& wc = sim.wall_contacts();
+  ASSERT_GT(wc.size(), 1u);
+  expect_refused(edited(wc.offsets.back(), static_cast<std::uint32_t>(wc.size() + 3)),
+                 "wall offsets");
+  const std::uint32_t other = wc.particle[0] == 0 ? 1 : 0;
+  expect_refused(edited(wc.particle[0], other), "a wall entry of another grain");
+  expect_refused(edited(wc.delta[0], nan), "a NaN wall overlap");
+  expect_refused(edited(wc.ft_y[1], nan), "a NaN wall history");
   // The unedited state loads.
   Simulation fresh(cfg.simulation);
   StateReader in(good, "good");

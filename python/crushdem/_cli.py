@@ -31,11 +31,9 @@ def _type_name(action: argparse.Action) -> str:
     its choices, `...` for a list, REQUIRED."""
     if action.nargs == 0:  # a flag
         return ""
-    if action.metavar is not None and not action.option_strings:
-        name = "TEXT"  # a positional's metavar is its name
-    elif action.metavar is not None:
+    if action.metavar is not None and action.option_strings:
         name = str(action.metavar)
-    else:
+    else:  # a positional's metavar is its name, shown before this
         name = {int: "INT", float: "FLOAT"}.get(action.type, "TEXT")  # type: ignore[arg-type]
     if action.choices is not None:
         name += ":{" + ",".join(str(c) for c in action.choices) + "}"
@@ -66,11 +64,8 @@ class CommandParser(argparse.ArgumentParser):
                           help="Print this help message and exit")
 
     def _expand(self, action: argparse.Action) -> str:
-        text = action.help or ""
-        try:  # argparse's %-formatting of help texts (%(default)s, %%)
-            return text % dict(vars(action), prog=self.prog)
-        except (KeyError, TypeError, ValueError):
-            return text
+        # argparse's %-formatting of help texts (%(default)s, %%); a stray % raises, as there.
+        return (action.help or "") % dict(vars(action), prog=self.prog)
 
     def format_usage(self) -> str:
         positionals = [a.metavar or a.dest.upper() for a in self._actions

@@ -167,3 +167,22 @@ def test_progress_lines_give_the_rate_and_the_share_done(tmp_path, capfd):
         shares.append(float(ln.split("% done")[0].split()[-1]))
     assert shares == sorted(shares) and shares[0] > 0 and shares[-1] == 100.0, shares
     assert any(", ETA " in ln for ln in lines), lines
+
+
+def test_the_command_parser_writes_types_choices_lists_and_percent_signs_as_cli11_does():
+    from crushdem._cli import CommandParser
+
+    parser = CommandParser("plot", "More text.")
+    parser.add_argument("count", type=int, metavar="N", help="grains")
+    parser.add_argument("--rate", type=float, required=True, help="%(default)s at 100 %%")
+    parser.add_argument("--law", choices=("hertz", "rough"), default="hertz")
+    parser.add_argument("--set", action="append", metavar="KEY=VALUE", help="repeatable")
+    parser.add_argument("--a-rather-long-option-name", metavar="VALUE", help="on the next line")
+    text = parser.format_help()
+    assert "\n  N INT REQUIRED              grains\n" in text
+    assert "\n  --rate FLOAT REQUIRED       None at 100 %\n" in text
+    assert "\n  --law TEXT:{hertz,rough}\n" in text
+    assert "\n  --set KEY=VALUE ...         repeatable\n" in text
+    assert ("\n  --a-rather-long-option-name VALUE\n" + " " * 30 + "on the next line\n") in text
+    assert text.endswith("\nMore text.\n")
+    assert parser.parse_args(["3", "--rate", "2"]).count == 3

@@ -351,6 +351,32 @@ void Simulation::check_loaded_state() const {
     }
     if (wc_.wall[k] >= walls_.size()) fail("a wall contact names a body that does not exist");
   }
+  if (nl_valid_) {
+    // The step reads the wall contacts by grain through the offsets (CSR), and the pair
+    // entries' touching flags by entry.
+    const std::vector<std::uint32_t>& off = wc_.offsets;
+    if (off.size() != n + 1 || off.front() != 0 || off.back() != nw) {
+      fail("the wall contacts' offsets do not span the grains and their entries");
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (off[i + 1] < off[i]) fail("the wall contacts' offsets decrease");
+      for (std::uint32_t k = off[i]; k < off[i + 1]; ++k) {
+        if (wc_.particle[k] != i) fail("a wall contact lies outside its grain's entries");
+      }
+    }
+    if (history_.touching.size() != nl_.neighbors.size()) {
+      fail("the contacts' touching flags and the neighbour list disagree");
+    }
+  }
+  const auto all_finite = [](const std::vector<double>& v) {
+    return std::all_of(v.begin(), v.end(), [](double d) { return std::isfinite(d); });
+  };
+  for (const auto* v : {&wc_.ft_x, &wc_.ft_y, &wc_.ft_z, &wc_.delta, &ft.x, &ft.y, &ft.z}) {
+    if (!all_finite(*v)) fail("a contact's history holds a non-finite value");
+  }
+  for (const auto* v : {&p_.vx, &p_.vy, &p_.vz, &p_.wx, &p_.wy, &p_.wz}) {
+    if (!all_finite(*v)) fail("a grain's velocity is not finite");
+  }
   std::vector<ParticleId> ids(p_.id.begin(), p_.id.end());
   std::sort(ids.begin(), ids.end());
   if (std::adjacent_find(ids.begin(), ids.end()) != ids.end()) fail("two grains share an id");
