@@ -204,6 +204,30 @@ std::string run_error(const std::string& text) {
   return "";
 }
 
+// A hold with `settle` ends once the head load is off and the sand at rest, before its longest
+// length; the same hold without it runs that length.
+TEST(Pile, AHoldThatSettlesEndsWhenTheHeadLoadIsOffAndTheSandAtRest) {
+  const testing::TempDir temp("settle");
+  std::string text = pile_text();
+  text.erase(text.find("[[stage]]\ntype = \"age\""));  // installation and unloading only
+  const std::string hold = "steps = 3000\n";
+  text.replace(text.find(hold), hold.size(),
+               "steps = 200000\nsettle = true\ntolerance = 0.05\nunbalanced = 0.02\n");
+  run_to_directory(config(text), options(temp.path() / "settle"));
+  const std::string summary = testing::read_file(temp.path() / "settle" / "summary.json");
+  EXPECT_NE(summary.find("\"end\": \"settled\""), std::string::npos) << summary;
+  const double steps = testing::json_number(summary, "steps", 2);  // the run, install, unload
+  EXPECT_GT(steps, 0.0);
+  EXPECT_LT(steps, 200000.0);
+  // Settled: the head load within 5 % of the platen's target over the pile's area.
+  auto ts = testing::read_csv((temp.path() / "settle" / "timeseries.csv").string());
+  EXPECT_LT(std::abs(ts["body_pile_stress_Pa"].back()), 0.05 * 100e3 + 1e-9);
+  EXPECT_LT(ts["unbalanced_force_ratio"].back(), 0.02 + 1e-12);
+  // `settle` is written to config.toml only where it is on.
+  const std::string written = testing::read_file(temp.path() / "settle" / "config.toml");
+  EXPECT_EQ(written.find("settle"), written.rfind("settle")) << written;
+}
+
 TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
   const std::string text = pile_text();
   auto changed = [&](const std::string& from, const std::string& to) {

@@ -1010,3 +1010,23 @@ def test_figures_join_the_runs_manifest(tmp_path):
     other = _plain_run(tmp_path / "plain")
     plot.make_plots(other)
     assert not os.path.exists(os.path.join(other, "manifest.json"))
+
+
+def test_log_time_axes_label_the_minor_ticks_only_when_they_have_room():
+    """2 and 5 between the decades are labelled on an axis of at most two decades; on a wider
+    one their plain labels (20000, 50000) would run into each other."""
+    from crushdem.figures.common import plain_log_ticks, pyplot
+
+    plt = pyplot()
+    for span, labelled in (((1.0, 100.0), True), ((1e2, 1e6), False)):
+        fig, ax = plt.subplots()
+        ax.set_xscale("log")
+        ax.plot(span, [0, 1])
+        ax.set_xlim(*span)
+        plain_log_ticks(ax)
+        fig.canvas.draw()
+        minor = [t.get_text() for t in ax.get_xticklabels(minor=True) if t.get_text()]
+        major = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+        assert bool(minor) == labelled, (span, minor)
+        assert "100" in major, major
+        plt.close(fig)

@@ -80,9 +80,15 @@ def plain_log_ticks(ax: Axes) -> None:
     """Tick labels of a log x axis as plain numbers (0.1, 0.2, 1) instead of powers of ten."""
     from matplotlib.ticker import FuncFormatter
 
+    def minor(v: float, _pos: int) -> str:
+        # 2 and 5 between the decades only on an axis of at most two decades: on a wider one
+        # their labels (20000, 50000, 100000) run into each other.
+        lo, hi = sorted(ax.get_xlim())
+        narrow = lo > 0 and hi / lo <= 10 ** 2.05
+        return f"{v:g}" if narrow and f"{v:.0e}"[0] in "25" else ""
+
     ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
-    ax.xaxis.set_minor_formatter(FuncFormatter(
-        lambda v, _pos: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+    ax.xaxis.set_minor_formatter(FuncFormatter(minor))
 
 
 def mark_times(axes: Sequence[Axes], label_ax: Optional[Axes] = None,

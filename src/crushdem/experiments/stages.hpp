@@ -64,6 +64,7 @@ struct StageConfig {
   std::uint64_t bins = 20;               // penetrate: bins along the shaft
   double sleeve_length = 0.0;            // penetrate [m]; 0 = 3.75 shaft diameters
   bool from_top = false;                 // penetrate: start with the tip at the top wall
+  bool settle = false;                   // hold: end once settled (steps/duration the most)
   double stroke = 0.0;                   // penetrate: jacking stroke [m]; 0 = continuous
   double pause = 0.0;                    // penetrate: the body held still between strokes [s]
   HeadControl head = HeadControl::Held;  // hold, age: the pile named by `body`

@@ -1,6 +1,7 @@
 // The hold stage: the walls keep still or are servo-controlled (`axial`, `lateral`), for `steps`
 // or `duration` of DEM time; a pile named by `body` held as `head` says (its head load taken off
-// after installation, say).
+// after installation, say). With `settle`, the hold ends as soon as the sample has settled, and
+// steps or duration is the longest it lasts.
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -31,6 +32,7 @@ class HoldStage final : public Stage {
 
  protected:
   const char* end_reason(Simulation& sim) override {
+    if (cfg_.settle && settled(sim)) return "settled";
     if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return "duration";
     if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
       return "duration";
@@ -46,6 +48,29 @@ class HoldStage final : public Stage {
       n = std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
     }
     return n;
+  }
+
+ private:
+  // Every servo target met to `tolerance` and the unbalanced-force ratio below `unbalanced`. A
+  // zero target (a pile's head load taken off) has no relative error: its stress counts as met
+  // within `tolerance` of the largest target.
+  bool settled(const Simulation& sim) const {
+    const Walls& w = sim.walls();
+    double scale = 0.0;
+    for (int k = 0; k < w.size(); ++k) {
+      if (w.config(k).mode == WallMode::Servo) {
+        scale = std::max(scale, std::abs(w.config(k).target_stress));
+      }
+    }
+    for (int k = 0; k < w.size(); ++k) {
+      const WallConfig& c = w.config(k);
+      if (c.mode != WallMode::Servo) continue;
+      const double error = std::abs(w.stress(k) - c.target_stress);
+      const double allowed =
+          cfg_.tolerance * (c.target_stress != 0.0 ? std::abs(c.target_stress) : scale);
+      if (!(error <= allowed)) return false;
+    }
+    return unbalanced_force_ratio(sim) <= cfg_.unbalanced;
   }
 };
 
@@ -67,6 +92,16 @@ const StageKind& hold_stage_kind() {
           {"duration", &StageConfig::duration, "s",
            "length of the hold in DEM time (or give steps)", [](double v) { return v >= 0.0; },
            "a time in s", "-", [](const StageConfig& c) { return c.duration > 0.0; }},
+          {"settle",
+           &StageConfig::settle,
+           "",
+           "end as soon as every servo target is met to `tolerance` (a zero target, a head load "
+           "taken off, to `tolerance` times the largest target) and the unbalanced-force ratio is "
+           "below `unbalanced`; `steps` or `duration` is then the longest the hold lasts",
+           nullptr,
+           {},
+           {},
+           [](const StageConfig& c) { return c.settle; }},
       })),
       .make = make_stage_of<HoldStage>,
       .check =
