@@ -182,7 +182,8 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
     EXPECT_EQ(read_file(damaged / "checkpoint.bin"), bytes);
   }
   // A result file changed after the checkpoint (one byte of a row it had written), or a
-  // snapshot deleted: resume refuses, naming the file, and changes nothing.
+  // snapshot deleted: resume refuses (a ConfigError, exit status 2, for either), naming the
+  // file, and changes nothing.
   std::string snapshot;
   for (const auto& e : fs::directory_iterator(base / "stopped" / "vtk")) {
     if (e.path().extension() == ".vtp") snapshot = "vtk/" + e.path().filename().string();
@@ -206,7 +207,7 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
     try {
       resume_directory(damaged.string(), opt);
       ADD_FAILURE() << "resumed with " << file << " changed";
-    } catch (const std::exception& e) {
+    } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
     }
     EXPECT_EQ(read_file(damaged / "timeseries.csv"), before);

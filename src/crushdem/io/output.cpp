@@ -99,16 +99,18 @@ void CsvWriter::resume(long long size, const std::vector<std::string>& columns,
     fs::remove(path_, ec);
     return;
   }
+  // A result file missing or changed is a refusal, as for the kept files (run/driver.cpp): the
+  // directory's state, not a failed run (ConfigError, exit status 2).
   if (!fs::exists(path_) || fs::file_size(path_) < static_cast<std::uintmax_t>(size)) {
-    throw RuntimeFailure("cannot resume: '" + path_ + "' is missing or shorter than at the " +
-                         "checkpoint (" + std::to_string(size) + " bytes)");
+    throw ConfigError("cannot resume: '" + path_ + "' is missing or shorter than at the " +
+                      "checkpoint (" + std::to_string(size) + " bytes)");
   }
   digest_ = file_digest(path_, size);  // continued as rows are appended
   if (digest && digest_ != *digest) {
-    throw RuntimeFailure("cannot resume: '" + path_ +
-                         "' was changed after the checkpoint (its first " + std::to_string(size) +
-                         " bytes differ from what the run wrote); restore it or start the run "
-                         "again with --overwrite");
+    throw ConfigError("cannot resume: '" + path_ +
+                      "' was changed after the checkpoint (its first " + std::to_string(size) +
+                      " bytes differ from what the run wrote); restore it or start the run "
+                      "again with --overwrite");
   }
   fs::resize_file(path_, static_cast<std::uintmax_t>(size), ec);
   if (ec) throw RuntimeFailure("cannot resume: '" + path_ + "': " + ec.message());
