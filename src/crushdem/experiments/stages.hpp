@@ -137,6 +137,15 @@ ParamTable<StageConfig> held_walls_stage_table(std::initializer_list<Param<Stage
 ParamTable<StageConfig> pile_head_rows();
 /// `table` with the pile head's rows after its held walls' rows (hold, age).
 ParamTable<StageConfig> with_pile_head(ParamTable<StageConfig> table);
+/// The share of an age stage done, for its progress lines: `t` of `span` seconds of ageing
+/// done, the first jump `first_jump` s long (0: none yet, or not known after a resume),
+/// `phases` dynamic phases finished (each followed by a jump). The ageing done on a log1p
+/// scale, or, when larger, the share of the phases done (each takes about the same wall-clock):
+/// the jumps grow about geometrically, so after two the phases left are about the log-time left
+/// over the log-time per jump so far. The first alone undercounts a relaxation whose first jumps
+/// are fractions of a second (0.4 % at the second phase of eleven); the second alone a run whose
+/// first jump is long and the next short.
+double ageing_progress(double t, double span, double first_jump, std::uint64_t phases);
 /// A pile's head held at a load needs the pile (`body`); ConfigError naming prefix.head.
 void check_pile_head(const StageConfig& c, const std::string& prefix);
 /// StageKind::check_bodies of a stage that names a [[body]] it probes (penetrate, load_test; hold

@@ -41,10 +41,13 @@ class AgeStage final : public Stage {
 
   double ageing_clock_now() const override { return ageing_time_; }
 
-  /// The ageing done on a log scale (the jumps grow about geometrically).
+  /// The share of the stage done, for progress lines (ageing_progress); never back, as a shorter
+  /// jump would lower the estimate. A resume does not keep the first jump.
   double fraction(const Simulation&) const override {
-    const double span = target() - ageing_clock_;
-    return span > 0.0 ? std::log1p(ageing_time_ - ageing_clock_) / std::log1p(span) : 1.0;
+    shown_ =
+        std::max(shown_, ageing_progress(ageing_time_ - ageing_clock_, target() - ageing_clock_,
+                                         first_jump_, res_.dynamic_phases));
+    return shown_;
   }
 
   /// The dynamic phase and the ageing time against its duration.
@@ -73,6 +76,7 @@ class AgeStage final : public Stage {
     const double left = target() - ageing_time_;
     const AgeingJump j = ageing_jump(sim, *crusher_, cfg_.n_break, left);
     ageing_time_ = j.dt >= left ? target() : ageing_time_ + j.dt;
+    if (first_jump_ == 0.0) first_jump_ = ageing_time_ - ageing_clock_;
     if (StageOutputs* out = outputs()) out->set_ageing_clock(ageing_time_);
     start_phase(sim);
     return nullptr;
@@ -195,12 +199,25 @@ class AgeStage final : public Stage {
 
   Crusher* crusher_;
   double ageing_time_ = 0.0;
+  double first_jump_ = 0.0;     // the ageing of this stage's first jump [s], for fraction() only
+  mutable double shown_ = 0.0;  // the largest fraction() returned
   std::uint64_t phase_start_ = 0;
   double phase_volume_ = 0.0;   // box volume at cycle 0 of the current phase [m^3]
   double phase_lateral_ = 0.0;  // reference of the confining fluctuation [Pa]
 };
 
 }  // namespace
+
+double ageing_progress(double t, double span, double first_jump, std::uint64_t phases) {
+  if (!(span > 0.0)) return 1.0;
+  double f = std::log1p(t) / std::log1p(span);
+  const auto k = static_cast<double>(phases);
+  if (first_jump > 0.0 && k >= 2.0 && t > first_jump && t < span) {
+    const double per_jump = std::log(t / first_jump) / (k - 1.0);
+    f = std::max(f, k / (k + 1.0 + std::log(span / t) / per_jump));
+  }
+  return f;
+}
 
 const StageKind& age_stage_kind() {
   static const StageKind kind{
