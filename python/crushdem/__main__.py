@@ -12,6 +12,7 @@ executable.
 
 from __future__ import annotations
 
+import importlib
 import sys
 from typing import List, Optional
 
@@ -50,23 +51,11 @@ def main(argv: Optional[List[str]] = None) -> None:
         sys.exit(0)
     if args and args[0] in NEEDS and not ("-h" in args or "--help" in args):
         _check_needs(args[0])
-    if args and args[0] == "plot":
-        from . import plot
+    from . import _core
+    from ._cli import COMMANDS
 
-        sys.exit(plot.main(args[1:]))
-    if args and args[0] in ("reproduce", "sensitivity", "sweep", "calibrate", "pile"):
-        from . import _core
-
-        if args[0] == "reproduce":
-            from .reproduce import main as command
-        elif args[0] == "sensitivity":
-            from .sensitivity import main as command
-        elif args[0] == "sweep":
-            from .sweep import main as command
-        elif args[0] == "pile":
-            from .pile import main as command
-        else:
-            from .calibrate import main as command
+    if args and args[0] in COMMANDS:  # each command is the module of its name
+        command = importlib.import_module(f".{args[0]}", __package__).main
         try:
             sys.exit(command(args[1:]))
         except _core.Interrupted as e:
@@ -75,14 +64,10 @@ def main(argv: Optional[List[str]] = None) -> None:
             sys.stderr.write(f"crushdem: {e}\n")
             sys.exit(128 + e.signal)
 
-    from . import _core
-
     # The C++ code writes through C stdio: empty Python's buffers first so that output stays in
     # order (_core.cli_main flushes the C streams before it returns).
     sys.stdout.flush()
     sys.stderr.flush()
-    from ._cli import COMMANDS
-
     sys.exit(_core.cli_main(args, list(COMMANDS.items())))
 
 

@@ -63,6 +63,11 @@ class CommandParser(argparse.ArgumentParser):
         self.add_argument("-h", "--help", action="help",
                           help="Print this help message and exit")
 
+    def add_backend(self, what: str) -> None:
+        """``--backend cpu|cuda|emulated`` (default cpu), described by ``what``."""
+        self.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
+                          help=what)
+
     def _expand(self, action: argparse.Action) -> str:
         # argparse's %-formatting of help texts (%(default)s, %%); a stray % raises, as there.
         return (action.help or "") % dict(vars(action), prog=self.prog)

@@ -248,8 +248,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="directory for DIR/main, the branches and the set-up fit")
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads of each run (they run one after the other)")
-    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
-                        help="what advances the runs: cpu (default), cuda or emulated")
+    parser.add_backend("what advances the runs: cpu (default), cuda or emulated")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:

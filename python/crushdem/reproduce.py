@@ -266,10 +266,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="run only these tests (" + ", ".join(TESTS) + "; default: both), "
                              "e.g. two processes side by side, one per test, into one DIR once "
                              "the sample is prepared; the figures cover what has finished")
-    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
-                        help="what advances the runs: cpu (default), cuda (a GPU, in a build with "
-                             "CUDA) or emulated (the GPU's step on the host); recorded in "
-                             "DIR/settings.json, as the backends agree only statistically")
+    parser.add_backend("what advances the runs: cpu (default), cuda (a GPU, in a build with CUDA) "
+                       "or emulated (the GPU's step on the host); recorded in DIR/settings.json, "
+                       "as the backends agree only statistically")
     parser.add_argument("--quiet", action="store_true",
                         help="no progress lines (by default the engine prints one on stderr "
                              "every minute at study scale: stage, stresses, share done, ETA)")

@@ -32,7 +32,6 @@ stage; ``DIR/results.png`` draws each figure against each varied key.
 
 from __future__ import annotations
 
-import argparse
 import copy
 import hashlib
 import itertools
@@ -530,7 +529,7 @@ def _follow(client, futures, errors, progress, log) -> None:
 
 
 def cluster_parser(command: str, details: Optional[str], file: str,
-                   metavar: str) -> argparse.ArgumentParser:
+                   metavar: str) -> CommandParser:
     """The command line of a command whose runs are sweep tasks (``crushdem sweep``,
     ``crushdem calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
     --workers, --threads-per-run, --scheduler."""
@@ -552,9 +551,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
     parser = cluster_parser("sweep", __doc__, "sweep", "SWEEP.toml")
-    parser.add_argument("--backend", default="cpu", choices=("cpu", "cuda", "emulated"),
-                        help="what advances every run: cpu (default), cuda (a GPU, in a build "
-                             "with CUDA; one worker per GPU) or emulated")
+    parser.add_backend("what advances every run: cpu (default), cuda (a GPU, in a build with "
+                       "CUDA; one worker per GPU) or emulated")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:

@@ -12,10 +12,20 @@
 namespace crushdem {
 
 bool servo_walls_at_target(const Walls& w, double tol) {
+  // A zero target (a pile's head load taken off) has no relative error: it counts as met within
+  // tol of the largest target.
+  double scale = 0.0;
+  for (int k = 0; k < w.size(); ++k) {
+    if (w.config(k).mode == WallMode::Servo) {
+      scale = std::max(scale, std::abs(w.config(k).target_stress));
+    }
+  }
   for (int k = 0; k < w.size(); ++k) {
     const WallConfig& c = w.config(k);
     if (c.mode != WallMode::Servo) continue;
-    if (!(std::abs(w.stress(k) / c.target_stress - 1.0) <= tol)) return false;
+    const bool met = c.target_stress != 0.0 ? std::abs(w.stress(k) / c.target_stress - 1.0) <= tol
+                                            : std::abs(w.stress(k)) <= tol * scale;
+    if (!met) return false;
   }
   return true;
 }

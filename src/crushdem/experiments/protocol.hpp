@@ -145,7 +145,8 @@ class PreparationController final : public Controller {
   std::string warning_;
 };
 
-/// Every servo wall within `tol` of its target.
+/// Every servo wall within `tol` of its target (relative; a zero target within `tol` of the
+/// largest target).
 bool servo_walls_at_target(const Walls& w, double tol);
 
 }  // namespace crushdem

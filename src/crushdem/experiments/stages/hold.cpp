@@ -32,7 +32,7 @@ class HoldStage final : public Stage {
 
  protected:
   const char* end_reason(Simulation& sim) override {
-    if (cfg_.settle && settled(sim)) return "settled";
+    if (cfg_.settle && at_equilibrium(sim)) return "settled";
     if (cfg_.steps > 0 && res_.steps >= cfg_.steps) return "duration";
     if (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12)) {
       return "duration";
@@ -48,29 +48,6 @@ class HoldStage final : public Stage {
       n = std::min(n, static_cast<std::uint64_t>(std::max(1.0, left)));
     }
     return n;
-  }
-
- private:
-  // Every servo target met to `tolerance` and the unbalanced-force ratio below `unbalanced`. A
-  // zero target (a pile's head load taken off) has no relative error: its stress counts as met
-  // within `tolerance` of the largest target.
-  bool settled(const Simulation& sim) const {
-    const Walls& w = sim.walls();
-    double scale = 0.0;
-    for (int k = 0; k < w.size(); ++k) {
-      if (w.config(k).mode == WallMode::Servo) {
-        scale = std::max(scale, std::abs(w.config(k).target_stress));
-      }
-    }
-    for (int k = 0; k < w.size(); ++k) {
-      const WallConfig& c = w.config(k);
-      if (c.mode != WallMode::Servo) continue;
-      const double error = std::abs(w.stress(k) - c.target_stress);
-      const double allowed =
-          cfg_.tolerance * (c.target_stress != 0.0 ? std::abs(c.target_stress) : scale);
-      if (!(error <= allowed)) return false;
-    }
-    return unbalanced_force_ratio(sim) <= cfg_.unbalanced;
   }
 };
 
