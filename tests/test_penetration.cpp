@@ -150,6 +150,54 @@ TEST(Penetration, AJackedConeAdvancesInStrokesAndStandsStillBetweenThem) {
   EXPECT_GE(compared, 6u);
 }
 
+TEST(Penetration, AJackedConeUnloadedBetweenStrokesReboundsAndGoesOnToItsDepth) {
+  // The jacked cone of the test above with its head load taken off in each pause (`unload`):
+  // the cone moves back up as the grains under it unload, the load on it falls to a small part
+  // of what it carried at the stroke's end, and each next stroke starts where the cone came to
+  // rest and ends at the next multiple of the stroke (the travel is counted from the start).
+  std::string text =
+      testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
+  const std::string at = "depth = 0.45e-3\n";
+  // (the head's servo as fast as the walls' at 200 /s: the pause is 3,500 steps)
+  text.replace(text.find(at), at.size(),
+               at + "stroke = 0.1e-3\npause = 20e-6\nunload = true\nmax_strain_rate = 200.0\n");
+  const std::string every = "record_interval = 500\n";
+  text.replace(text.find(every), every.size(), "record_interval = 100\n");
+  const RunConfig cfg = config(text);
+  const testing::TempDir temp("unloaded");
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (temp.path() / "whole").string();
+  run_to_directory(cfg, opt);
+  auto pen = testing::read_csv((temp.path() / "whole" / "penetration.csv").string());
+  const std::vector<double>& travel = pen["travel_m"];
+  const std::size_t n = travel.size();
+  const double v = 2.0, dt = (pen["time_s"][1] - pen["time_s"][0]) / 100.0;
+  EXPECT_EQ(pen["strokes"].back(), 4.0);
+  EXPECT_GE(travel.back(), 0.45e-3 * (1.0 - 1e-12));
+  EXPECT_LT(travel.back() - 0.45e-3, v * dt * 1.01);
+  int pauses = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(pen["moving"][i] == 0.0 && pen["moving"][i - 1] == 1.0) || i + 1 == n) continue;
+    ++pauses;
+    EXPECT_NEAR(travel[i], 1e-4 * pauses, v * dt * 1.01) << "stroke " << pauses;
+    const double loaded = pen["tip_load_N"][i] + pen["shaft_load_N"][i];
+    std::size_t j = i;
+    while (j + 1 < n && pen["moving"][j + 1] == 0.0) ++j;
+    // j: the pause's last row, where the next stroke starts from
+    const double rested = pen["tip_load_N"][j] + pen["shaft_load_N"][j];
+    if (loaded > 0.0) {
+      EXPECT_LT(travel[j], travel[i]) << "the cone did not rebound in pause " << pauses;
+      EXPECT_LT(rested, 0.1 * loaded) << "pause " << pauses << ": " << loaded << " N at its start";
+    }
+  }
+  EXPECT_EQ(pauses, 4);
+  // Resumed in the middle of the jacking, the run writes the files of an uninterrupted one.
+  const std::size_t compared = testing::expect_stopped_run_resumes_exactly(
+      cfg, opt, temp.path() / "whole", temp.path() / "stopped", "penetration.csv");
+  EXPECT_GE(compared, 6u);
+}
+
 std::string config_error(const std::string& text) {
   try {
     const RunConfig cfg = config(text);
@@ -182,6 +230,9 @@ TEST(Penetration, BadPenetrationsAreRefusedNamingTheKey) {
        "stage[0].velocity"},
       {cone + "[[stage]]\ntype = \"penetrate\"\nbody = \"cone\"\nvelocity = 1.0\n",
        "stage[0].depth"},
+      // Unloading between strokes without strokes, or without a pause to unload in.
+      {cone + stage + "body = \"cone\"\nunload = true\n", "stage[0].unload"},
+      {cone + stage + "body = \"cone\"\nstroke = 1e-5\nunload = true\n", "stage[0].unload"},
       // A pile through the grains.
       {"[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0.6e-3, 0.6e-3, 0.1e-3]\n"
        "radius = 1e-4\nlength = 2e-3\n" +

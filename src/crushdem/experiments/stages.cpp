@@ -261,11 +261,16 @@ void Stage::set_head(Walls& w) const {
     c.mode = WallMode::Fixed;
     return;
   }
+  servo_head(w, cfg_.head_load);
+}
+
+void Stage::servo_head(Walls& w, double load) const {
+  const int k = stage_body_index(w, cfg_);
   // The servo holds the sector's share of the load over the body's own area, at most as fast
   // as the top platen's servo may move (max_strain_rate x the sample's height / 2).
-  set_servo(w, k, cfg_.head_load * w.sector() / w.area(k));
+  set_servo(w, k, load * w.sector() / w.area(k));
   const double rate = cfg_.max_strain_rate > 0.0 ? cfg_.max_strain_rate : automatic_servo_rate();
-  c.max_speed = 0.5 * rate * w.length(2);
+  w.config(k).max_speed = 0.5 * rate * w.length(2);
 }
 
 bool Stage::at_equilibrium(const Simulation& sim) const {

@@ -67,6 +67,7 @@ struct StageConfig {
   bool settle = false;                   // hold: end once settled (steps/duration the most)
   double stroke = 0.0;                   // penetrate: jacking stroke [m]; 0 = continuous
   double pause = 0.0;                    // penetrate: the body held still between strokes [s]
+  bool unload = false;  // penetrate: the head load taken off between strokes, not held still
   HeadControl head = HeadControl::Held;  // hold, age: the pile named by `body`
   double head_load = 0.0;                // [N] the whole pile's, with head = "load"
   std::uint64_t rings = 6;               // age: rings of grains about the pile
@@ -250,6 +251,8 @@ class Stage : public Controller {
   void set_held_walls(Walls& w) const;
   /// The pile named by `body` held as `head` says (nothing without a body).
   void set_head(Walls& w) const;
+  /// The pile named by `body` servo-controlled to the whole pile's head load `load` [N].
+  void servo_head(Walls& w, double load) const;
   /// Every servo wall within tolerance of its target and the unbalanced-force ratio below
   /// `unbalanced`.
   bool at_equilibrium(const Simulation& sim) const;

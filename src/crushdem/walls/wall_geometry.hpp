@@ -51,7 +51,9 @@ CD_HD inline double wall_gap(int k, double wall_position, double cx, double cy, 
 
 /// The servo law: the velocity of a body's degree of freedom for the next step, from its normal
 /// force, its current area, its contacts' summed k_n and the step h; without contacts (or before
-/// the first step) the body approaches or retreats at full speed. outward_sign: +1 where an
+/// the first step) the body approaches or retreats at full speed, and stays where it is when
+/// its target is met exactly (a zero target, a pile's head load taken off, with the pile free
+/// of the grains). outward_sign: +1 where an
 /// increasing coordinate moves the surface away from the grains, -1 where towards them.
 CD_HD inline double servo_velocity(double outward_sign, double normal_force, double area,
                                    double stiffness, double h, double target_stress,
@@ -61,7 +63,7 @@ CD_HD inline double servo_velocity(double outward_sign, double normal_force, dou
   if (stiffness > 0.0 && h > 0.0) {
     v_out = servo_alpha * area / (stiffness * h) * error;
   } else {
-    v_out = error > 0.0 ? max_speed : -max_speed;
+    v_out = error > 0.0 ? max_speed : (error < 0.0 ? -max_speed : 0.0);
   }
   v_out = v_out < -max_speed ? -max_speed : (max_speed < v_out ? max_speed : v_out);
   return outward_sign * v_out;

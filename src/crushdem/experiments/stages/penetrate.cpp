@@ -6,8 +6,9 @@
 // the tip and the shaft, with the run's measurements) and shaft_profile.csv (the radial and shear
 // stress on the shaft by bins along it: walls/body_probe.hpp). With `stroke` the body is jacked:
 // it advances `stroke` at `velocity`, stands still for `pause` (held where it is, as a jack that
-// grips it), and so on until `depth`. The load_test kind (a pile's static load test) is here too:
-// it drives a body the same way.
+// grips it, or with `unload` its head load taken off so that it may rebound, as the Grenoble
+// chamber's mini-piles were unloaded between strokes), and so on until `depth`. The load_test
+// kind (a pile's static load test) is here too: it drives a body the same way.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -136,7 +137,11 @@ class PenetrateStage final : public Stage {
       pausing_ = true;
       ++strokes_;
       pause_end_ = sim.time() + cfg_.pause;
-      move(sim, false);
+      if (cfg_.unload) {
+        unload(sim);
+      } else {
+        move(sim, false);
+      }
       event = true;
     }
     if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || event) record(sim);
@@ -185,6 +190,14 @@ class PenetrateStage final : public Stage {
 
   // The body driven at `velocity` (moving) or held still where it is.
   void move(Simulation& sim, bool moving) { drive_body(sim, cfg_, moving ? cfg_.velocity : 0.0); }
+
+  // Between strokes with `unload`: the head servo-controlled to zero load, free to rebound.
+  void unload(Simulation& sim) {
+    Walls& w = sim.walls();
+    w.config(stage_body_index(w, cfg_)).velocity = 0.0;
+    servo_head(w, 0.0);
+    w.update_velocities(sim.current_dt());
+  }
 
   double q_start_ = 0.0;       // the body's degree of freedom at the start [m]
   double next_stop_ = 0.0;     // the travel where the body next stops: a stroke's end or depth [m]
@@ -349,14 +362,33 @@ const StageKind& penetrate_stage_kind() {
            "continuous push",
            [](double v) { return v >= 0.0; }, "a stroke length >= 0 in m"},
           {"pause", &StageConfig::pause, "s",
-           "how long the body is held still (where it is, not unloaded) between strokes",
+           "how long the body stands still between strokes (held where it is, or with `unload` "
+           "at zero head load)",
            [](double v) { return v >= 0.0; }, "a time >= 0 in s"},
+          {"unload",
+           &StageConfig::unload,
+           "",
+           "between strokes, take the head load off (the body servo-controlled to zero load, "
+           "free to rebound, as the Grenoble chamber's mini-piles were unloaded) instead of "
+           "holding the body where it is; needs `stroke` and `pause`",
+           nullptr,
+           {},
+           {},
+           [](const StageConfig& c) { return c.unload; }},
           {"sleeve_length", &StageConfig::sleeve_length, "m",
            "friction sleeve above the tip for f_s; 0 = 3.75 shaft diameters (150 cm^2 on a "
            "35.7 mm cone, ISO 22476-1)",
            [](double v) { return v >= 0.0; }, "a length >= 0 in m"},
       }),
       .make = make_stage_of<PenetrateStage>,
+      .check =
+          [](const StageConfig& c, const std::string& prefix) {
+            if (c.unload && !(c.stroke > 0.0 && c.pause > 0.0)) {
+              throw ConfigError(bad_value(prefix + ".unload", "true",
+                                          "false without strokes: unloading between strokes "
+                                          "needs `stroke` > 0 and `pause` > 0 beside it"));
+            }
+          },
       .check_bodies = check_driven_body,
   };
   return kind;
