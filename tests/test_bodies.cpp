@@ -144,6 +144,46 @@ TEST(Bodies, APileTouchesAGrainOnceAtTheJunctionOfTipAndShaft) {
   EXPECT_NEAR(side.n.z, std::sin(kPi / 6.0), 1e-12);
 }
 
+TEST(Bodies, AGrainOutsideTheJunctionOfTipAndShaftTouchesItsRim) {
+  // Outside the convex junction of the cone and the shaft lies a wedge (30 degrees for a 60
+  // degree tip) that neither face covers: a grain there touches the rim circle, an edge.
+  // Without it a grain in the wedge overlapping the rim carried no force, and the shaft found
+  // it deep inside as soon as the pile moved past it (a load test's spikes of 27 times its
+  // capacity, grains split at once at up to 3.3 times their strength).
+  const SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0, 0, -5e-3]\naxis = [0, 0, 1]\n"
+      "radius = 1e-3\nlength = 8e-3\nhalf_angle = 30.0\n");
+  Simulation sim(cfg);
+  const Walls& w = sim.walls();
+  const int pile = kNumWalls;
+  const double R = 1e-3, r = 0.1e-3, h = R / std::tan(kPi / 6.0), z_rim = -5e-3 + h;
+  // In the wedge: 0.5 r out from the rim and 0.2 r below it.
+  const SurfacePoint rim = w.surface(pile, {R + 0.5 * r, 0.0, z_rim - 0.2 * r});
+  const double d = std::hypot(0.5 * r, 0.2 * r);
+  EXPECT_NEAR(rim.dist, d, 1e-15);
+  EXPECT_NEAR(rim.n.x, -0.5 * r / d, 1e-12);
+  EXPECT_NEAR(rim.n.z, 0.2 * r / d, 1e-12);
+  EXPECT_EQ(rim.kappa_1, 0.0);  // an edge: R* = r, as against a plane
+  // Down a line 0.5 r outside the shaft, from the shaft past the rim onto the cone: the
+  // distance is continuous (the faces' distances meet the rim's at the wedge's sides) and never
+  // above the sphere's radius, so a grain sliding along it keeps its contact.
+  double last = w.surface(pile, {R + 0.5 * r, 0.0, z_rim + 0.5 * r}).dist;
+  for (int k = 1; k <= 200; ++k) {
+    const double z = z_rim + 0.5 * r - k * 0.005 * r;
+    const double dist = w.surface(pile, {R + 0.5 * r, 0.0, z}).dist;
+    EXPECT_LT(dist, r) << "z - z_rim = " << (z - z_rim) / r << " r";
+    EXPECT_LT(std::fabs(dist - last), 0.01 * r) << "z - z_rim = " << (z - z_rim) / r << " r";
+    last = dist;
+  }
+  // A grain in the wedge overlapping the rim is pushed away from it, along the normal.
+  sim.add_particle({R + 0.5 * r, 0.0, z_rim - 0.2 * r}, r);
+  sim.compute_forces();
+  const Vec3 F{sim.resultant_force(0)[0], sim.resultant_force(1)[0], sim.resultant_force(2)[0]};
+  EXPECT_GT(F.x, 0.0);
+  EXPECT_LT(F.z, 0.0);
+  EXPECT_NEAR(F.z / F.x, -0.2 / 0.5, 1e-12);
+}
+
 TEST(Bodies, APrescribedVelocityMovesTheBodyAndAServoHoldsItsStress) {
   // A disk platen 2 um above a grain resting on the box floor: moved at 1 mm/s along -axis
   // for 1,000 steps, then servo-controlled to a stress over its area.

@@ -17,7 +17,8 @@
 //                    beyond its ends sees no surface
 //   Cone             the outside of a cone with its apex at `origin`, opening along `axis` with
 //                    half-angle alpha, up to the base radius `radius` at height `length`
-//                    (a penetrometer's or a pile's conical tip)
+//                    (a penetrometer's or a pile's conical tip); beyond the base its rim
+//                    circle (an edge), which a pile's shaft covers where its range reaches
 // A body is one shape or a union of convex parts (a pile: a cylinder on a cone): a grain touches
 // the part nearest to it, so that it never meets a convex body twice at a junction.
 //
@@ -194,7 +195,14 @@ CD_HD_INLINE SurfacePoint part_surface(const BodyPart& s, double q, Vec3 motion,
         const double local = t * s.sin_alpha;
         out.kappa_1 = local > 0.0 ? s.cos_alpha / local : 0.0;
       } else {
-        break;  // beyond the base: the part the cone is joined to (a shaft) answers
+        // Beyond the base: the base's rim circle (an edge), as a disk's. Where a shaft is
+        // joined on, it is nearer wherever its own range reaches (its distance is the rim's
+        // radial part), so the rim answers only in the wedge outside the convex junction,
+        // between the two faces' normals, which neither face covers.
+        const Vec3 rim = origin + s.length * s.axis + radius * p.e_rho;
+        const Vec3 d = rim - c;
+        out.dist = std::sqrt(dot(d, d));
+        out.n = (1.0 / out.dist) * d;
       }
       out.radial = p.e_rho;
       break;

@@ -415,9 +415,9 @@ const StageKind& load_test_stage_kind() {
           {"record_interval", &StageConfig::record_interval, "",
            "steps between rows of load_test.csv", [](double v) { return v >= 1.0; }, "> 0 steps"},
           {"capacity_window", &StageConfig::capacity_window, "",
-           "rows of load_test.csv whose median head load the capacity is the largest of (a grain "
-           "split under the tip spikes one row: its fragments start overlapping the tip); 1 = the "
-           "largest row",
+           "rows of load_test.csv whose median head load the capacity is the largest of (one "
+           "row's dynamic swing, a force chain giving way or a grain split under the tip, is no "
+           "capacity); 1 = the largest row",
            [](double v) { return v >= 1.0 && v <= 1e3; }, "a number of rows in [1, 1000]"},
       }),
       .make = make_stage_of<LoadTestStage>,
