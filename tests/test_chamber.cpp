@@ -142,7 +142,8 @@ TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) 
   // platens' loads), the chamber fixed (no lateral strain) and the top platen at 20 kPa. With
   // the force F_z of the grains on the chamber's wall, the base carries
   //   N_bottom = N_top + W + F_z,
-  // all of W without wall friction (F_z = 0); with it the wall takes a share (a silo's).
+  // all of W without wall friction (F_z = 0); with it the wall takes a share (a silo's). The
+  // hold's stress profile (profile_bins) balances the same forces slice by slice.
   const testing::TempDir temp("chamber_gravity");
   RunOptions opt;
   opt.progress = false;
@@ -157,13 +158,14 @@ TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) 
   for (const PackingRow& row : pk.rows) {
     W += 2650.0 * kPi / 6.0 * std::pow(row.diameter, 3) * 9810.0;
   }
+  double rise[2] = {0.0, 0.0};  // sigma_zz's rise from the top slice to the bottom one
   for (const double mu_w : {0.0, 0.275}) {
     const std::string text =
         "[gravity]\ng = [0.0, 0.0, -9810.0]\n[contact]\nrotation = \"blocked\"\nwall_friction = " +
         std::to_string(mu_w) + "\n[particles]\nfile = \"" + file +
         "\"\n[[stage]]\ntype = \"hold\"\naxial = \"servo\"\naxial_stress = 20e3\nlateral = "
-        "\"fixed\"\nsteps = 50000\nmax_strain_rate = 100.0\n[output]\ninterval = 2000\n"
-        "progress_seconds = 0\n";
+        "\"fixed\"\nsteps = 50000\nmax_strain_rate = 100.0\nprofile_bins = 4\n"
+        "profile_radius = 1.0\n[output]\ninterval = 2000\nprogress_seconds = 0\n";
     opt.out_dir = (temp.path() / ("rest_" + std::to_string(mu_w))).string();
     run_to_directory(config(text), opt);
     auto ts = testing::read_csv(opt.out_dir + "/timeseries.csv");
@@ -182,7 +184,37 @@ TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) 
     } else {
       EXPECT_LT(F_z, -0.1 * W) << "the rough wall carries none of the weight";
     }
+    // The stress profile at the hold's end, over the whole section (profile_radius = 1): four
+    // slices from the bottom platen up. The Love-Weber sum over every grain balances the
+    // boundary's forces and the weight's moment (at rest, no inertia):
+    //   sum_s sigma_zz(s) V_s = N_top H - F_z,wall z_wall + W (z_g - z_bottom),
+    // which for a frictionless wall is N_top H + W (z_g - z_bottom), z_g the grains' centre of
+    // mass: about N_top H + W H / 2.
+    auto prof = testing::read_csv(opt.out_dir + "/stress_profile.csv");
+    ASSERT_EQ(prof["bin"].size(), 4u);
+    const double H = ts["wall_zmax_position_m"].back() - ts["wall_zmin_position_m"].back();
+    double sum = 0.0;
+    for (std::size_t s = 0; s < 4; ++s) {
+      sum += prof["sigma_zz_Pa"][s] * A * H / 4.0;
+      EXPECT_NEAR(prof["depth_m"][s], H * (1.0 - (s + 0.5) / 4.0), 1e-12 * H);
+      EXPECT_NEAR(prof["K"][s], prof["sigma_rr_Pa"][s] / prof["sigma_zz_Pa"][s], 1e-12);
+    }
+    // (measured: 0.5 % of W H / 2 from the estimate with z_g at mid-height)
+    if (mu_w == 0.0) {
+      EXPECT_NEAR(sum, N_top * H + W * H / 2.0, 0.03 * W * H / 2.0);
+    }
+    // The vertical stress grows with depth, and far less where the rough wall takes the weight
+    // (Janssen's silo; measured: 16.5 kPa from the top slice to the bottom one without wall
+    // friction, 2.6 kPa with it).
+    rise[mu_w == 0.0 ? 0 : 1] = prof["sigma_zz_Pa"][0] - prof["sigma_zz_Pa"][3];
+    if (mu_w == 0.0) {
+      for (std::size_t s = 1; s < 4; ++s) {
+        EXPECT_LT(prof["sigma_zz_Pa"][s], prof["sigma_zz_Pa"][s - 1]) << "slice " << s;
+      }
+    }
   }
+  EXPECT_GT(rise[0], 0.5 * W / (kPi * R * R));
+  EXPECT_LT(rise[1], 0.5 * rise[0]);
 }
 
 TEST(Chamber, BadChambersAreRefusedNamingTheKey) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace crushdem {
 namespace {
@@ -12,43 +13,46 @@ struct FieldPlace {
   Vec3 e_r, e_t;
 };
 
+/// Rings about an axis (radii `edges`, increasing) cut into `bins` slices from `base` up to
+/// `h_top` along `up`.
 class FieldGrid {
  public:
-  FieldGrid(Vec3 apex, Vec3 up, double R, double field_radius, int rings, double h_top, int bins)
-      : apex_(apex), up_(up), R_(R), rings_(rings), bins_(bins), h_top_(h_top) {
-    edges_.resize(static_cast<std::size_t>(rings) + 1);
-    for (int m = 0; m <= rings; ++m) {
-      edges_[static_cast<std::size_t>(m)] =
-          R * std::pow(field_radius, static_cast<double>(m) / rings);
-    }
-  }
+  FieldGrid(Vec3 base, Vec3 up, std::vector<double> edges, double h_top, int bins)
+      : base_(base), up_(up), bins_(bins), h_top_(h_top), edges_(std::move(edges)) {}
   FieldPlace place(Vec3 x) const {
     FieldPlace f;
-    const Vec3 d = x - apex_;
+    const Vec3 d = x - base_;
     const double h = dot(d, up_);
     if (!(h >= 0.0 && h < h_top_)) return f;
     const Vec3 radial = d - h * up_;
     const double r = norm(radial);
-    if (!(r >= R_ && r < edges_.back())) return f;
+    if (!(r >= edges_.front() && r < edges_.back())) return f;
     const auto it = std::upper_bound(edges_.begin(), edges_.end(), r);
     f.ring = static_cast<int>(it - edges_.begin()) - 1;
     f.bin = std::min(static_cast<int>(h / h_top_ * bins_), bins_ - 1);
-    f.e_r = (1.0 / r) * radial;
+    if (r > 0.0) {
+      f.e_r = (1.0 / r) * radial;
+    } else {  // on the axis: any radial direction
+      const Vec3 t = std::fabs(up_.x) < 0.9 ? Vec3{1.0, 0.0, 0.0} : Vec3{0.0, 1.0, 0.0};
+      f.e_r = (1.0 / norm(t - dot(t, up_) * up_)) * (t - dot(t, up_) * up_);
+    }
     f.e_t = cross(up_, f.e_r);
     return f;
   }
+  int rings() const { return static_cast<int>(edges_.size()) - 1; }
+  int bins() const { return bins_; }
   double edge(int m) const { return edges_[static_cast<std::size_t>(m)]; }
   double slice() const { return h_top_ / bins_; }
   std::size_t cell(const FieldPlace& f) const {
     return static_cast<std::size_t>(f.ring) * static_cast<std::size_t>(bins_) +
            static_cast<std::size_t>(f.bin);
   }
+  const Vec3& base() const { return base_; }
   const Vec3& up() const { return up_; }
 
  private:
-  Vec3 apex_, up_;
-  double R_;
-  int rings_, bins_;
+  Vec3 base_, up_;
+  int bins_;
   double h_top_;
   std::vector<double> edges_;
 };
@@ -58,26 +62,13 @@ double component(Vec3 u, Vec3 v, double F_n, Vec3 n, Vec3 F_t) {
   return dot(u, n) * (F_n * dot(n, v) - dot(F_t, v));
 }
 
-}  // namespace
-
-PileField measure_pile_field(const Simulation& sim, int k, int rings, double field_radius,
-                             int bins) {
-  PileField out;
-  const Walls& w = sim.walls();
+/// The Love-Weber stress of each ring and slice of `grid` (ring-major), in the cylindrical
+/// frame at each grain's own azimuth; `near`, when given, sees every grain-grain contact with
+/// its midpoint.
+template <class Near>
+std::vector<RingStress> ring_stresses(const Simulation& sim, const FieldGrid& grid, Near&& near) {
   const ParticleStore& p = sim.particles();
-  const BodyShape& b = w.shape(k);
-  const double q = w.position(k);
-  const Vec3 apex = placed_part(b.part[0], q, b.motion, b.dilate).origin;
-  const Vec3 up = (-1.0 / norm(b.motion)) * b.motion;
-  double R = b.part[0].radius;
-  for (int j = 0; j < b.parts; ++j) {
-    if (b.part[j].shape == Shape::CylinderOutside) R = b.part[j].radius;
-  }
-  // The slices reach the top wall (the sample's surface) along the axis.
-  const double h_top = up.z > 0.5 ? (w.position(5) - apex.z) / up.z : 0.0;
-  if (!(h_top > 0.0) || rings < 1 || bins < 1 || !(field_radius > 1.0)) return out;
-  const FieldGrid grid(apex, up, R, field_radius, rings, h_top, bins);
-
+  const int rings = grid.rings(), bins = grid.bins();
   const std::size_t cells = static_cast<std::size_t>(rings) * static_cast<std::size_t>(bins);
   std::vector<double> s_rr(cells, 0.0), s_tt(cells, 0.0), s_zz(cells, 0.0), t_rz(cells, 0.0);
   std::vector<std::uint64_t> grains(cells, 0);
@@ -99,7 +90,6 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
     s_zz[c] += a * component(e_z, e_z, F_n, n, F_t);
     t_rz[c] += 0.5 * a * (component(f.e_r, e_z, F_n, n, F_t) + component(e_z, f.e_r, F_n, n, F_t));
   };
-  double sum_fn = 0.0, sum_fn2 = 0.0, sum_ft = 0.0, sum_ft2 = 0.0;
   for (const ContactRecord& c : sim.contacts()) {
     const auto i = static_cast<std::size_t>(index[c.id_i]);
     if (c.is_wall) {
@@ -111,28 +101,13 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
     add(i, p.radius[i] - 0.5 * c.delta, c.F_n, c.normal, c.F_t);
     add(j, p.radius[j] - 0.5 * c.delta, c.F_n, -1.0 * c.normal, -1.0 * c.F_t);
     const Vec3 xi{p.x[i], p.y[i], p.z[i]}, xj{p.x[j], p.y[j], p.z[j]};
-    const Vec3 mid = 0.5 * (xi + xj);
-    const Vec3 d = mid - apex;
-    const double h = dot(d, up);
-    if (!(h >= 0.0 && h < h_top) || !(norm(d - h * up) < field_radius * R)) continue;
-    ++out.near_contacts;
-    const double ft = norm(c.F_t);
-    sum_fn += c.F_n;
-    sum_fn2 += c.F_n * c.F_n;
-    sum_ft += ft;
-    sum_ft2 += ft * ft;
+    near(0.5 * (xi + xj), c);
   }
-  if (out.near_contacts > 0) {
-    const double n = static_cast<double>(out.near_contacts);
-    out.mean_Fn = sum_fn / n;
-    out.mean_Ft = sum_ft / n;
-    out.std_Fn = std::sqrt(std::max(0.0, sum_fn2 / n - out.mean_Fn * out.mean_Fn));
-    out.std_Ft = std::sqrt(std::max(0.0, sum_ft2 / n - out.mean_Ft * out.mean_Ft));
-  }
+  std::vector<RingStress> out;
   const double dh = grid.slice();
   for (int m = 0; m < rings; ++m) {
     const double r0 = grid.edge(m), r1 = grid.edge(m + 1);
-    const double V = w.sector() * kPi * (r1 * r1 - r0 * r0) * dh;
+    const double V = sim.walls().sector() * kPi * (r1 * r1 - r0 * r0) * dh;
     for (int s = 0; s < bins; ++s) {
       const std::size_t c = static_cast<std::size_t>(m) * static_cast<std::size_t>(bins) +
                             static_cast<std::size_t>(s);
@@ -147,10 +122,64 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
       r.sigma_zz = s_zz[c] / V;
       r.tau_rz = t_rz[c] / V;
       r.grains = grains[c];
-      out.rings.push_back(r);
+      out.push_back(r);
     }
   }
   return out;
+}
+
+}  // namespace
+
+PileField measure_pile_field(const Simulation& sim, int k, int rings, double field_radius,
+                             int bins) {
+  PileField out;
+  const Walls& w = sim.walls();
+  const BodyShape& b = w.shape(k);
+  const double q = w.position(k);
+  const Vec3 apex = placed_part(b.part[0], q, b.motion, b.dilate).origin;
+  const Vec3 up = (-1.0 / norm(b.motion)) * b.motion;
+  double R = b.part[0].radius;
+  for (int j = 0; j < b.parts; ++j) {
+    if (b.part[j].shape == Shape::CylinderOutside) R = b.part[j].radius;
+  }
+  // The slices reach the top wall (the sample's surface) along the axis.
+  const double h_top = up.z > 0.5 ? (w.position(5) - apex.z) / up.z : 0.0;
+  if (!(h_top > 0.0) || rings < 1 || bins < 1 || !(field_radius > 1.0)) return out;
+  std::vector<double> edges(static_cast<std::size_t>(rings) + 1);
+  for (int m = 0; m <= rings; ++m) {
+    edges[static_cast<std::size_t>(m)] = R * std::pow(field_radius, static_cast<double>(m) / rings);
+  }
+  const FieldGrid grid(apex, up, std::move(edges), h_top, bins);
+  double sum_fn = 0.0, sum_fn2 = 0.0, sum_ft = 0.0, sum_ft2 = 0.0;
+  out.rings = ring_stresses(sim, grid, [&](Vec3 mid, const ContactRecord& c) {
+    const Vec3 d = mid - apex;
+    const double h = dot(d, up);
+    if (!(h >= 0.0 && h < h_top) || !(norm(d - h * up) < field_radius * R)) return;
+    ++out.near_contacts;
+    const double ft = norm(c.F_t);
+    sum_fn += c.F_n;
+    sum_fn2 += c.F_n * c.F_n;
+    sum_ft += ft;
+    sum_ft2 += ft * ft;
+  });
+  if (out.near_contacts > 0) {
+    const double n = static_cast<double>(out.near_contacts);
+    out.mean_Fn = sum_fn / n;
+    out.mean_Ft = sum_ft / n;
+    out.std_Fn = std::sqrt(std::max(0.0, sum_fn2 / n - out.mean_Fn * out.mean_Fn));
+    out.std_Ft = std::sqrt(std::max(0.0, sum_ft2 / n - out.mean_Ft * out.mean_Ft));
+  }
+  return out;
+}
+
+std::vector<RingStress> measure_chamber_profile(const Simulation& sim, double radius, int bins) {
+  const Walls& w = sim.walls();
+  const int k = w.chamber();
+  const double h = w.position(5) - w.position(4);
+  if (k < 0 || bins < 1 || !(radius > 0.0) || !(h > 0.0)) return {};
+  const Vec3 axis = w.shape(k).part[0].origin;
+  const FieldGrid grid({axis.x, axis.y, w.position(4)}, {0.0, 0.0, 1.0}, {0.0, radius}, h, bins);
+  return ring_stresses(sim, grid, [](Vec3, const ContactRecord&) {});
 }
 
 }  // namespace crushdem

@@ -44,4 +44,10 @@ struct PileField {
 PileField measure_pile_field(const Simulation& sim, int k, int rings, double field_radius,
                              int bins);
 
+/// A chamber sample's stress profile with depth: the Love-Weber stress, in the cylindrical frame
+/// about the chamber's axis, of the grains within `radius` of the axis (the core, clear of the
+/// chamber wall's layers), in `bins` slices from the bottom platen to the top one (ring 0, bin
+/// 0 at the bottom; height above the bottom platen). Empty without a chamber.
+std::vector<RingStress> measure_chamber_profile(const Simulation& sim, double radius, int bins);
+
 }  // namespace crushdem

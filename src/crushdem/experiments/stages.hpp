@@ -65,6 +65,8 @@ struct StageConfig {
   double sleeve_length = 0.0;            // penetrate [m]; 0 = 3.75 shaft diameters
   bool from_top = false;                 // penetrate: start with the tip at the top wall
   bool settle = false;                   // hold: end once settled (steps/duration the most)
+  std::uint64_t profile_bins = 0;        // hold: slices of the stress profile at its end; 0 = none
+  double profile_radius = 0.5;           // hold: the profile's core [chamber radii]
   double stroke = 0.0;                   // penetrate: jacking stroke [m]; 0 = continuous
   double pause = 0.0;                    // penetrate: the body held still between strokes [s]
   bool unload = false;  // penetrate: the head load taken off between strokes, not held still
