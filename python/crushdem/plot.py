@@ -89,6 +89,12 @@ vertical lines mark 1 h and 1 day when they lie within the ageing time reached:
 * ``relaxation_breakage.png`` cumulative breakages by cause (instant, crack) with the number of
                               particles on a second axis
 
+A chamber at rest (a "hold" stage with ``profile_bins``; drawn only when DIR/stress_profile.csv
+exists):
+
+* ``stress_profile.png``      vertical, radial and hoop stress [kPa] of the core's grains against
+                              the depth below the top platen [mm], with K = sigma_rr / sigma_zz
+
 Penetration ("penetrate" stages; drawn only when DIR/penetration.csv exists):
 
 * ``penetration.png``         cone resistance q_c [MPa] and sleeve friction f_s [kPa] against

@@ -1030,3 +1030,31 @@ def test_log_time_axes_label_the_minor_ticks_only_when_they_have_room():
         assert bool(minor) == labelled, (span, minor)
         assert "100" in major, major
         plt.close(fig)
+
+
+def test_a_chamber_at_rest_draws_its_stress_profile_with_depth(tmp_path):
+    # stress_profile.csv of two holds (hold stage 1 wrote the earlier profile): the last one's
+    # four slices are drawn, from the bottom platen up, against the depth downwards.
+    run = _write_run(tmp_path / "k0", [_row(0.0, 1e4, 1e4, 0.0, 0.0, 0.70),
+                                       _row(1e-3, 1e4, 2e4, 1e-3, 1e-3, 0.69)])
+    depth = np.array([3.5e-3, 2.5e-3, 1.5e-3, 0.5e-3])
+    with open(os.path.join(run, "stress_profile.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stage", "time_s", "bin", "z_m", "depth_m", "core_radius_m", "sigma_rr_Pa",
+                    "sigma_tt_Pa", "sigma_zz_Pa", "tau_rz_Pa", "K", "grains"])
+        for stage, scale in ((1, 0.5), (2, 1.0)):
+            for b in range(4):
+                zz = scale * (10e3 + 20e3 * depth[b] / 4e-3)
+                w.writerow([stage, 1e-3 * stage, b, 4e-3 - depth[b], depth[b], 1.5e-3, 0.6 * zz,
+                            0.5 * zz, zz, 0.0, 0.6, 100])
+    assert "stress_profile.png" in _plots(run)
+    fig = figures.figure_stress_profile(rundir.read_run(run))
+    ax_s, ax_k = fig.axes
+    zz = 10.0 + 20.0 * depth / 4e-3
+    assert_drawn(labelled_like(ax_s, r"$\sigma_{zz}$"), zz, depth * 1e3)
+    assert_drawn(labelled_like(ax_s, r"$\sigma_{rr}$"), 0.6 * zz, depth * 1e3)
+    assert_drawn(ax_k.get_lines()[0], [0.6] * 4, depth * 1e3)
+    assert ax_s.yaxis_inverted()  # depth downwards
+    assert "1.5 mm of the axis" in ax_s.get_title()
+    _close(fig)
+    assert "stress_profile.png" not in _plots(_plain_run(tmp_path / "plain"))

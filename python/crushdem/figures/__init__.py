@@ -33,8 +33,8 @@ from .common import (AGEING_TIME_LABEL, MARKERS, MPA, WALL_COLORS, WALL_STYLES, 
                      stage_color, time_axis, unique_legend)
 from .crushing import figure_breakage, figure_breakage_sizes, figure_grading
 from .laboratory import (figure_inertial_number, figure_oedometer, figure_preparation,
-                         figure_q_p_path, figure_strain_stress, figure_triaxial,
-                         figure_void_ratio, oedometer_label, oedometric_stages)
+                         figure_q_p_path, figure_strain_stress, figure_stress_profile,
+                         figure_triaxial, figure_void_ratio, oedometer_label, oedometric_stages)
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
 from .penetration import figure_breakage_field, figure_penetration, figure_shaft_stress
@@ -50,7 +50,7 @@ __all__ = [
     "figure_stress_time", "figure_coordination", "figure_kinetic_energy",
     "figure_strain_stress", "figure_void_ratio", "figure_triaxial", "figure_q_p_path",
     "oedometer_label", "oedometric_stages", "figure_oedometer", "figure_inertial_number",
-    "figure_preparation",
+    "figure_preparation", "figure_stress_profile",
     "figure_grading", "figure_breakage", "figure_breakage_sizes",
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",
@@ -71,6 +71,7 @@ FIGURES: Dict[str, Callable[[Run], Any]] = {
     "oedometer.png": figure_oedometer,
     "inertial_number.png": figure_inertial_number,
     "preparation.png": figure_preparation,
+    "stress_profile.png": figure_stress_profile,
     "coordination.png": figure_coordination,
     "kinetic_energy.png": figure_kinetic_energy,
     "grading.png": figure_grading,

@@ -381,3 +381,41 @@ def figure_preparation(run: Run) -> Optional[Figure]:
     unique_legend(ax, fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def figure_stress_profile(run: Run) -> Optional[Figure]:
+    """stress_profile.png: a chamber sample's stress with depth at the end of its last hold that
+    wrote one (``profile_bins``: stress_profile.csv): the vertical, radial and hoop stress [kPa]
+    of the core's grains against the depth below the top platen [mm], and K = sigma_rr /
+    sigma_zz beside it (a chamber at rest: K0 by depth)."""
+    import os
+
+    from ..rundir import read_csv
+
+    run = as_run(run)
+    path = os.path.join(run.directory, "stress_profile.csv")
+    if not os.path.isfile(path):
+        return None
+    try:
+        p = read_csv(path)
+    except ValueError:
+        return None
+    if not p or "depth_m" not in p or p["depth_m"].size == 0:
+        return None
+    last = (p["stage"] == p["stage"][-1]) & (p["time_s"] == p["time_s"][-1])
+    depth = p["depth_m"][last] * 1e3
+    plt = pyplot()
+    fig, (a_s, a_k) = plt.subplots(1, 2, figsize=(9, 5.5), sharey=True,
+                                   gridspec_kw={"width_ratios": [2, 1]})
+    for key, label, style in (("sigma_zz_Pa", r"$\sigma_{zz}$ (vertical)", "o-"),
+                              ("sigma_rr_Pa", r"$\sigma_{rr}$ (radial)", "s-"),
+                              ("sigma_tt_Pa", r"$\sigma_{\theta\theta}$ (hoop)", "^-")):
+        a_s.plot(p[key][last] * 1e-3, depth, style, ms=3, lw=1.2, label=label)
+    a_k.plot(p["K"][last], depth, "o-", ms=3, lw=1.2, color="k")
+    a_s.invert_yaxis()
+    core = p["core_radius_m"][last][0] * 1e3
+    label_axes(a_s, "stress [kPa]", "depth below the top platen [mm]",
+               f"{run.title}: within {core:.3g} mm of the axis", fontsize=8)
+    label_axes(a_k, r"$K = \sigma_{rr} / \sigma_{zz}$", "", "K")
+    fig.tight_layout()
+    return fig
