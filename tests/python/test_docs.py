@@ -10,6 +10,7 @@ import os
 import re
 import subprocess
 import sys
+import tomllib
 
 import pytest
 
@@ -107,8 +108,9 @@ def test_named_pages_and_examples_exist(page):
     assert not missing, "named but missing:\n" + "\n".join(missing)
 
 
-# The *_rev examples read the prepared REV (`../runs/sample_rev/sample.txt`); a few grains in a
-# file of the same format stand in for it, so that the check covers everything else.
+# The *_rev examples read the prepared REV (`../runs/sample_rev/sample.txt`), chamber_k0 its
+# chamber sample; a few grains in a file of the same format stand in for them, so that the check
+# covers everything else.
 SAMPLE = """# box_xmin=0.0005
 # box_xmax=0.0045
 # box_ymin=0.0005
@@ -126,10 +128,14 @@ def example_tree(tmp_path_factory):
     (root / "examples").mkdir()
     for path in EXAMPLES:
         with open(path, encoding="utf-8") as f:
-            (root / "examples" / os.path.basename(path)).write_text(f.read())
-    sample = root / "runs" / "sample_rev" / "sample.txt"
-    sample.parent.mkdir(parents=True)
-    sample.write_text(SAMPLE)
+            text = f.read()
+        (root / "examples" / os.path.basename(path)).write_text(text)
+        # The prepared sample it reads (the REV's, the K0 chamber's), stood in for.
+        file = tomllib.loads(text).get("particles", {}).get("file")
+        if file:
+            sample = root / "examples" / file
+            sample.parent.mkdir(parents=True, exist_ok=True)
+            sample.write_text(SAMPLE)
     return root
 
 

@@ -96,8 +96,11 @@ def test_example_passes_check(path, tmp_path, capfd):
     (tmp_path / "examples").mkdir()
     target = tmp_path / "examples" / os.path.basename(path)
     shutil.copy(path, target)
-    sample = tmp_path / "runs" / "sample_rev" / "sample.txt"
-    sample.parent.mkdir(parents=True)
+    # The prepared sample it reads (the REV's, the K0 chamber's), stood in for by a few grains.
+    with open(path, "rb") as f:
+        file = tomllib.load(f).get("particles", {}).get("file", "../runs/sample_rev/sample.txt")
+    sample = tmp_path / "examples" / file
+    sample.parent.mkdir(parents=True, exist_ok=True)
     sample.write_text(SAMPLE)
     rc = crushdem.cli_main(["check", str(target)])
     out, err = capfd.readouterr()
