@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -105,20 +106,35 @@ TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) 
   EXPECT_GE(compared, 6u);  // config, timeseries, summary, penetration, shaft profile, snapshots
 }
 
-TEST(Penetration, AJackedConeAdvancesInStrokesAndStandsStillBetweenThem) {
-  // The cone of config() jacked in strokes of 0.1 mm with pauses of 20 us: 0.1, 0.2, 0.3 and
-  // 0.4 mm, each followed by a pause, then the last 0.05 mm to the depth.
+// The cone of config() jacked in strokes of 0.1 mm with pauses of 20 us (0.1, 0.2, 0.3 and
+// 0.4 mm, each followed by a pause, then the last 0.05 mm to the depth), the penetrate stage's
+// `keys` added and a row every `every` steps, run whole into base/whole.
+struct Jacked {
+  RunConfig cfg;
+  RunOptions opt;
+  std::map<std::string, std::vector<double>> pen;  // penetration.csv
+};
+Jacked run_jacked(const std::string& keys, int every, const fs::path& base) {
   std::string text =
       testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
   const std::string at = "depth = 0.45e-3\n";
-  text.replace(text.find(at), at.size(), at + "stroke = 0.1e-3\npause = 20e-6\n");
-  const RunConfig cfg = config(text);
+  text.replace(text.find(at), at.size(), at + "stroke = 0.1e-3\npause = 20e-6\n" + keys);
+  const std::string rows = "record_interval = 500\n";
+  text.replace(text.find(rows), rows.size(), "record_interval = " + std::to_string(every) + "\n");
+  Jacked j{config(text), {}, {}};
+  j.opt.progress = false;
+  j.opt.out_dir = (base / "whole").string();
+  run_to_directory(j.cfg, j.opt);
+  j.pen = testing::read_csv((base / "whole" / "penetration.csv").string());
+  return j;
+}
+
+TEST(Penetration, AJackedConeAdvancesInStrokesAndStandsStillBetweenThem) {
   const testing::TempDir temp("jacked");
-  RunOptions opt;
-  opt.progress = false;
-  opt.out_dir = (temp.path() / "whole").string();
-  run_to_directory(cfg, opt);
-  auto pen = testing::read_csv((temp.path() / "whole" / "penetration.csv").string());
+  const Jacked jacked = run_jacked("", 500, temp.path());
+  const RunConfig& cfg = jacked.cfg;
+  const RunOptions& opt = jacked.opt;
+  auto pen = jacked.pen;
   const std::vector<double>& travel = pen["travel_m"];
   const std::vector<double>& time = pen["time_s"];
   const std::size_t n = travel.size();
@@ -155,21 +171,12 @@ TEST(Penetration, AJackedConeUnloadedBetweenStrokesReboundsAndGoesOnToItsDepth) 
   // the cone moves back up as the grains under it unload, the load on it falls to a small part
   // of what it carried at the stroke's end, and each next stroke starts where the cone came to
   // rest and ends at the next multiple of the stroke (the travel is counted from the start).
-  std::string text =
-      testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
-  const std::string at = "depth = 0.45e-3\n";
   // (the head's servo as fast as the walls' at 200 /s: the pause is 3,500 steps)
-  text.replace(text.find(at), at.size(),
-               at + "stroke = 0.1e-3\npause = 20e-6\nunload = true\nmax_strain_rate = 200.0\n");
-  const std::string every = "record_interval = 500\n";
-  text.replace(text.find(every), every.size(), "record_interval = 100\n");
-  const RunConfig cfg = config(text);
   const testing::TempDir temp("unloaded");
-  RunOptions opt;
-  opt.progress = false;
-  opt.out_dir = (temp.path() / "whole").string();
-  run_to_directory(cfg, opt);
-  auto pen = testing::read_csv((temp.path() / "whole" / "penetration.csv").string());
+  const Jacked jacked = run_jacked("unload = true\nmax_strain_rate = 200.0\n", 100, temp.path());
+  const RunConfig& cfg = jacked.cfg;
+  const RunOptions& opt = jacked.opt;
+  auto pen = jacked.pen;
   const std::vector<double>& travel = pen["travel_m"];
   const std::size_t n = travel.size();
   const double v = 2.0, dt = (pen["time_s"][1] - pen["time_s"][0]) / 100.0;

@@ -256,6 +256,20 @@ def read_breakage(run_dir: PathLike) -> List[Tuple[float, str]]:
     return out
 
 
+def read_run_table(run_dir: PathLike, name: str) -> Optional[Columns]:
+    """DIR/NAME (a result file a run writes only when a stage asks for it: pile_ageing.csv,
+    stress_profile.csv, ...) as columns; None when the run has none, it cannot be read, or it
+    has no rows."""
+    path = os.path.join(run_dir, name)
+    if not os.path.isfile(path):
+        return None
+    try:
+        d = read_csv(path)
+    except ValueError:
+        return None
+    return d if d and next(iter(d.values())).size else None
+
+
 @dataclass
 class RunData:
     """What the figures of one run directory read, loaded once.

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..analysis import (WALLS, as_float, has_values, lateral_stress, stage_label, stage_rows,
                         vertical_stress)
-from ..rundir import RunData
+from ..rundir import RunData, read_run_table
 from .common import (MPA, Run, as_run, label_axes, pyplot, stacked_axes, stage_color,
                      time_axis, unique_legend)
 
@@ -388,19 +388,9 @@ def figure_stress_profile(run: Run) -> Optional[Figure]:
     wrote one (``profile_bins``: stress_profile.csv): the vertical, radial and hoop stress [kPa]
     of the core's grains against the depth below the top platen [mm], and K = sigma_rr /
     sigma_zz beside it (a chamber at rest: K0 by depth)."""
-    import os
-
-    from ..rundir import read_csv
-
     run = as_run(run)
-    path = os.path.join(run.directory, "stress_profile.csv")
-    if not os.path.isfile(path):
-        return None
-    try:
-        p = read_csv(path)
-    except ValueError:
-        return None
-    if not p or "depth_m" not in p or p["depth_m"].size == 0:
+    p = read_run_table(run.directory, "stress_profile.csv")
+    if p is None or "depth_m" not in p:
         return None
     last = (p["stage"] == p["stage"][-1]) & (p["time_s"] == p["time_s"][-1])
     depth = p["depth_m"][last] * 1e3

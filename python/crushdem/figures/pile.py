@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Dict, Mapping, Optional
 
 import numpy as np
 
-from ..rundir import Columns, read_csv
+from ..rundir import Columns, read_run_table
 from .common import AGEING_TIME_LABEL, Run, as_run, label_axes, plain_log_ticks, pyplot
 
 if TYPE_CHECKING:
@@ -25,14 +25,7 @@ KPA = 1e-3
 def read_pile_file(run_dir: str, name: str) -> Optional[Columns]:
     """DIR/NAME (pile_ageing.csv, pile_shaft.csv or pile_rings.csv) as columns; None when the run
     has none (no age stage named a pile) or it has no rows."""
-    path = os.path.join(run_dir, name)
-    if not os.path.isfile(path):
-        return None
-    try:
-        d = read_csv(path)
-    except ValueError:
-        return None
-    return d if d and next(iter(d.values())).size else None
+    return read_run_table(run_dir, name)
 
 
 def _positive_times(t: np.ndarray) -> np.ndarray:
