@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include "crushdem/walls/body_geometry.hpp"
+
 namespace crushdem {
 namespace {
 
@@ -21,21 +23,14 @@ class FieldGrid {
       : base_(base), up_(up), bins_(bins), h_top_(h_top), edges_(std::move(edges)) {}
   FieldPlace place(Vec3 x) const {
     FieldPlace f;
-    const Vec3 d = x - base_;
-    const double h = dot(d, up_);
-    if (!(h >= 0.0 && h < h_top_)) return f;
-    const Vec3 radial = d - h * up_;
-    const double r = norm(radial);
-    if (!(r >= edges_.front() && r < edges_.back())) return f;
-    const auto it = std::upper_bound(edges_.begin(), edges_.end(), r);
+    // (the bodies' own cylindrical coordinates, with their radial direction on the axis)
+    const detail::AxialPosition p = detail::axial_position(x, base_, up_);
+    if (!(p.a >= 0.0 && p.a < h_top_)) return f;
+    if (!(p.rho >= edges_.front() && p.rho < edges_.back())) return f;
+    const auto it = std::upper_bound(edges_.begin(), edges_.end(), p.rho);
     f.ring = static_cast<int>(it - edges_.begin()) - 1;
-    f.bin = std::min(static_cast<int>(h / h_top_ * bins_), bins_ - 1);
-    if (r > 0.0) {
-      f.e_r = (1.0 / r) * radial;
-    } else {  // on the axis: any radial direction
-      const Vec3 t = std::fabs(up_.x) < 0.9 ? Vec3{1.0, 0.0, 0.0} : Vec3{0.0, 1.0, 0.0};
-      f.e_r = (1.0 / norm(t - dot(t, up_) * up_)) * (t - dot(t, up_) * up_);
-    }
+    f.bin = std::min(static_cast<int>(p.a / h_top_ * bins_), bins_ - 1);
+    f.e_r = p.e_rho;
     f.e_t = cross(up_, f.e_r);
     return f;
   }
@@ -47,7 +42,6 @@ class FieldGrid {
     return static_cast<std::size_t>(f.ring) * static_cast<std::size_t>(bins_) +
            static_cast<std::size_t>(f.bin);
   }
-  const Vec3& base() const { return base_; }
   const Vec3& up() const { return up_; }
 
  private:
@@ -63,8 +57,7 @@ double component(Vec3 u, Vec3 v, double F_n, Vec3 n, Vec3 F_t) {
 }
 
 /// The Love-Weber stress of each ring and slice of `grid` (ring-major), in the cylindrical
-/// frame at each grain's own azimuth; `near`, when given, sees every grain-grain contact with
-/// its midpoint.
+/// frame at each grain's own azimuth; `near` sees every grain-grain contact with its midpoint.
 template <class Near>
 std::vector<RingStress> ring_stresses(const Simulation& sim, const FieldGrid& grid, Near&& near) {
   const ParticleStore& p = sim.particles();
