@@ -3,8 +3,8 @@
 # whether a change is faster on a host whose speed drifts (bench/README.md):
 #
 #   bash bench/alternate.sh THREADS LAW REPS BIN [BIN ...]
-#   STEPS=3000 bash bench/alternate.sh 1 hertz 6 /tmp/crushdem_before build/bench/crushdem
-#   EXTRA="--settle 20000" bash bench/alternate.sh 1 rough 4 /tmp/before build/bench/crushdem
+#   STEPS=3000 bash bench/alternate.sh 1 hertz 6 /tmp/crushdem_before build/bench/crushdem-sand
+#   EXTRA="--settle 20000" bash bench/alternate.sh 1 rough 4 /tmp/before build/bench/crushdem-sand
 #
 # Each round runs every binary once, in the order given; per binary it prints the median, the
 # range and every figure. Copy the old binary aside before rebuilding. Background `crushdem

@@ -11,10 +11,10 @@
 # limit, so a slow one cannot eat the lease; what it wrote up to then is kept in $OUT.
 #   tests       crushdem_cuda_kernel_test (contact kernels = host bits) and crushdem_device_test
 #               (tests/device_checks.hpp on the GPU, then the GPU's bits against the emulation);
-#   bench       `crushdem bench --backend cuda` on the peer reference packing (11,500 grains,
+#   bench       `crushdem-sand bench --backend cuda` on the peer reference packing (11,500 grains,
 #               Hertz and rough) and tiled 5 x 5 x 5 (1.44 million), with device bytes per grain;
 #   scaling     the CPU backend on the REV sample, 1 to 16 threads (rough law);
-#   oedometric  the REV oedometric relaxation of `crushdem reproduce` on the GPU (wall-clock);
+#   oedometric  the REV oedometric relaxation of `crushdem-sand reproduce` on the GPU (wall-clock);
 #   triaxial    the REV triaxial relaxation on the GPU for a fixed time: seconds per dynamic
 #               phase from events.csv, and the projected total.
 set -u
@@ -27,7 +27,7 @@ PARTS=${PARTS:-build tests bench scaling oedometric triaxial}
 BACKEND=${BACKEND:-cuda}
 BUILD=${BUILD:-build-gpu}
 J=$(nproc)
-B=$BUILD/crushdem
+B=$BUILD/crushdem-sand
 mkdir -p "$OUT"
 SUMMARY="$OUT/summary.txt"
 : > "$SUMMARY"

@@ -6,7 +6,7 @@
 #
 #   bash bench/gpu_deps.sh REPRODUCE_DIR [DEPS]
 #
-# REPRODUCE_DIR: a study-scale `crushdem reproduce` directory (its sample/sample.txt and the
+# REPRODUCE_DIR: a study-scale `crushdem-sand reproduce` directory (its sample/sample.txt and the
 # config.toml of its oedometric and triaxial relaxations, the latter for its stop_q).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -12,7 +12,7 @@
 # different host states and their ratio moves by as much. Pairs made a minute apart see nearly
 # the same host; the median of the per-round ratios is the figure to compare builds with. The
 # problem, protocol and LAMMPS input are the shared ones (bench/peers), unchanged.
-# Background `crushdem run`/`resume` jobs are stopped (SIGSTOP) while it runs and continued after.
+# Background `crushdem-sand run`/`resume` jobs are stopped (SIGSTOP) while it runs and continued after.
 set -euo pipefail
 # shellcheck source=bench/lib.sh
 source "$(dirname "$0")/lib.sh"
@@ -24,7 +24,7 @@ WARM="${WARM:-500}"
 
 cmake -S "$ROOT" -B "$ROOT/build/bench" -DCMAKE_BUILD_TYPE=Release -DCRUSHDEM_TESTS=OFF >/dev/null
 cmake --build "$ROOT/build/bench" -j "$(nproc)" >/dev/null
-BIN="$ROOT/build/bench/crushdem"
+BIN="$ROOT/build/bench/crushdem-sand"
 
 WORK="$(mktemp -d)"
 BENCH_ON_EXIT="rm -rf '$WORK'"

@@ -3,7 +3,7 @@
 # problem (alternate.sh, interleaved_peers.sh). Sourced, not run.
 
 # The peer problem's constants (bench/peers/common/lib.sh: PACKING, DT, SKIN, ...),
-# exported for `crushdem bench`, which reads them from the environment as the peers do.
+# exported for `crushdem-sand bench`, which reads them from the environment as the peers do.
 bench_setup() {
   ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
   PEER_DIR="${PEER_DIR:-$ROOT/bench/peers}"
@@ -13,7 +13,7 @@ bench_setup() {
   export RHO G_SHEAR NU YOUNG MU REST DT SKIN
 }
 
-# Pauses background `crushdem run`/`resume`/`reproduce`/`sensitivity` jobs (SIGSTOP) until the script exits; a timing
+# Pauses background `crushdem-sand run`/`resume`/`reproduce`/`sensitivity` jobs (SIGSTOP) until the script exits; a timing
 # made beside them measures the sharing, not the build. Extra cleanup commands may be appended
 # to BENCH_ON_EXIT before exit.
 BENCH_ON_EXIT=":"
@@ -27,7 +27,7 @@ pause_background_jobs() {
   trap '[ -n "$BG" ] && kill -CONT $BG; eval "$BENCH_ON_EXIT"' EXIT
 }
 
-# crushdem_rate BIN THREADS STEPS [bench args...] -> particle-steps/s of one `crushdem bench`.
+# crushdem_rate BIN THREADS STEPS [bench args...] -> particle-steps/s of one `crushdem-sand bench`.
 crushdem_rate() {
   local bin=$1 threads=$2 steps=$3
   shift 3

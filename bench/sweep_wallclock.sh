@@ -16,7 +16,7 @@ ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 OUT="${1:-$ROOT/runs/sweep_wallclock}"
 COUNT="${COUNT:-500}"
 MIN_CYCLES="${MIN_CYCLES:-20000}"
-CRUSHDEM="${CRUSHDEM:-$ROOT/.venv/bin/crushdem}"
+CRUSHDEM="${CRUSHDEM:-$ROOT/.venv/bin/crushdem-sand}"
 if [ -e "$OUT" ]; then
   echo "bench/sweep_wallclock.sh: $OUT exists; give a new directory" >&2
   exit 2

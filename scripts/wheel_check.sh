@@ -6,7 +6,7 @@
 #     form (AVX, AVX2, AVX-512: a v-prefixed mnemonic or a ymm/zmm register), no BMI1/BMI2,
 #     LZCNT, TZCNT or MOVBE (LZCNT and TZCNT would not even fault there: they run as BSR/BSF and
 #     give other results, which step 3 could not see);
-#  3. under QEMU's user-mode emulation of a Westmere CPU (2010: SSE4.2, no AVX), `crushdem check`
+#  3. under QEMU's user-mode emulation of a Westmere CPU (2010: SSE4.2, no AVX), `crushdem-sand check`
 #     and the README's first Python example (27 grains) work.
 # Installs qemu-user from Debian when it is missing. Usage: bash scripts/wheel_check.sh [WHEEL]
 # (default: the newest dist/crushdem_sand-*.whl).
@@ -25,7 +25,7 @@ echo "== 1. pip install --only-binary=:all: $wheel"
 "$env_dir/venv/bin/python" -m pip install --quiet --only-binary=:all: "$wheel"
 
 echo "== 2. the compiled module's instructions"
-core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem/_core*.so)
+core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem_sand/_core*.so)
 objdump -d --no-show-raw-insn "$core" >"$env_dir/core.asm"
 total=$(grep -c $'^ *[0-9a-f]*:\t' "$env_dir/core.asm" || true)
 beyond=$'^ *[0-9a-f]*:\t(v[a-z0-9]+|andn|bextr|blsi|blsmsk|blsr|bzhi|mulx|pdep|pext|rorx|sarx|shlx|shrx|lzcnt|tzcnt|movbe)( |$)|%[yz]mm[0-9]'
@@ -37,7 +37,7 @@ if [ "$newer" != 0 ]; then
   exit 1
 fi
 
-if "$env_dir/venv/bin/python" -c 'import crushdem, sys; sys.exit("cuda" not in crushdem.backends())'; then
+if "$env_dir/venv/bin/python" -c 'import crushdem_sand, sys; sys.exit("cuda" not in crushdem_sand.backends())'; then
   # The architectures of the kernels: named in the fat binary's section (no cuobjdump needed).
   objcopy -O binary --only-section=.nv_fatbin "$core" "$env_dir/fatbin"
   archs=$(grep -ao 'sm_[0-9]\+a\?' "$env_dir/fatbin" | sort -u | tr '\n' ' ' || true)
@@ -48,14 +48,14 @@ fi
 
 echo "== 3. run under qemu-x86_64 -cpu Westmere (no AVX)"
 py="$env_dir/venv/bin/python"
-qemu-x86_64 -cpu Westmere "$py" -m crushdem check examples/compression_small.toml >/dev/null
+qemu-x86_64 -cpu Westmere "$py" -m crushdem_sand check examples/compression_small.toml >/dev/null
 # The README's first example: 27 grains pressed by a servo wall to 1 MPa.
 qemu-x86_64 -cpu Westmere "$py" - <<'EOF'
 import numpy as np
 
-import crushdem
+import crushdem_sand
 
-sim = crushdem.Simulation(
+sim = crushdem_sand.Simulation(
     contact={"law": "hertz"},
     box={"min": [0, 0, 0], "max": [1e-3, 1e-3, 1e-3]},
     walls={"zmax": {"mode": "servo", "target_stress": 1e6}},
@@ -64,7 +64,7 @@ g = (np.arange(3) + 0.5) / 3 * 1e-3
 sim.add_particles(np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3), 1.65e-4)
 sim.step(10_000)
 stress = sim.wall_stresses()[5]
-print(f"crushdem {crushdem.__version__} on a CPU without AVX: {sim.num_contacts} contacts, "
+print(f"crushdem {crushdem_sand.__version__} on a CPU without AVX: {sim.num_contacts} contacts, "
       f"top wall at {stress:.4g} Pa")
 assert abs(stress - 1e6) < 1e3, stress
 EOF

@@ -57,7 +57,7 @@ TEST(Cli, EveryCommandHasHelp) {
     for (const char* flag : {"-h", "--help"}) {
       const Outcome o = cli({command, flag});
       EXPECT_EQ(o.rc, 0) << command << " " << flag << ": " << o.err;
-      EXPECT_TRUE(has(o.out, "Usage: crushdem " + command)) << o.out;
+      EXPECT_TRUE(has(o.out, "Usage: crushdem-sand " + command)) << o.out;
       for (const std::string& opt : expected) EXPECT_TRUE(has(o.out, opt)) << command << opt;
       // A command's help is its own: the footer naming the Python package's commands is the
       // top's.
@@ -83,7 +83,7 @@ TEST(Cli, EveryCommandHasHelp) {
   EXPECT_EQ(cli({"help"}).rc, 0);
   const Outcome bare = cli({});
   EXPECT_EQ(bare.rc, 2);
-  EXPECT_TRUE(has(bare.err, "Usage: crushdem"));
+  EXPECT_TRUE(has(bare.err, "Usage: crushdem-sand"));
 }
 
 TEST(Cli, VersionAnywhere) {
@@ -91,7 +91,7 @@ TEST(Cli, VersionAnywhere) {
            {"--version"}, {"run", "x.toml", "--version"}, {"bench", "--version"}}) {
     const Outcome o = cli(args);
     EXPECT_EQ(o.rc, 0) << args.size();
-    EXPECT_TRUE(has(o.out, std::string("crushdem ") + CRUSHDEM_VERSION)) << o.out;
+    EXPECT_TRUE(has(o.out, std::string("crushdem-sand ") + CRUSHDEM_VERSION)) << o.out;
   }
 }
 
@@ -99,7 +99,7 @@ TEST(Cli, MisuseExitsWithTwoAndNamesTheOption) {
   const Outcome unknown = cli({"run", "a.toml", "--out", "d", "--steps", "5"});
   EXPECT_EQ(unknown.rc, 2);
   EXPECT_TRUE(has(unknown.err, "--steps")) << unknown.err;
-  EXPECT_TRUE(has(unknown.err, "crushdem run --help")) << unknown.err;
+  EXPECT_TRUE(has(unknown.err, "crushdem-sand run --help")) << unknown.err;
   const Outcome missing = cli({"run", "a.toml"});
   EXPECT_EQ(missing.rc, 2);
   EXPECT_TRUE(has(missing.err, "--out")) << missing.err;
@@ -252,7 +252,7 @@ TEST_F(RunDirectory, AStoppedRunPointsToResume) {
   std::ofstream(fs::path(out_) / "checkpoint.bin") << "state";
   const Outcome o = cli({"run", config_, "--out", out_, "--quiet"});
   EXPECT_EQ(o.rc, 2);
-  EXPECT_TRUE(has(o.err, "crushdem resume " + out_)) << o.err;
+  EXPECT_TRUE(has(o.err, "crushdem-sand resume " + out_)) << o.err;
   EXPECT_EQ(slurp(fs::path(out_) / "checkpoint.bin"), "state");
 }
 
@@ -308,7 +308,7 @@ TEST_F(RunDirectory, ALockedDirectoryIsRefused) {
 namespace crushdem {
 namespace {
 
-// Branches (crushdem run --from DIR:STAGE): the lattice of tests/data compressed, then held.
+// Branches (crushdem-sand run --from DIR:STAGE): the lattice of tests/data compressed, then held.
 std::string staged_config(const std::string& data, long hold_steps, double friction = 0.275) {
   return "[material]\nfriction = " + std::to_string(friction) +
          "\n[contact]\nlaw = \"hertz\"\n[particles]\nfile = \"" + data +

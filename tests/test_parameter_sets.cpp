@@ -1,6 +1,6 @@
 // Named parameter sets (io/parameter_sets.hpp): crushdem's set is the default of the engine, the
 // file reader and the Python API; `parameters = "table1"` selects Table 1 as printed; a key the
-// file gives wins over its set; `crushdem check` says where each of the set's keys came from.
+// file gives wins over its set; `crushdem-sand check` says where each of the set's keys came from.
 #include <gtest/gtest.h>
 
 #include "crushdem/io/config.hpp"

@@ -1,4 +1,4 @@
-// crushdem._core: the nanobind module behind the Python package.
+// crushdem_sand._core: the nanobind module behind the Python package.
 //
 // The Python side builds a Simulation from a nested dict that mirrors the TOML configuration file
 // (same sections, same keys, SI units); the dict is converted to a toml::Table and read by the one
@@ -271,7 +271,7 @@ nb::dict summary_dict(const RunSummary& s) {
   return d;
 }
 
-/// A parameter table's rows as dicts (the keyword arguments of crushdem.lab come from them).
+/// A parameter table's rows as dicts (the keyword arguments of crushdem_sand.lab come from them).
 nb::list rows_list(const std::vector<param_io::ParamRow>& rows) {
   nb::list out;
   for (const param_io::ParamRow& r : rows) {
@@ -317,8 +317,8 @@ void step_interruptibly(Simulation& sim, std::uint64_t n, const nb::object& prog
   }
 }
 
-/// crushdem._core.Interrupted, a KeyboardInterrupt (so that `except Exception` does not swallow
-/// it): a run stopped by SIGINT or SIGTERM after saving its checkpoint.
+/// crushdem_sand._core.Interrupted, a KeyboardInterrupt (so that `except Exception` does not
+/// swallow it): a run stopped by SIGINT or SIGTERM after saving its checkpoint.
 PyObject* interrupted_type = nullptr;
 
 /// Runs `go` (a whole run) without the GIL and with SIGINT / SIGTERM asking it to checkpoint and
@@ -352,7 +352,8 @@ NB_MODULE(_core, m) {
   using namespace crushdem;
   using namespace crushdem::python;
 
-  m.doc() = "crushdem C++ engine (nanobind bindings). Use the crushdem package, not this module.";
+  m.doc() =
+      "crushdem C++ engine (nanobind bindings). Use the crushdem_sand package, not this module.";
   m.attr("__version__") = CRUSHDEM_VERSION;
   m.attr("__commit__") = build_commit();
 
@@ -413,9 +414,9 @@ NB_MODULE(_core, m) {
   nb::exception<ConfigError>(m, "ConfigError", PyExc_ValueError);
   nb::exception<RuntimeFailure>(m, "RuntimeFailure", PyExc_RuntimeError);
   interrupted_type = PyErr_NewExceptionWithDoc(
-      "crushdem._core.Interrupted",
+      "crushdem_sand._core.Interrupted",
       "A run stopped by SIGINT or SIGTERM after saving its checkpoint; `signal` and `out_dir` "
-      "say which signal and where (continue with crushdem.resume(out_dir)).",
+      "say which signal and where (continue with crushdem_sand.resume(out_dir)).",
       PyExc_KeyboardInterrupt, nullptr);
   m.attr("Interrupted") = nb::handle(interrupted_type);
 
@@ -650,7 +651,8 @@ NB_MODULE(_core, m) {
           "The configuration the simulation was built with, every key resolved, as TOML.");
 
   m.def("cli_main", &run_cli, "args"_a, "commands"_a = std::vector<cli::FrontEndCommand>{},
-        "Runs the command-line front end (`crushdem run|check|bench ...`); returns the exit code. "
+        "Runs the command-line front end (`crushdem-sand run|check|bench ...`); returns the exit "
+        "code. "
         "`commands`: (name, description) of the caller's own commands, listed in the help.");
   m.def(
       "run",
@@ -671,12 +673,13 @@ NB_MODULE(_core, m) {
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true, "overwrite"_a = false,
       "branch_dir"_a = "", "branch_stage"_a = "", "backend"_a = "cpu",
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
-      "as a list of dicts, [output], ...) into the directory `out`, like `crushdem run`. SIGINT or "
+      "as a list of dicts, [output], ...) into the directory `out`, like `crushdem-sand run`. "
+      "SIGINT or "
       "SIGTERM saves a checkpoint and raises Interrupted (continue with resume(out)). A directory "
       "that holds files is refused unless overwrite (then the entries its manifest.json lists are "
       "removed, nothing else). "
       "branch_dir (and branch_stage, index or name): start from that run's state at the start of "
-      "the stage, as `crushdem run --from DIR:STAGE`. backend: \"cpu\", \"cuda\" (a GPU, in a "
+      "the stage, as `crushdem-sand run --from DIR:STAGE`. backend: \"cpu\", \"cuda\" (a GPU, in a "
       "build with CUDA) or \"emulated\" (the GPU's step run on the host), as `--backend`.");
   m.def(
       "resume",
@@ -688,7 +691,8 @@ NB_MODULE(_core, m) {
         return run_interruptible([&] { return resume_directory(out, opt); });
       },
       "out"_a, "progress"_a = true, "backend"_a = "cpu",
-      "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem resume`; "
+      "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem-sand "
+      "resume`; "
       "the files come out as those of an uninterrupted run on the same backend. Stops on SIGINT / "
       "SIGTERM as run() does.");
   m.def("backends", &stepper_names,

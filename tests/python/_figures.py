@@ -7,7 +7,7 @@ import numpy as np
 
 
 def read_csv_with_comments(path):
-    """(the ``#`` lines, the rows as dicts) of a CSV that ``crushdem reproduce`` wrote."""
+    """(the ``#`` lines, the rows as dicts) of a CSV that ``crushdem-sand reproduce`` wrote."""
     with open(path) as f:
         lines = f.read().splitlines()
     comments = [ln for ln in lines if ln.startswith("#")]

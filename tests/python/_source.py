@@ -1,8 +1,8 @@
 """The Python modules of the checkout, for tests that must follow the source without a rebuild:
-python/crushdem/<name>.py (or the subpackage python/crushdem/<name>/, or a dotted name such as
+python/crushdem_sand/<name>.py (or the subpackage python/crushdem_sand/<name>/, or a dotted name such as
 ``figures.study``) imported as a module of a stand-in package (so that its relative imports
 resolve in the source tree too, without the package __init__ and its compiled _core); the
-installed crushdem module where this file does not sit in a checkout."""
+installed crushdem_sand module where this file does not sit in a checkout."""
 
 import importlib
 import os
@@ -10,14 +10,14 @@ import sys
 import types
 
 SOURCE_DIR = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir,
-                                          os.pardir, "python", "crushdem"))
+                                          os.pardir, "python", "crushdem_sand"))
 _PACKAGE = "crushdem_src_under_test"
 
 
 def load(name):
     path = os.path.join(SOURCE_DIR, *name.split("."))
     if not (os.path.isfile(path + ".py") or os.path.isfile(os.path.join(path, "__init__.py"))):
-        return importlib.import_module(f"crushdem.{name}")
+        return importlib.import_module(f"crushdem_sand.{name}")
     if _PACKAGE not in sys.modules:
         pkg = types.ModuleType(_PACKAGE)
         pkg.__path__ = [SOURCE_DIR]

@@ -1,4 +1,4 @@
-"""`crushdem bench` on small packings: the peer format (a cube [0, L]^3 from '# L_m=') and a
+"""`crushdem-sand bench` on small packings: the peer format (a cube [0, L]^3 from '# L_m=') and a
 prepared sample (six wall positions from '# box_xmin=' ...) both load, and the figure is the
 last line of the output."""
 
@@ -26,7 +26,7 @@ def _line(lines, key):
 
 
 def _bench(packing, *extra):
-    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing", str(packing),
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", "--packing", str(packing),
                           "--steps", "20", "--warm", "5", "--threads", "1", *extra],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
@@ -64,7 +64,7 @@ def test_bench_loads_a_prepared_sample_box(tmp_path):
 
 def test_bench_without_a_box_names_the_header(tmp_path):
     _lattice(tmp_path / "n.txt", "", 1e-3)
-    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", "--packing",
                           str(tmp_path / "n.txt"), "--steps", "5"], capture_output=True, text=True)
     assert res.returncode != 0
     assert "L_m" in res.stderr
@@ -80,7 +80,7 @@ def test_bench_settles_under_its_own_law_first(tmp_path):
     # The servo has moved the walls, so the timed state differs from the unsettled one.
     assert _line(lines, "p_wall_Pa") != _line(_bench(tmp_path / "p.txt", "--law", "rough"),
                                               "p_wall_Pa")
-    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", "--packing",
                           str(tmp_path / "p.txt"), "--settle", "-3"], capture_output=True,
                          text=True)
     assert res.returncode != 0 and "--settle" in res.stderr and "-3" in res.stderr
@@ -104,13 +104,13 @@ def test_bench_keeps_the_settled_state_in_a_file(tmp_path):
         (tmp_path / "c.txt").read_bytes()
     # A file settled for another run is refused, with what it expected.
     for other in (("--law", "hertz", "--settle", "200"), ("--law", "rough", "--settle", "300")):
-        res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+        res = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", "--packing",
                               str(tmp_path / "p.txt"), "--steps", "5", *other,
                               "--settled-state", str(state)], capture_output=True, text=True)
         assert res.returncode != 0
         assert "--settled-state" in res.stderr and "written for another run" in res.stderr
     # Without --settle there is nothing to keep.
-    res = subprocess.run([sys.executable, "-m", "crushdem", "bench", "--packing",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", "--packing",
                           str(tmp_path / "p.txt"), "--steps", "5", "--settled-state", str(state)],
                          capture_output=True, text=True)
     assert res.returncode != 0 and "needs --settle" in res.stderr

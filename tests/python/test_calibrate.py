@@ -1,4 +1,4 @@
-"""``crushdem calibrate`` (python/crushdem/calibrate.py) on a cheap synthetic target: the
+"""``crushdem-sand calibrate`` (python/crushdem_sand/calibrate.py) on a cheap synthetic target: the
 isotropic stress that brings the 64-grain lattice of tests/data to a void ratio of 0.910 (the
 void ratio falls monotonically with the stress: 0.924 at 0.4 MPa, 0.903 at 3 MPa)."""
 
@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("distributed")
 pytest.importorskip("scipy")
 
-from crushdem import calibrate, sweep  # noqa: E402
+from crushdem_sand import calibrate, sweep  # noqa: E402
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
 

@@ -1,5 +1,5 @@
 """A run killed with SIGKILL in the middle of a dynamic phase, then resumed with
-``crushdem resume``, writes the same files as an uninterrupted run.
+``crushdem-sand resume``, writes the same files as an uninterrupted run.
 
 The run is the small creep test of tests/data (grains_300.toml, creep_300.toml), which
 tests/test_checkpoint.cpp runs too: 300 weak grains squeezed to 2 MPa, then off-DEM ageing for a
@@ -22,7 +22,7 @@ MIN_CYCLES = tomllib.loads(CONFIG)["stage"][1]["min_cycles"]  # of each dynamic 
 
 
 def crushdem(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "crushdem", *args], stdout=subprocess.DEVNULL,
+    return subprocess.Popen([sys.executable, "-m", "crushdem_sand", *args], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True, **kw)
 
 
@@ -101,11 +101,11 @@ def test_sigint_saves_and_stops_with_a_resume_hint_then_python_resumes(tmp_path)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 128 + signal.SIGINT, err
-    assert "crushdem resume" in err
+    assert "crushdem-sand resume" in err
     assert (out / "checkpoint.bin").exists()
 
     # Resumed from Python this time.
-    from crushdem import lab
+    from crushdem_sand import lab
 
     res = lab.resume(out)
     assert res.summary["stages"][-1]["end"] == "target ageing time"
@@ -115,22 +115,22 @@ def test_sigint_saves_and_stops_with_a_resume_hint_then_python_resumes(tmp_path)
 
 
 PYTHON_RUN = """
-import sys, tomllib, crushdem
+import sys, tomllib, crushdem_sand
 cfg = tomllib.loads(open(sys.argv[1]).read())
 try:
-    crushdem.lab.run(cfg, sys.argv[2])
-except crushdem.Interrupted as e:
+    crushdem_sand.lab.run(cfg, sys.argv[2])
+except crushdem_sand.Interrupted as e:
     print(e.signal, e.out_dir, isinstance(e, KeyboardInterrupt))
     sys.exit(3)
 """
 
 
 def test_sigterm_stops_a_python_run_with_a_checkpoint_and_resume_completes_it(tmp_path):
-    # From Python the same signals must save the state: a script (or `crushdem sensitivity`)
+    # From Python the same signals must save the state: a script (or `crushdem-sand sensitivity`)
     # killed by the batch system loses nothing past its last step.
     import tomllib
 
-    from crushdem import lab
+    from crushdem_sand import lab
 
     cfg = tmp_path / "creep.toml"
     cfg.write_text(CONFIG)
@@ -179,7 +179,7 @@ def test_a_format_4_checkpoint_of_release_0_1_0_still_resumes(tmp_path):
     if not os.path.isfile(particles):
         os.makedirs(os.path.dirname(particles), exist_ok=True)
         shutil.copyfile(os.path.join(os.path.dirname(src), "lattice_64.txt"), particles)
-    res = subprocess.run([sys.executable, "-m", "crushdem", "resume", str(run)],
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "resume", str(run)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
     assert not (run / "checkpoint.bin").exists()

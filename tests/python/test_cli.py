@@ -1,4 +1,4 @@
-"""The ``crushdem`` console command (python/crushdem/__main__.py): every command, the Python ones
+"""The ``crushdem-sand`` console command (python/crushdem_sand/__main__.py): every command, the Python ones
 (plot, reproduce, sensitivity) and the C++ ones (run, resume, check, bench), answers -h/--help
 with its usage and exit status 0, and --version works after any command; ``--backend`` names
 the backends, refuses others, and the emulated device follows the CPU to rounding."""
@@ -10,9 +10,9 @@ import re
 import numpy as np
 import pytest
 
-import crushdem
+import crushdem_sand
 from _data import DATA, data_text
-from crushdem.__main__ import main
+from crushdem_sand.__main__ import main
 
 
 def _run(args, capfd):
@@ -29,11 +29,11 @@ def test_every_command_has_help(command, option, capfd):
     for flag in ("-h", "--help"):
         code, out, _ = _run([command, flag], capfd)
         assert code == 0
-        assert "crushdem " + command in out and option in out
+        assert "crushdem-sand " + command in out and option in out
 
 
 def test_top_level_help_lists_every_command(capfd):
-    from crushdem._cli import COMMANDS
+    from crushdem_sand._cli import COMMANDS
 
     code, out, _ = _run(["--help"], capfd)
     assert code == 0
@@ -58,11 +58,11 @@ def test_one_help_style(command, capfd):
     code, out, _ = _run([command, "--help"], capfd)
     assert code == 0
     lines = out.splitlines()
-    assert lines[1].startswith(f"Usage: crushdem {command} [OPTIONS]"), out
+    assert lines[1].startswith(f"Usage: crushdem-sand {command} [OPTIONS]"), out
     assert lines[2] == "", out
     assert "\nOptions:\n  -h,--help                   Print this help message and exit\n" in out
     if command in PY_COMMANDS:
-        from crushdem._cli import COMMANDS
+        from crushdem_sand._cli import COMMANDS
 
         assert lines[0] == COMMANDS[command]
     assert "usage:" not in out and "optional arguments" not in out and "options:" not in out
@@ -78,8 +78,8 @@ def test_misuse_reads_the_same_in_every_command(args, capfd):
     code, out, err = _run(args, capfd)
     assert code == 2, (out, err)
     command = args[0]
-    assert err.startswith(f"crushdem {command}: error: "), err
-    assert err.endswith(f"Run 'crushdem {command} --help' for the options.\n"), err
+    assert err.startswith(f"crushdem-sand {command}: error: "), err
+    assert err.endswith(f"Run 'crushdem-sand {command} --help' for the options.\n"), err
 
 
 @pytest.mark.parametrize("args", [["--version"], ["plot", "DIR", "--version"],
@@ -87,7 +87,7 @@ def test_misuse_reads_the_same_in_every_command(args, capfd):
 def test_version_anywhere(args, capfd):
     code, out, _ = _run(args, capfd)
     assert code == 0
-    assert out.strip() == f"crushdem {crushdem.__version__}"
+    assert out.strip() == f"crushdem-sand {crushdem_sand.__version__}"
 
 
 def test_misuse_exits_with_2_and_names_the_option(capfd):
@@ -96,12 +96,12 @@ def test_misuse_exits_with_2_and_names_the_option(capfd):
 
 
 def test_backends_are_named_and_an_unknown_or_missing_one_is_refused(tmp_path, capfd):
-    from crushdem import _core
+    from crushdem_sand import _core
 
     names = _core.backends()  # the engine's sentence, which its messages use
     assert names in ("cpu or emulated", "cpu, emulated or cuda")
     # The package's: a tuple of the names, each a --backend value.
-    assert crushdem.backends() == (("cpu", "emulated") if names == "cpu or emulated"
+    assert crushdem_sand.backends() == (("cpu", "emulated") if names == "cpu or emulated"
                                    else ("cpu", "emulated", "cuda"))
     config = tmp_path / "tiny.toml"
     config.write_text(data_text("tiny_run.toml"))
@@ -170,7 +170,7 @@ def test_progress_lines_give_the_rate_and_the_share_done(tmp_path, capfd):
 
 
 def test_the_command_parser_writes_types_choices_lists_and_percent_signs_as_cli11_does():
-    from crushdem._cli import CommandParser
+    from crushdem_sand._cli import CommandParser
 
     parser = CommandParser("plot", "More text.")
     parser.add_argument("count", type=int, metavar="N", help="grains")

@@ -1,7 +1,7 @@
 """The documentation stays true to the code: docs/api.md is what scripts/api_reference.py
 generates from the docstrings, every relative link in the Markdown files leads to a file (and
 heading) that exists, every path to a page or an example named in their text exists, every
-example configuration passes `crushdem check`, and the README's first Python example prints what
+example configuration passes `crushdem-sand check`, and the README's first Python example prints what
 the README says it prints. All fast: the one thing run is that example (27 grains, a tenth of a
 second)."""
 
@@ -142,9 +142,9 @@ def example_tree(tmp_path_factory):
 @pytest.mark.parametrize("path", EXAMPLES, ids=os.path.basename)
 def test_example_passes_crushdem_check(path, example_tree):
     target = example_tree / "examples" / os.path.basename(path)
-    proc = subprocess.run([sys.executable, "-m", "crushdem", "check", str(target)],
+    proc = subprocess.run([sys.executable, "-m", "crushdem_sand", "check", str(target)],
                           cwd=example_tree, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, f"crushdem check {_rel(path)}:\n{proc.stdout}{proc.stderr}"
+    assert proc.returncode == 0, f"crushdem-sand check {_rel(path)}:\n{proc.stdout}{proc.stderr}"
 
 
 def _python_blocks(path):
@@ -159,7 +159,7 @@ def test_readme_first_python_example_prints_what_it_says():
     # array of contact forces).
     readme = os.path.join(ROOT, "README.md")
     code = _python_blocks(readme)[0]
-    assert "crushdem.Simulation(" in code
+    assert "crushdem_sand.Simulation(" in code
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr[-4000:]

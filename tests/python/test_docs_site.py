@@ -65,7 +65,7 @@ def test_site_builds_strict_with_every_page(tmp_path):
 def test_anchors_are_githubs(hooks):
     test_docs = _load("crushdem_test_docs", os.path.join("tests", "python", "test_docs.py"))
     headings = ["Which rotation model, and which grain strength: the decision study",
-                "q_max under the uncertain choices (`crushdem sensitivity`)",
+                "q_max under the uncertain choices (`crushdem-sand sensitivity`)",
                 "The study's REV", "5. What is uncertain", "Backends: the CPU engine and a device"]
     for heading in headings:
         text = re.sub(r"`([^`]*)`", r"\1", heading)  # what the toc extension passes on

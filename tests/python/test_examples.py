@@ -1,4 +1,4 @@
-"""Every configuration in examples/ passes `crushdem check`: the examples are the documented way
+"""Every configuration in examples/ passes `crushdem-sand check`: the examples are the documented way
 in, and a renamed or retyped key must not leave one of them failing at its first run (hours
 later, for the study-scale ones)."""
 
@@ -10,7 +10,7 @@ import tomllib
 
 import pytest
 
-import crushdem
+import crushdem_sand
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXAMPLES = sorted(glob.glob(os.path.join(ROOT, "examples", "*.toml")))
@@ -63,10 +63,10 @@ def test_every_example_says_what_it_is_and_a_page_names_it():
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=os.path.basename)
 def test_example_is_the_study_material_at_the_scale_its_name_says(path):
-    # Every example is the reference study's quartz (crushdem.study: Table 1, the NE34 grading,
+    # Every example is the reference study's quartz (crushdem_sand.study: Table 1, the NE34 grading,
     # the grain strength); *_rev ones run on the 4 mm REV (prepared by sample_rev.toml), *_small
     # ones on at most 1,500 grains, *_crushing ones break grains.
-    from crushdem import study
+    from crushdem_sand import study
 
     with open(path, "rb") as f:
         cfg = tomllib.load(f)
@@ -102,7 +102,7 @@ def test_example_passes_check(path, tmp_path, capfd):
     sample = tmp_path / "examples" / file
     sample.parent.mkdir(parents=True, exist_ok=True)
     sample.write_text(SAMPLE)
-    rc = crushdem.cli_main(["check", str(target)])
+    rc = crushdem_sand.cli_main(["check", str(target)])
     out, err = capfd.readouterr()
     assert rc == 0, err
     # Every example runs crushdem's parameter set, and check says so.

@@ -1,4 +1,4 @@
-"""The laboratory functions of crushdem.lab come from the engine's stage kinds: their keyword
+"""The laboratory functions of crushdem_sand.lab come from the engine's stage kinds: their keyword
 arguments that are stage keys take type, default and meaning from the C++ tables, their
 keyword arguments are those callers have always used, and they build the stages they always
 built; `lab.Result` reads each table of a run directory as a DataFrame of the right column
@@ -12,8 +12,8 @@ import sys
 
 import pytest
 
-import crushdem
-from crushdem import _core, lab
+import crushdem_sand
+from crushdem_sand import _core, lab
 
 TABLES = {section: {row["key"]: row for row in rows}
           for section, rows in _core.parameter_tables().items()}
@@ -29,7 +29,7 @@ def test_every_stage_kind_has_its_table_and_docs():
     assert len(set(kinds)) == len(kinds)
     assert sorted(s for s in TABLES if s.startswith("stage.")) == sorted(f"stage.{k}"
                                                                          for k in kinds)
-    docs = crushdem.parameter_reference()["stage"]
+    docs = crushdem_sand.parameter_reference()["stage"]
     for k in _core.stage_kinds():
         assert f'### type = "{k["name"]}": {k["description"]}' in docs
         for key in TABLES["stage." + k["name"]]:
@@ -63,8 +63,8 @@ SIGNATURES = {
 @pytest.mark.parametrize("name", sorted(SIGNATURES))
 def test_laboratory_functions_keep_their_keyword_arguments(name):
     f = getattr(lab, name)
-    assert getattr(crushdem, name) is f
-    assert f.__name__ == name and f.__module__ == "crushdem.lab"
+    assert getattr(crushdem_sand, name) is f
+    assert f.__name__ == name and f.__module__ == "crushdem_sand.lab"
     assert list(inspect.signature(f).parameters) == SIGNATURES[name].split()
 
 
@@ -117,10 +117,10 @@ def test_a_changed_table_default_changes_the_functions(monkeypatch):
         if row["key"] == "n_break":
             row["default"] = 7
     monkeypatch.setattr(_core, "parameter_tables", lambda: tables)
-    spec = importlib.util.spec_from_file_location("crushdem._lab_probe", lab.__file__)
+    spec = importlib.util.spec_from_file_location("crushdem_sand._lab_probe", lab.__file__)
     probe = importlib.util.module_from_spec(spec)
-    probe.__package__ = "crushdem"
-    monkeypatch.setitem(sys.modules, "crushdem._lab_probe", probe)
+    probe.__package__ = "crushdem_sand"
+    monkeypatch.setitem(sys.modules, "crushdem_sand._lab_probe", probe)
     spec.loader.exec_module(probe)
     for name in ("oedometric_relaxation", "creep_test", "triaxial_relaxation"):
         assert inspect.signature(getattr(probe, name)).parameters["n_break"].default == 7
@@ -233,13 +233,13 @@ def test_common_stage_keys_are_listed_in_the_module_docstring():
 
 
 def test_a_negative_hold_is_refused(tmp_path):
-    with pytest.raises(crushdem.ConfigError, match="hold_steps"):
+    with pytest.raises(crushdem_sand.ConfigError, match="hold_steps"):
         lab.oedometric_test(tmp_path / "o", str(tmp_path / "none.txt"), stress=1e6, hold_steps=-1)
-    with pytest.raises(crushdem.ConfigError, match="hold_steps"):
+    with pytest.raises(crushdem_sand.ConfigError, match="hold_steps"):
         lab.triaxial_test(tmp_path / "t", str(tmp_path / "none.txt"), sigma_3=1e6, hold_steps=2.5)
 
 
-# --- crushdem.lab.Result: a run directory's tables as DataFrames --------------------------------
+# --- crushdem_sand.lab.Result: a run directory's tables as DataFrames --------------------------------
 
 def _write(path, text):
     path.write_text(text)

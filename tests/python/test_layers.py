@@ -1,8 +1,8 @@
-"""The Python package's layers (python/crushdem): reading a run directory, the analysis and the
+"""The Python package's layers (python/crushdem_sand): reading a run directory, the analysis and the
 study's recipes are NumPy only, the figures draw without choosing a backend, the study's modules
 depend one way, no module reaches into another's private names (a helper two modules need is
 public in the layer it belongs to), no module is longer than 800 lines, and the package that
-py.typed marks as typed is annotated. Source checks: they read python/crushdem/**/*.py and
+py.typed marks as typed is annotated. Source checks: they read python/crushdem_sand/**/*.py and
 need neither the compiled _core nor a rebuild."""
 
 import ast
@@ -16,7 +16,7 @@ from _source import SOURCE_DIR
 MODULES = sorted(glob.glob(os.path.join(SOURCE_DIR, "**", "*.py"), recursive=True))
 # Names that start with an underscore but are public parts of the package.
 PUBLIC_UNDERSCORE = {"_core", "__version__", "__commit__", "__main__"}
-# ``crushdem reproduce`` from the bottom up: a module imports only modules to its left.
+# ``crushdem-sand reproduce`` from the bottom up: a module imports only modules to its left.
 STUDY_LAYERS = ("study", "study_analysis", "study_summary", "figures.study", "study_pipeline",
                 "reproduce")
 MAX_LINES = 800
@@ -28,7 +28,7 @@ def _tree(path):
 
 
 def _module_name(path):
-    """"figures.study" for python/crushdem/figures/study.py, "figures" for its __init__.py."""
+    """"figures.study" for python/crushdem_sand/figures/study.py, "figures" for its __init__.py."""
     parts = os.path.relpath(os.path.splitext(path)[0], SOURCE_DIR).split(os.sep)
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
@@ -70,7 +70,7 @@ def test_no_module_imports_private_names_of_another():
         aliases = set()
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "")
-                                                     .startswith("crushdem")):
+                                                     .startswith("crushdem_sand")):
                 for a in node.names:
                     if a.name.startswith("_") and a.name not in PUBLIC_UNDERSCORE:
                         found.append(f"{_module_name(path)}:{node.lineno}: from "
@@ -118,7 +118,7 @@ def test_no_module_is_longer_than_800_lines():
 
 def test_no_module_selects_a_backend_outside_the_commands():
     # matplotlib.use() only in figures.use_file_backend_without_display, which the commands
-    # (crushdem plot, crushdem reproduce) call.
+    # (crushdem-sand plot, crushdem-sand reproduce) call.
     for path in MODULES:
         for node in ast.walk(_tree(path)):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \

@@ -1,13 +1,13 @@
 """The named parameter sets (docs/configuration.md, "parameters"): the engine's default is
-crushdem's set, `parameters = "table1"` is Table 1 as printed, and crushdem.study's sets for
-`crushdem reproduce --parameters` hold the same values."""
+crushdem's set, `parameters = "table1"` is Table 1 as printed, and crushdem_sand.study's sets for
+`crushdem-sand reproduce --parameters` hold the same values."""
 
 import tomllib
 
 import pytest
 
-import crushdem
-from crushdem import _core, study
+import crushdem_sand
+from crushdem_sand import _core, study
 
 
 def _engine_sets():
@@ -35,9 +35,9 @@ def test_a_simulation_gets_crushdems_set_unless_it_names_another():
     resolved = tomllib.loads(_core.resolved_config(
         {**box, "parameters": "table1", "contact": {"rotation": "blocked"}}))
     assert resolved["contact"]["rotation"] == "blocked"
-    crushdem.Simulation(parameters="table1", **box)
-    with pytest.raises(crushdem.ConfigError, match=r"parameters.*\"table2\".*\"table1\""):
-        crushdem.Simulation(parameters="table2", **box)
+    crushdem_sand.Simulation(parameters="table1", **box)
+    with pytest.raises(crushdem_sand.ConfigError, match=r"parameters.*\"table2\".*\"table1\""):
+        crushdem_sand.Simulation(parameters="table2", **box)
 
 
 def test_check_names_the_set_and_where_each_key_came_from(tmp_path, capfd):
@@ -46,7 +46,7 @@ def test_check_names_the_set_and_where_each_key_came_from(tmp_path, capfd):
                    '[box]\nmin = [0.0, 0.0, 0.0]\nmax = [1e-3, 1e-3, 1e-3]\n'
                    '[particles.generate]\ncount = 10\ndiameter_min = 1e-4\ndiameter_max = 2e-4\n'
                    '[run]\nsteps = 10\n[crushing]\nd0 = 2e-3\n')
-    assert crushdem.cli_main(["check", str(cfg)]) == 0
+    assert crushdem_sand.cli_main(["check", str(cfg)]) == 0
     out = capfd.readouterr().out
     assert 'parameters = "table1" (named by the file)' in out
     assert 'contact.rotation = "free" (from the set)' in out
@@ -55,9 +55,9 @@ def test_check_names_the_set_and_where_each_key_came_from(tmp_path, capfd):
 
 
 def test_a_laboratory_configuration_takes_the_set_by_name():
-    # What a crushdem.lab function hands the engine (lab._base): a section stays a table, the
+    # What a crushdem_sand.lab function hands the engine (lab._base): a section stays a table, the
     # set's name a top-level string.
-    from crushdem import lab
+    from crushdem_sand import lab
 
     sample = {"count": 500, "void_ratio": 0.95}
     for kw, rotation in (({}, "blocked"), ({"parameters": "table1"}, "free")):

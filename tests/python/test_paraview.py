@@ -33,7 +33,7 @@ def _array(data, name):
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
-    pytest.importorskip("crushdem._core")
+    pytest.importorskip("crushdem_sand._core")
     tmp = tmp_path_factory.mktemp("paraview")
     particles = os.path.abspath(os.path.join(DATA, "lattice_64.txt"))
     config = tmp / "iso.toml"
@@ -51,7 +51,7 @@ vtk_interval = 20000
 progress_seconds = 0
 """)
     out = tmp / "run"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "run", str(config), "--out",
                           str(out)], capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
     return out
@@ -139,9 +139,9 @@ def test_box_is_the_walls_at_the_end(run_dir):
 @pytest.fixture(scope="module")
 def chamber_dir(tmp_path_factory):
     """tests/data/chamber_400.toml: a chamber sample and a cone pushed into it."""
-    pytest.importorskip("crushdem._core")
+    pytest.importorskip("crushdem_sand._core")
     out = tmp_path_factory.mktemp("paraview_chamber") / "run"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "run",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "run",
                           os.path.join(DATA, "chamber_400.toml"), "--out", str(out)],
                          capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
@@ -185,7 +185,7 @@ def test_frames_mark_the_prepared_sample_each_stage_start_and_each_dynamic_phase
     config = tmp_path / "creep.toml"
     config.write_text(data_text("grains_300.toml", "creep_300.toml"))
     out = tmp_path / "run"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "run", str(config), "--out",
                           str(out), "--quiet"], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     entries = _collection(out / "vtk" / "particles.pvd")
@@ -211,7 +211,7 @@ def test_the_first_frame_of_a_prepared_sample_is_the_sample_not_the_loose_cloud(
     config.write_text('[sample]\ncount = 500\nvoid_ratio = 0.8\nseed = 3\n'
                       '[output]\nprogress_seconds = 0\n')
     out = tmp_path / "run"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "run", str(config), "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "run", str(config), "--out",
                           str(out), "--quiet"], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     entries = _collection(out / "vtk" / "particles.pvd")

@@ -1,4 +1,4 @@
-"""``crushdem pile`` (python/crushdem/pile.py): the set-up fit returns the A of synthetic
+"""``crushdem-sand pile`` (python/crushdem_sand/pile.py): the set-up fit returns the A of synthetic
 capacities (and its uncertainty covers it under noise); the plan of runs follows the stages and
 refuses a configuration out of order; the command on the 400-grain pile of tests/data (a main run
 and one branch, about 20 s) writes the capacities, the fit and the figures, and called again
@@ -13,8 +13,8 @@ import pytest
 
 pytest.importorskip("pandas")
 
-from crushdem import pile  # noqa: E402
-from crushdem.figures import pile as pile_figures  # noqa: E402
+from crushdem_sand import pile  # noqa: E402
+from crushdem_sand.figures import pile as pile_figures  # noqa: E402
 
 from _data import DATA  # noqa: E402
 

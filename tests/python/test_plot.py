@@ -1,10 +1,10 @@
-"""Tests of ``crushdem plot`` (python/crushdem/plot.py) on small synthetic run directories: which
+"""Tests of ``crushdem-sand plot`` (python/crushdem_sand/plot.py) on small synthetic run directories: which
 figures a run gets, what each draws (its lines read back from the matplotlib Figure against the
 run's time series, events.csv, grading.csv and summary.json), and that the PNGs show a drawing.
 
 Run with `python -m pytest tests/python` after `pip install .`. The plotting module needs only
-NumPy and Matplotlib, not the compiled ``crushdem._core``: when this file sits in the source tree
-the module is loaded from python/crushdem/plot.py (so the tests follow the checkout without a
+NumPy and Matplotlib, not the compiled ``crushdem_sand._core``: when this file sits in the source tree
+the module is loaded from python/crushdem_sand/plot.py (so the tests follow the checkout without a
 rebuild), otherwise from the installed package.
 """
 
@@ -143,7 +143,7 @@ def _names(paths):
 
 
 def _plots(run, out=None):
-    """``crushdem plot`` of ``run`` into ``out`` (default: the run directory): the names of the
+    """``crushdem-sand plot`` of ``run`` into ``out`` (default: the run directory): the names of the
     PNGs written there, each checked to show a drawing."""
     written = plot.make_plots(run, None if out is None else str(out))
     for p in written:
@@ -1015,7 +1015,7 @@ def test_figures_join_the_runs_manifest(tmp_path):
 def test_log_time_axes_label_the_minor_ticks_only_when_they_have_room():
     """2 and 5 between the decades are labelled on an axis of at most two decades; on a wider
     one their plain labels (20000, 50000) would run into each other."""
-    from crushdem.figures.common import plain_log_ticks, pyplot
+    from crushdem_sand.figures.common import plain_log_ticks, pyplot
 
     plt = pyplot()
     for span, labelled in (((1.0, 100.0), True), ((1e2, 1e6), False)):

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-import crushdem
+import crushdem_sand
 from _data import data_text
-from crushdem import _core
+from crushdem_sand import _core
 
 G = 32e9
 NU = 0.19
@@ -27,7 +27,7 @@ def hertz_sim(**extra):
         box=BOX,
     )
     cfg.update(extra)
-    return crushdem.Simulation(**cfg)
+    return crushdem_sand.Simulation(**cfg)
 
 
 def test_head_on_collision_conserves_energy():
@@ -88,7 +88,7 @@ def test_array_shapes_and_dtypes():
     for name in ("ids", "parent_ids"):
         a = getattr(sim, name)()
         assert a.shape == (n,) and a.dtype == np.uint64, name
-    assert (sim.parent_ids() == crushdem.NO_PARENT).all()
+    assert (sim.parent_ids() == crushdem_sand.NO_PARENT).all()
 
     np.testing.assert_allclose(np.sort(sim.positions()[:, 0]), pos[:, 0])
     np.testing.assert_allclose(sim.masses(), 2650.0 * 4.0 / 3.0 * math.pi * 5e-5**3, rtol=1e-12)
@@ -151,11 +151,11 @@ def test_contacts_are_columns_a_dataframe_takes():
 def test_properties_are_the_counts_and_the_clock():
     # The rule of the class docstring: what the simulation keeps as a scalar is a property,
     # whatever copies, computes or takes arguments a method.
-    properties = {name for name, value in vars(crushdem.Simulation).items()
+    properties = {name for name, value in vars(crushdem_sand.Simulation).items()
                   if isinstance(value, property)}
     assert properties == {"num_particles", "num_contacts", "time", "step_count", "dt", "core"}
     for name in ("positions", "contacts", "wall_stresses", "kinetic_energy", "rayleigh_dt"):
-        assert callable(vars(crushdem.Simulation)[name]), name
+        assert callable(vars(crushdem_sand.Simulation)[name]), name
 
 
 def test_num_contacts_is_a_property_still_callable_with_a_warning():
@@ -184,7 +184,7 @@ def test_wall_contact_is_hertz():
     c = sim.contacts()
     assert len(c["overlap"]) == 1
     assert c["is_wall"][0]
-    assert crushdem.WALL_NAMES[int(c["id_j"][0])] == "zmin"
+    assert crushdem_sand.WALL_NAMES[int(c["id_j"][0])] == "zmin"
     assert c["id_i"][0] == 0
     assert c["overlap"][0] == pytest.approx(delta, rel=1e-9)
     expected = 4.0 / 3.0 * E_STAR * math.sqrt(r) * delta**1.5
@@ -223,23 +223,23 @@ def test_rolling_moment_is_readable_and_capped():
 
 def test_bad_value_names_the_key():
     with pytest.raises(ValueError, match=r"material\.shear_modulus"):
-        crushdem.Simulation(material={"shear_modulus": -1}, box=BOX)
-    with pytest.raises(crushdem.ConfigError):
-        crushdem.Simulation(material={"shear_modulus": -1}, box=BOX)
+        crushdem_sand.Simulation(material={"shear_modulus": -1}, box=BOX)
+    with pytest.raises(crushdem_sand.ConfigError):
+        crushdem_sand.Simulation(material={"shear_modulus": -1}, box=BOX)
     with pytest.raises(ValueError, match=r"box"):
-        crushdem.Simulation(material={"shear_modulus": 32e9})  # [box] is required
+        crushdem_sand.Simulation(material={"shear_modulus": 32e9})  # [box] is required
 
 
 def test_unknown_key_is_named():
     with pytest.raises(ValueError, match="shear_modulsu"):
-        crushdem.Simulation(material={"shear_modulsu": 32e9}, box=BOX)
+        crushdem_sand.Simulation(material={"shear_modulsu": 32e9}, box=BOX)
     with pytest.raises(ValueError, match="nonsense"):
-        crushdem.Simulation(material={"shear_modulus": 32e9}, box=BOX, nonsense={"a": 1})
+        crushdem_sand.Simulation(material={"shear_modulus": 32e9}, box=BOX, nonsense={"a": 1})
 
 
 def test_value_conversion():
     # numpy scalars and arrays, tuples, ints for floats, bools
-    sim = crushdem.Simulation(
+    sim = crushdem_sand.Simulation(
         material={"shear_modulus": np.float64(30e9), "density": 2600},
         neighbor={"sort_particles": np.bool_(False), "prune": False},
         box={"min": np.zeros(3), "max": (1e-3, 1e-3, np.float32(2e-3))},
@@ -252,13 +252,13 @@ def test_value_conversion():
     assert "shear_modulus = 3e+10" in toml or "shear_modulus = 30000000000.0" in toml
     assert sim.wall_config("zmax")["mode"] == "servo"
     with pytest.raises(ValueError, match="None"):
-        crushdem.Simulation(material={"density": None}, box=BOX)
+        crushdem_sand.Simulation(material={"density": None}, box=BOX)
     with pytest.raises(ValueError, match="material.density"):
-        crushdem.Simulation(material={"density": object()}, box=BOX)
+        crushdem_sand.Simulation(material={"density": object()}, box=BOX)
     with pytest.raises(ValueError):
-        crushdem.Simulation(neighbor={"sort_particles": 1}, box=BOX)  # an integer is not a boolean
+        crushdem_sand.Simulation(neighbor={"sort_particles": 1}, box=BOX)  # an integer is not a boolean
     with pytest.raises(ValueError, match="neighbor.prune"):
-        crushdem.Simulation(neighbor={"prune": "yes"}, box=BOX)
+        crushdem_sand.Simulation(neighbor={"prune": "yes"}, box=BOX)
 
 
 def test_set_wall_moves_it():
@@ -293,8 +293,8 @@ def test_step_releases_gil():
         return n
 
     sim = _rattling_pair()
-    before = crushdem.threads()
-    crushdem.set_threads(1)
+    before = crushdem_sand.threads()
+    crushdem_sand.set_threads(1)
     try:
         t0 = time.perf_counter()
         sim.step(20_000, progress=False)
@@ -307,7 +307,7 @@ def test_step_releases_gil():
         overlapped = t.is_alive()
         t.join()
     finally:
-        crushdem.set_threads(before)
+        crushdem_sand.set_threads(before)
     assert overlapped, "the step ended before the measurement: too few steps"
     assert sim.step_count == 20_000 + n
     # Held, the main thread would get the GIL at chunk ends only (a few per 0.3 s).
@@ -315,7 +315,7 @@ def test_step_releases_gil():
 
 
 def test_resolved_config():
-    text = crushdem.resolved_config(contact={"law": "hertz"}, box=BOX)
+    text = crushdem_sand.resolved_config(contact={"law": "hertz"}, box=BOX)
     assert 'law = "hertz"' in text
     assert "[walls.zmax]" in text
 
@@ -326,17 +326,17 @@ SMALL_CONFIG = data_text("one_servo_wall.toml")
 def test_cli_check(tmp_path, capfd):
     path = tmp_path / "small.toml"
     path.write_text(SMALL_CONFIG)
-    assert crushdem.cli_main(["check", str(path)]) == 0
+    assert crushdem_sand.cli_main(["check", str(path)]) == 0
     assert "valid" in capfd.readouterr().out
 
     bad = tmp_path / "bad.toml"
     bad.write_text(SMALL_CONFIG.replace("shear_modulus = 32e9", "shear_modulus = -1.0"))
-    assert crushdem.cli_main(["check", str(bad)]) == 2
+    assert crushdem_sand.cli_main(["check", str(bad)]) == 2
     assert "material.shear_modulus" in capfd.readouterr().err
 
 
 def test_console_script_help():
-    out = subprocess.run([sys.executable, "-m", "crushdem", "--help"], capture_output=True,
+    out = subprocess.run([sys.executable, "-m", "crushdem_sand", "--help"], capture_output=True,
                          text=True, check=True).stdout
     assert "Usage: crushdem" in out and "\n  check " in out and "\n  plot " in out
     # One usage, the Python commands in its list of subcommands.
@@ -364,7 +364,7 @@ def test_plot_writes_png(tmp_path):
     rows = "\n".join(",".join(repr(float(cols[c][i])) for c in cols) for i in range(n))
     (tmp_path / "timeseries.csv").write_text(header + "\n" + rows + "\n")
 
-    res = subprocess.run([sys.executable, "-m", "crushdem", "plot", str(tmp_path)],
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "plot", str(tmp_path)],
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     for name in ("stress_time.png", "strain_stress.png", "void_ratio.png"):
@@ -373,7 +373,7 @@ def test_plot_writes_png(tmp_path):
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(f) in res.stdout
 
-    missing = subprocess.run([sys.executable, "-m", "crushdem", "plot", str(tmp_path / "nope")],
+    missing = subprocess.run([sys.executable, "-m", "crushdem_sand", "plot", str(tmp_path / "nope")],
                              capture_output=True, text=True)
     assert missing.returncode == 2 and "timeseries.csv" in missing.stderr
 
@@ -386,24 +386,36 @@ def test_runtime_failure_is_runtime_error():
     with pytest.raises(RuntimeError,
                        match="left the box through wall zmax.*of its radius in the last step"):
         sim.step(10)
-    assert issubclass(crushdem.RuntimeFailure, RuntimeError)
+    assert issubclass(crushdem_sand.RuntimeFailure, RuntimeError)
 
 
 def test_installed_console_script():
-    script = os.path.join(os.path.dirname(sys.executable), "crushdem")
+    script = os.path.join(os.path.dirname(sys.executable), "crushdem-sand")
     if not os.path.exists(script):
         pytest.skip("console script not next to the interpreter")
     res = subprocess.run([script, "--help"], capture_output=True, text=True)
-    assert res.returncode == 0 and "Usage: crushdem" in res.stdout
+    assert res.returncode == 0 and "Usage: crushdem-sand" in res.stdout and not res.stderr
     res = subprocess.run([script, "frobnicate"], capture_output=True, text=True)
     assert res.returncode == 2 and "frobnicate" in res.stderr and "--help" in res.stderr
+
+
+def test_the_old_command_name_is_an_alias_that_says_so():
+    """`crushdem` (the name before the rename; PyPI's crushdem is another project's) runs the same
+    program until 0.2, after a note on stderr."""
+    script = os.path.join(os.path.dirname(sys.executable), "crushdem")
+    if not os.path.exists(script):
+        pytest.skip("console script not next to the interpreter")
+    res = subprocess.run([script, "--version"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout == f"crushdem-sand {crushdem_sand.__version__}\n"
+    assert res.stderr.startswith("note: `crushdem` is now `crushdem-sand`"), res.stderr
 
 
 @pytest.fixture(scope="module")
 def small_sample(tmp_path_factory):
     """One 500-grain sample (about 20 s to prepare) shared by the laboratory tests."""
     out = tmp_path_factory.mktemp("lab") / "sample"
-    return crushdem.prepare_sample(out, count=500, void_ratio=0.75, seed=3)
+    return crushdem_sand.prepare_sample(out, count=500, void_ratio=0.75, seed=3)
 
 
 def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
@@ -414,7 +426,7 @@ def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
     assert info["grains"] > 400
     for got, want in zip(info["passing"], info["passing_target"]):
         assert abs(got - want) <= 0.02
-    tri = crushdem.triaxial_test(tmp_path / "tri", sample.sample_file, sigma_3=1e6,
+    tri = crushdem_sand.triaxial_test(tmp_path / "tri", sample.sample_file, sigma_3=1e6,
                                  strain_rate=40.0, axial_strain=0.01, hold_steps=1000,
                                  crushing={"seed": 2})
     assert [s["type"] for s in tri.stages] == ["isotropic", "triaxial", "hold"]
@@ -435,17 +447,17 @@ def test_lab_functions_prepare_and_shear(tmp_path, small_sample):
                           "wall_forces", "crushing", "ageing_jump", "output"}
     assert sum(parts.values()) == pytest.approx(timing["wall_seconds"], rel=0.1, abs=0.2)
     assert timing["finished"] is True and timing["dominant_part"] in parts
-    with pytest.raises(crushdem.ConfigError, match="sample.void_ratio"):
-        crushdem.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
-    with pytest.raises(crushdem.ConfigError, match=r"stage\[0\]\.stress"):
-        crushdem.isotropic_test(tmp_path / "bad2", sample.sample_file, stress=-1.0)
+    with pytest.raises(crushdem_sand.ConfigError, match="sample.void_ratio"):
+        crushdem_sand.prepare_sample(tmp_path / "bad", count=500, void_ratio=0.5)
+    with pytest.raises(crushdem_sand.ConfigError, match=r"stage\[0\]\.stress"):
+        crushdem_sand.isotropic_test(tmp_path / "bad2", sample.sample_file, stress=-1.0)
 
 
 def test_creep_and_relaxation_functions(tmp_path, small_sample):
     sample = small_sample
     # Weaker grains (sigma_lim0 = 1 GPa) so that cracks grow within the test; short phases.
     weak = {"sigma_lim0": 1e9, "density_scaling": True, "d_min": 0.05e-3}
-    creep = crushdem.creep_test(tmp_path / "creep", sample.sample_file, stress=1e6,
+    creep = crushdem_sand.creep_test(tmp_path / "creep", sample.sample_file, stress=1e6,
                                 strain_rate=20.0, duration=3600.0, min_cycles=500, n_break=3,
                                 crushing=weak)
     ages = [s for s in creep.stages if s["type"] == "age"]
@@ -512,18 +524,18 @@ def test_set_threads_sets_the_engine_thread_count():
     needed = _needed_libraries(_core.__file__)
     assert any(lib.startswith("libstdc++") or lib.startswith("libc++") for lib in needed), needed
     openmp = any(lib.startswith(("libgomp", "libomp", "libiomp")) for lib in needed)
-    before = crushdem.threads()
+    before = crushdem_sand.threads()
     try:
-        assert crushdem.set_threads(1) == 1 and crushdem.threads() == 1
+        assert crushdem_sand.set_threads(1) == 1 and crushdem_sand.threads() == 1
         for n in (2, 3):
             expected = n if openmp else 1
-            assert crushdem.set_threads(n) == expected and crushdem.threads() == expected
+            assert crushdem_sand.set_threads(n) == expected and crushdem_sand.threads() == expected
         for bad in (0, -2, 10**6):
-            with pytest.raises(crushdem.ConfigError, match="threads"):
-                crushdem.set_threads(bad)
-        assert crushdem.threads() == (3 if openmp else 1)  # a refused count changes nothing
+            with pytest.raises(crushdem_sand.ConfigError, match="threads"):
+                crushdem_sand.set_threads(bad)
+        assert crushdem_sand.threads() == (3 if openmp else 1)  # a refused count changes nothing
     finally:
-        crushdem.set_threads(before)
+        crushdem_sand.set_threads(before)
 
 
 def _rattling_pair():
@@ -609,9 +621,9 @@ def test_the_docstring_lists_every_key_with_the_default_in_force_and_its_unit():
     # configuration it resolves for a Simulation without any of these keys.
     import tomllib
 
-    resolved = tomllib.loads(crushdem.resolved_config(box=BOX))
-    listed = _docstring_tables(crushdem.Simulation.__doc__)
-    reference = crushdem.parameter_reference()
+    resolved = tomllib.loads(crushdem_sand.resolved_config(box=BOX))
+    listed = _docstring_tables(crushdem_sand.Simulation.__doc__)
+    reference = crushdem_sand.parameter_reference()
     sections = ("material", "contact", "damping", "timestep", "neighbor")
     assert set(listed) == set(sections)
     for section in sections:
@@ -629,13 +641,13 @@ def test_the_docstring_lists_every_key_with_the_default_in_force_and_its_unit():
 
 def test_add_particles_refuses_what_would_blow_up():
     sim = hertz_sim()
-    with pytest.raises(crushdem.ConfigError, match="not inside the box"):
+    with pytest.raises(crushdem_sand.ConfigError, match="not inside the box"):
         sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([5e-3]))  # 10 mm in 1 mm
-    with pytest.raises(crushdem.ConfigError, match="grain 1 .* not inside the box"):
+    with pytest.raises(crushdem_sand.ConfigError, match="grain 1 .* not inside the box"):
         sim.add_particles(np.array([[5e-4, 5e-4, 5e-4], [5e-4, 5e-4, 2e-3]]), 1e-4)
-    with pytest.raises(crushdem.ConfigError, match="complex"):
+    with pytest.raises(crushdem_sand.ConfigError, match="complex"):
         sim.add_particles(np.array([[5e-4 + 1e-5j, 5e-4, 5e-4]]), np.array([1e-4]))
-    with pytest.raises(crushdem.ConfigError, match="finite"):
+    with pytest.raises(crushdem_sand.ConfigError, match="finite"):
         sim.add_particles(np.array([[np.nan, 5e-4, 5e-4]]), np.array([1e-4]))
     assert sim.num_particles == 0
     sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
@@ -671,14 +683,14 @@ def test_add_particles_while_stepping_in_another_thread_is_refused():
 def test_results_record_the_version_and_commit(tmp_path):
     import re
 
-    assert re.fullmatch(r"[0-9a-f]{12}(-dirty)?|unknown", crushdem.__commit__)
+    assert re.fullmatch(r"[0-9a-f]{12}(-dirty)?|unknown", crushdem_sand.__commit__)
     sample = os.path.join(os.path.dirname(__file__), "..", "data", "lattice_64.txt")
-    run = crushdem.lab.run({"contact": {"law": "hertz"},
+    run = crushdem_sand.lab.run({"contact": {"law": "hertz"},
                             "particles": {"file": os.path.abspath(sample)},
                             "run": {"steps": 10}, "output": {"progress_seconds": 0}},
                            tmp_path / "r")
-    assert run.summary["crushdem_version"] == crushdem.__version__
-    assert run.summary["crushdem_commit"] == crushdem.__commit__
+    assert run.summary["crushdem_version"] == crushdem_sand.__version__
+    assert run.summary["crushdem_commit"] == crushdem_sand.__commit__
 
 
 def test_a_fixed_step_above_the_automatic_one_warns():
@@ -745,12 +757,12 @@ def test_a_deeply_nested_configuration_is_an_error_not_a_crash():
     for _ in range(100_000):
         inner["k"] = {}
         inner = inner["k"]
-    with pytest.raises(crushdem.ConfigError, match="nested more than"):
-        crushdem.Simulation(deep)
+    with pytest.raises(crushdem_sand.ConfigError, match="nested more than"):
+        crushdem_sand.Simulation(deep)
     loop: list = []
     loop.append(loop)
-    with pytest.raises(crushdem.ConfigError, match="nested more than"):
-        crushdem.Simulation(material={"friction": loop})
+    with pytest.raises(crushdem_sand.ConfigError, match="nested more than"):
+        crushdem_sand.Simulation(material={"friction": loop})
 
 
 def test_add_particles_refuses_what_the_sample_reader_refuses():
@@ -758,9 +770,9 @@ def test_add_particles_refuses_what_the_sample_reader_refuses():
     against new), are refused before any is added; contact-like overlaps are not."""
     sim = hertz_sim()
     sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
-    with pytest.raises(crushdem.ConfigError, match="grain id 0 and new grain 0"):
+    with pytest.raises(crushdem_sand.ConfigError, match="grain id 0 and new grain 0"):
         sim.add_particle([5e-4, 5e-4, 5e-4], 1e-4)
-    with pytest.raises(crushdem.ConfigError, match="new grain 0 and new grain 1 overlap by 175 %"):
+    with pytest.raises(crushdem_sand.ConfigError, match="new grain 0 and new grain 1 overlap by 175 %"):
         sim.add_particles(np.array([[2e-4, 2e-4, 2e-4], [2.25e-4, 2e-4, 2e-4]]),
                           np.array([1e-4, 1e-4]))
     assert sim.num_particles == 1

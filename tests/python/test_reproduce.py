@@ -1,12 +1,12 @@
-"""Tests of ``crushdem reproduce``: its recipes (python/crushdem/study.py), the analysis of its
+"""Tests of ``crushdem-sand reproduce``: its recipes (python/crushdem_sand/study.py), the analysis of its
 runs (study_analysis.py, study_summary.py), its figures (figures/study.py), its pipeline
 (study_pipeline.py) and the command (reproduce.py).
 
 The figure and CSV code is tested on synthetic events.csv / phases.csv files with known answers
 (the 4 s normalisation, the log-t fit), and each figure against the CSV written beside it; it
-needs only NumPy and Matplotlib, and is loaded from python/crushdem when this file sits in the
+needs only NumPy and Matplotlib, and is loaded from python/crushdem_sand when this file sits in the
 source tree (so the tests follow the checkout without a rebuild), otherwise from the installed
-package. One end-to-end ``crushdem reproduce --quick`` runs the real pipeline (about two minutes
+package. One end-to-end ``crushdem-sand reproduce --quick`` runs the real pipeline (about two minutes
 on one core).
 """
 
@@ -86,7 +86,7 @@ def _triaxial_run(tmp_path):
 
 
 def _written(out, name, data, fig):
-    """Writes the figure and its CSV as ``crushdem reproduce`` does; returns the CSV read back
+    """Writes the figure and its CSV as ``crushdem-sand reproduce`` does; returns the CSV read back
     (its # lines, its rows)."""
     png = pipeline.write_figure(str(out), name, data, fig)
     assert png == os.path.join(str(out), name + ".png")
@@ -556,13 +556,13 @@ def _finite(x):
 
 @pytest.fixture(scope="module")
 def quick_cpu(tmp_path_factory):
-    """``crushdem reproduce --quick`` on the CPU, one test per call (--only), as two processes
+    """``crushdem-sand reproduce --quick`` on the CPU, one test per call (--only), as two processes
     side by side would run it: the directory and the two calls' outputs."""
-    pytest.importorskip("crushdem._core")
+    pytest.importorskip("crushdem_sand._core")
     out = tmp_path_factory.mktemp("reproduce") / "rq"
     calls = []
     for only in ("oedometric", "triaxial"):
-        calls.append(subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick",
+        calls.append(subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--quick",
                                      "--out", str(out), "--threads", "1", "--only", only],
                                     capture_output=True, text=True, timeout=900))
         if only == "oedometric" and calls[0].returncode == 0:
@@ -606,9 +606,9 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     assert tri["plateau_axial_strain"][1] == pytest.approx(3 * tri["plateau_axial_strain"][0])
     assert oe["sigma_v_ratio_1day"] > 0
     assert oe["fit_points"] >= 1
-    import crushdem
-    assert rj["crushdem_version"] == crushdem.__version__
-    assert rj["crushdem_commit"] == crushdem.__commit__
+    import crushdem_sand
+    assert rj["crushdem_version"] == crushdem_sand.__version__
+    assert rj["crushdem_commit"] == crushdem_sand.__commit__
     for name in ("oedometric_relaxation", "triaxial_relaxation"):
         r = rj["runs"][name]
         assert r["dynamic_phases"] >= 2 and r["grains_end"] > 0 and _finite(r["wall_s"])
@@ -630,7 +630,7 @@ def test_reproduce_quick_end_to_end(quick_cpu):
     assert _finite(dyn["max_abs_confining_fluctuation"]) and _finite(dyn["volumetric_strain_end"])
     assert tri["q_max_Pa"] == rj["runs"]["triaxial_shear"]["q_max_Pa"]
     # A second call finds every run finished: nothing is run again.
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--quick", "--out",
                           str(out), "--threads", "1"], capture_output=True, text=True,
                          timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
@@ -639,7 +639,7 @@ def test_reproduce_quick_end_to_end(quick_cpu):
         again = json.load(f)
     assert again["triaxial_relaxation"]["q_max_Pa"] == rj["triaxial_relaxation"]["q_max_Pa"]
     # Other settings into the same directory: refused.
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", str(out)],
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--out", str(out)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
     assert 'mode = "quick" there, "study" in this call' in res.stderr
@@ -663,7 +663,7 @@ def test_the_triaxial_relaxation_branches_from_the_shear_with_the_same_results(q
         stop_q = json.load(f)["triaxial_relaxation"]["stop_q_Pa"]
     unbranched = tmp_path / "unbranched"
     record = {}
-    installed = pytest.importorskip("crushdem.study_pipeline")  # runs need the compiled engine
+    installed = pytest.importorskip("crushdem_sand.study_pipeline")  # runs need the compiled engine
     installed.run_triaxial_relaxation(cfg, str(unbranched), str(out / "sample" / "sample.txt"),
                                       stop_q, lambda _msg: None, record)
     with open(unbranched / "summary.json") as f:
@@ -682,7 +682,7 @@ def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
     assert all(c.returncode == 0 for c in calls)
     out = tmp_path / "rq_emulated"
     sample = cpu_out / "sample" / "sample.txt"
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--quick", "--out",
                           str(out), "--threads", "1", "--backend", "emulated", "--sample",
                           str(sample)], capture_output=True, text=True, timeout=1500)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
@@ -708,7 +708,7 @@ def test_reproduce_quick_on_the_emulated_device(quick_cpu, tmp_path):
         assert emu["runs"][name]["breakages_crack"] > 0
         assert emu["runs"][name]["dynamic_phases"] >= 2
     # The same directory on another backend: refused (the backends agree only statistically).
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--quick", "--out",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--quick", "--out",
                           str(out), "--sample", str(sample)],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "other settings" in res.stderr
@@ -779,7 +779,7 @@ def test_parameter_sets_are_table1_plus_the_decision_study_choice():
         assert rest(chosen[section]) == rest(table1[section])
     with pytest.raises(ValueError, match="expected one of crushdem, blocked_d0_1mm, table1"):
         study.settings(quick=True, parameters="pfc")
-    res = subprocess.run([sys.executable, "-m", "crushdem", "reproduce", "--out", "x",
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "reproduce", "--out", "x",
                           "--parameters", "pfc"], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "--parameters" in res.stderr
 

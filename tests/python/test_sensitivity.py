@@ -1,4 +1,4 @@
-"""Tests of ``crushdem sensitivity`` (python/crushdem/sensitivity.py): each variant changes one
+"""Tests of ``crushdem-sand sensitivity`` (python/crushdem_sand/sensitivity.py): each variant changes one
 choice only, every variant is a valid configuration, and the table reads finished runs (here
 synthetic run directories with known figures) and names the one closest to the study."""
 
@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from crushdem import _core, sensitivity
+from crushdem_sand import _core, sensitivity
 
 
 def _markdown(out):
@@ -167,9 +167,9 @@ LATTICE = os.path.join(DATA, "lattice_64.txt")
 
 
 def test_the_preset_sweep_makes_each_variant_s_configuration(tmp_path):
-    """The sweep file that ``crushdem sensitivity`` writes gives, for every variant, the same
+    """The sweep file that ``crushdem-sand sensitivity`` writes gives, for every variant, the same
     resolved configuration as the variant's settings applied to the base test directly."""
-    from crushdem import sweep
+    from crushdem_sand import sweep
 
     out = str(tmp_path)
     base = sensitivity.settings()

@@ -1,4 +1,4 @@
-"""``crushdem sweep`` (python/crushdem/sweep.py) on a local Dask cluster of 2 workers, with the
+"""``crushdem-sand sweep`` (python/crushdem_sand/sweep.py) on a local Dask cluster of 2 workers, with the
 64-grain lattice of tests/data (a run takes a second or two): the table equals the runs made one
 by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again completes with the same
 results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("distributed")
 pytest.importorskip("pandas")
 
-from crushdem import lab, sweep  # noqa: E402
+from crushdem_sand import lab, sweep  # noqa: E402
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
 BASE = os.path.join(DATA, "isotropic_lattice.toml")
@@ -123,7 +123,7 @@ def test_a_bad_value_fails_alone_with_its_error(tmp_path):
 
 
 def _sweep_process(path, out, workers):
-    return subprocess.Popen([sys.executable, "-m", "crushdem", "sweep", path, "--out", out,
+    return subprocess.Popen([sys.executable, "-m", "crushdem_sand", "sweep", path, "--out", out,
                              "--workers", str(workers)], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
 
@@ -151,7 +151,7 @@ def _runs_under(pid):
                 cmd = open(f"/proc/{c}/cmdline").read().split("\0")
             except OSError:
                 continue
-            if "crushdem" in cmd and ("run" in cmd or "resume" in cmd) and "sweep" not in cmd:
+            if "crushdem_sand" in cmd and ("run" in cmd or "resume" in cmd) and "sweep" not in cmd:
                 found.append((p, c))
             stack.append(c)
     return found

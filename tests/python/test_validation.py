@@ -3,8 +3,8 @@
 Set CRUSHDEM_VALIDATION_DIR to a directory; runs that have finished there (summary.json) are
 reused, interrupted ones are resumed from their checkpoint, missing ones are run. The sample is
 CRUSHDEM_VALIDATION_SAMPLE (a particle file, e.g. runs/sample_rev/sample.txt) or is prepared
-into DIR/sample with the settings of ``crushdem reproduce``. With CRUSHDEM_VALIDATION_REPRODUCE
-set to the directory of a study-scale ``crushdem reproduce``, its oedometric relaxation is the
+into DIR/sample with the settings of ``crushdem-sand reproduce``. With CRUSHDEM_VALIDATION_REPRODUCE
+set to the directory of a study-scale ``crushdem-sand reproduce``, its oedometric relaxation is the
 N_break = 30 run and its sample the sample (nothing is run twice).
 
     CRUSHDEM_VALIDATION_DIR=runs/validation CRUSHDEM_VALIDATION_REPRODUCE=runs/reproduce_rev \
@@ -30,7 +30,7 @@ def _sample(pipeline):
         return os.path.abspath(given)
     if REPRODUCE:
         return os.path.join(os.path.abspath(REPRODUCE), "sample", "sample.txt")
-    from crushdem.study import settings
+    from crushdem_sand.study import settings
 
     return pipeline.run_sample(settings(quick=False), os.path.join(DIR, "sample"), print, {})
 
@@ -42,17 +42,17 @@ def _reproduce_settings():
             cfg = json.load(f)
         assert cfg["mode"] == "study", f"{REPRODUCE}: a --quick reproduce"
         return cfg
-    from crushdem.study import settings
+    from crushdem_sand.study import settings
 
     return settings(quick=False)
 
 
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
-    from crushdem import lab
-    from crushdem import study_pipeline as pipeline
-    from crushdem.analysis import N_BREAK_TOLERANCE, age_rows, compare_relaxation, vertical_stress
-    from crushdem.rundir import read_events
-    from crushdem.runs import run_step
+    from crushdem_sand import lab
+    from crushdem_sand import study_pipeline as pipeline
+    from crushdem_sand.analysis import N_BREAK_TOLERANCE, age_rows, compare_relaxation, vertical_stress
+    from crushdem_sand.rundir import read_events
+    from crushdem_sand.runs import run_step
 
     os.makedirs(DIR, exist_ok=True)
     sample = _sample(pipeline)

@@ -1,4 +1,4 @@
-// `crushdem bench`: the peer reference problem (bench/README.md).
+// `crushdem-sand bench`: the peer reference problem (bench/README.md).
 //
 // Loads the reference packing (11,500 spheres in a box of 6 walls at 5 MPa), runs WARM untimed
 // then STEPS timed steps with the same contact law and constants as the peers (Hertz-Mindlin,
@@ -104,7 +104,7 @@ int bench_main(const BenchArgs& a) {
   }
   const Packing pk = read_packing(packing_path);
   // The reference packing is a cube [0, L]^3 ('# L_m='); a prepared sample (`# box_xmin=` ...,
-  // as `crushdem run` writes for a [sample]) carries its six wall positions.
+  // as `crushdem-sand run` writes for a [sample]) carries its six wall positions.
   std::array<double, kNumWalls> wall_position{};
   if (pk.has_box()) {
     wall_position = pk.box(packing_path);

@@ -34,11 +34,11 @@ int current_threads() {
 
 namespace {
 
-// The standalone executable's footer; through the Python package's `crushdem` the same commands
+// The standalone executable's footer; through the Python package's command the same commands
 // are listed with the others (cli_main's front_end_commands).
 constexpr const char* kPythonCommands =
     "\nplot, reproduce, sensitivity, sweep, calibrate and pile come with the Python package's\n"
-    "crushdem command (pip install .). Each command has its own --help.\n";
+    "crushdem-sand command (pip install .). Each command has its own --help.\n";
 
 constexpr const char* kBackendHelp =
     "what advances the simulation: cpu (default), cuda (a GPU, in a build with CUDA) or emulated "
@@ -54,10 +54,10 @@ void add_threads(CLI::App* c, long& threads) {
 }  // namespace
 
 int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCommand>& front_end) {
-  CLI::App app("crushdem " CRUSHDEM_VERSION
-               ": discrete element simulation of crushable sand (grains that break over time)",
-               "crushdem");
-  app.set_version_flag("--version", "crushdem " CRUSHDEM_VERSION);
+  CLI::App app(std::string(kCommand) + " " CRUSHDEM_VERSION +
+                   ": discrete element simulation of crushable sand (grains that break over time)",
+               kCommand);
+  app.set_version_flag("--version", std::string(kCommand) + " " CRUSHDEM_VERSION);
   app.fallthrough();  // --version after a subcommand too
   app.require_subcommand(0, 1);
 
@@ -141,9 +141,10 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
     app.parse(reversed);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
-    const std::string where = app.get_subcommands().empty()
-                                  ? std::string("crushdem")
-                                  : "crushdem " + app.get_subcommands().front()->get_name();
+    const std::string where =
+        app.get_subcommands().empty()
+            ? std::string(kCommand)
+            : std::string(kCommand) + " " + app.get_subcommands().front()->get_name();
     std::fprintf(stderr, "%s: error: %s\nRun '%s --help' for the options.\n", where.c_str(),
                  e.what(), where.c_str());
     return 2;
@@ -155,7 +156,8 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
   const std::string cmd = app.get_subcommands().front()->get_name();
   for (const auto& command : front_end) {
     if (command.first == cmd) {
-      std::fprintf(stderr, "crushdem %s: run by the front end, not by this parser\n", cmd.c_str());
+      std::fprintf(stderr, "%s %s: run by the front end, not by this parser\n", kCommand,
+                   cmd.c_str());
       return 2;
     }
   }
@@ -165,10 +167,10 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
     if (c_check->parsed()) return check_main(check_config);
     return bench_main(bench);
   } catch (const ConfigError& e) {
-    std::fprintf(stderr, "crushdem %s: error: %s\n", cmd.c_str(), e.what());
+    std::fprintf(stderr, "%s %s: error: %s\n", kCommand, cmd.c_str(), e.what());
     return 2;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "crushdem %s: failed: %s\n", cmd.c_str(), e.what());
+    std::fprintf(stderr, "%s %s: failed: %s\n", kCommand, cmd.c_str(), e.what());
     return 1;
   }
 }

@@ -1,5 +1,5 @@
-// The command-line front end: `crushdem run|resume|check|bench ...`, parsed by CLI11. Kept in
-// a library so the Python package's `crushdem` command runs exactly the same code.
+// The command-line front end: `crushdem-sand run|resume|check|bench ...`, parsed by CLI11. Kept in
+// a library so the Python package's `crushdem-sand` command runs exactly the same code.
 #pragma once
 
 #include <string>
@@ -7,6 +7,15 @@
 #include <vector>
 
 namespace crushdem::cli {
+
+/// The command's name (the project is crushdem; `crushdem` on PyPI is another project's, so the
+/// command and the Python package carry the distribution's name). `crushdem` stays an alias
+/// until 0.2 (CMakeLists.txt, pyproject.toml).
+inline constexpr const char* kCommand = "crushdem-sand";
+
+/// The note an invocation by the old name prints first (on stderr).
+inline constexpr const char* kAliasNote =
+    "note: `crushdem` is now `crushdem-sand`; the old name is an alias until version 0.2\n";
 
 /// A command that a front end runs itself, listed in the top-level help with the others:
 /// its name and one line of description.

@@ -1,5 +1,5 @@
-// `crushdem run CONFIG.toml --out DIR [--threads N]`, `crushdem resume DIR [--threads N]` and
-// `crushdem check CONFIG.toml`.
+// `crushdem-sand run CONFIG.toml --out DIR [--threads N]`, `crushdem-sand resume DIR [--threads N]`
+// and `crushdem-sand check CONFIG.toml`.
 #include <cstdio>
 #include <filesystem>
 #include <functional>
@@ -34,7 +34,7 @@ int run_or_resume(const std::function<RunSummary()>& go, const std::string& out)
     const StopOnSignals handlers;
     const RunSummary s = go();
     std::printf(
-        "crushdem run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock (%.0f %% %s); "
+        "crushdem-sand run: %llu steps, t = %.6e s, %zu particles, %.2f s wall-clock (%.0f %% %s); "
         "results in %s\n",
         static_cast<unsigned long long>(s.steps), s.time, s.particles, s.wall_seconds,
         100.0 * s.dominant_fraction, s.dominant_part.c_str(), out.c_str());

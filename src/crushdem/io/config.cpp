@@ -223,7 +223,7 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     Section s = r.sub("particles");
     s.string("file", c.particles.file);
     if (!c.particles.file.empty() && std::filesystem::path(c.particles.file).is_relative()) {
-      // Absolute, so that the resolved config.toml (read again by `crushdem resume`) still
+      // Absolute, so that the resolved config.toml (read again by `crushdem-sand resume`) still
       // points at the file from inside the output directory.
       c.particles.file =
           std::filesystem::absolute(std::filesystem::path(base_dir) / c.particles.file)
@@ -281,9 +281,10 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
           "m)");
     }
     if (!std::filesystem::exists(c.particles.file)) {
-      throw ConfigError(bad_value("particles.file", "\"" + c.particles.file + "\"",
-                                  "an existing particle file (a prepared sample: `crushdem run "
-                                  "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
+      throw ConfigError(
+          bad_value("particles.file", "\"" + c.particles.file + "\"",
+                    "an existing particle file (a prepared sample: `crushdem-sand run "
+                    "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
     }
     const Packing pk = read_packing(c.particles.file);
     if (!pk.has_box()) {
@@ -475,10 +476,10 @@ void ParticlesConfig::validate(const std::array<double, 6>& box) const {
     generate.validate(box);
   } else if (!std::filesystem::exists(file)) {
     throw ConfigError(bad_value("particles.file", "\"" + file + "\"",
-                                "an existing particle file (a prepared sample: `crushdem run "
+                                "an existing particle file (a prepared sample: `crushdem-sand run "
                                 "SAMPLE.toml --out DIR` writes DIR/sample.txt)"));
   } else {
-    // Read here too, so that `crushdem check` finds a bad file (its rows, ids, positions) and
+    // Read here too, so that `crushdem-sand check` finds a bad file (its rows, ids, positions) and
     // grains that stick out of the box, not the run. A loaded sample presses its outer grains
     // slightly into the walls: an overlap up to a tenth of the radius is accepted.
     const Packing pk = read_packing(file);

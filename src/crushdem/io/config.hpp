@@ -101,7 +101,7 @@ struct RunConfig {
   double duration = 0.0;    // in simulated seconds (exactly one of the two)
   void validate() const;
   /// Valid values outside what a grain material takes (plausibility_warnings of [material] and,
-  /// with crushing on, [crushing]): printed by `crushdem check` and by a run, and kept in its
+  /// with crushing on, [crushing]): printed by `crushdem-sand check` and by a run, and kept in its
   /// summary.json.
   std::vector<std::string> warnings() const;
   /// The checks across stages: the ageing clock's `until`s in order, a load test after its

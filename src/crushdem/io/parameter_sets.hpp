@@ -49,8 +49,8 @@ void apply_parameter_set(const ParameterSet& set, ContactConfig& contact, Crushi
 ParameterSetUse read_parameter_set(const toml::Table& root, const std::string& source,
                                    ContactConfig& contact, CrushingConfig& crushing);
 
-/// What `crushdem check` prints: the set, and for each of its keys in use the value and whether
-/// it came from the set or from the file. `crushing_on`: report the [crushing] keys.
+/// What `crushdem-sand check` prints: the set, and for each of its keys in use the value and
+/// whether it came from the set or from the file. `crushing_on`: report the [crushing] keys.
 std::vector<std::string> parameter_set_report(const ParameterSetUse& use,
                                               const ContactConfig& contact,
                                               const CrushingConfig& crushing, bool crushing_on);

@@ -106,7 +106,7 @@ OpenCheckpoint open_checkpoint(const std::string& path) {
     if (!sized || saved != fnv1a64(bytes.data(), bytes.size() - sizeof saved)) {
       throw ConfigError("'" + path +
                         "' is damaged (its checksum does not match its contents), so it cannot "
-                        "be resumed; start the run again with `crushdem run ... --overwrite`");
+                        "be resumed; start the run again with `crushdem-sand run ... --overwrite`");
     }
     bytes.resize(bytes.size() - sizeof saved);
   }

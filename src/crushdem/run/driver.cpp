@@ -177,7 +177,7 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
       }
       if (stop != 0) {
         say("stopped by signal " + std::to_string(stop) + " at step " +
-                std::to_string(sim_.step_count()) + "; continue with `crushdem resume " +
+                std::to_string(sim_.step_count()) + "; continue with `crushdem-sand resume " +
                 opt_.out_dir + "`",
             false);
         throw Interrupted(stop, opt_.out_dir);

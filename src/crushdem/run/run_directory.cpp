@@ -86,7 +86,7 @@ bool RunManifest::present(const std::filesystem::path& dir) {
 
 void RunManifest::add(const std::string& name) {
   if (std::find(names_.begin(), names_.end(), name) != names_.end()) return;
-  // What another writer added meanwhile (`crushdem plot`'s figures) is kept.
+  // What another writer added meanwhile (`crushdem-sand plot`'s figures) is kept.
   for (const std::string& n : RunManifest(dir_).names_) {
     if (std::find(names_.begin(), names_.end(), n) == names_.end()) names_.push_back(n);
   }
@@ -159,7 +159,7 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite,
     if (fs::exists(dir / "checkpoint.bin")) {
       what =
           "holds a run that stopped before its end (checkpoint.bin): continue it with "
-          "`crushdem resume " +
+          "`crushdem-sand resume " +
           dir.string() + "`, or start it again with --overwrite";
     } else if (fs::exists(dir / "summary.json")) {
       what =
@@ -168,7 +168,7 @@ void prepare_new_run_directory(const std::filesystem::path& dir, bool overwrite,
     } else if (is_run) {
       what =
           "holds a run that stopped before its first checkpoint: start it again with "
-          "`crushdem resume " +
+          "`crushdem-sand resume " +
           dir.string() + "` or --overwrite";
     } else {
       what =

@@ -207,14 +207,14 @@ class Run {
                           " (" + path + "; runs keep one per stage they reached)");
       }
     } else if (!fs::exists(path)) {
-      throw ConfigError("crushdem resume: no checkpoint in '" + opt_.out_dir + "'" +
+      throw ConfigError("crushdem-sand resume: no checkpoint in '" + opt_.out_dir + "'" +
                         (fs::exists(dir_ / "summary.json") ? " (the run has finished)" : ""));
     }
     OpenCheckpoint saved = open_checkpoint(path);
     in_ = std::move(saved.reader);
     if (!branching_ && saved.config_text != config_text_ &&
         !same_resolved_config(saved.config_text, config_text_, dir_)) {
-      throw ConfigError("crushdem resume: " + (dir_ / "config.toml").string() +
+      throw ConfigError("crushdem-sand resume: " + (dir_ / "config.toml").string() +
                         " differs from the configuration the checkpoint was taken with");
     }
     load_state(pos_, *in_);
@@ -363,7 +363,7 @@ class Run {
     }
     if (stop_signal() != 0) {
       driver_->say("stopped by signal " + std::to_string(stop_signal()) + " between two parts; " +
-                       "continue with `crushdem resume " + opt_.out_dir + "`",
+                       "continue with `crushdem-sand resume " + opt_.out_dir + "`",
                    false);
       throw Interrupted(stop_signal(), opt_.out_dir);
     }
@@ -609,7 +609,8 @@ RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
 RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
   const std::string path = (fs::path(dir) / "config.toml").string();
   if (!fs::exists(path)) {
-    throw ConfigError("crushdem resume: '" + dir + "' has no config.toml (not a crushdem run)");
+    throw ConfigError("crushdem-sand resume: '" + dir +
+                      "' has no config.toml (not a crushdem run)");
   }
   const RunConfig cfg = load_saved_run_config(path);
   RunOptions o = opt;
@@ -621,9 +622,9 @@ RunSummary resume_directory(const std::string& dir, const RunOptions& opt) {
     // from, and nothing finished to lose, so the run starts again from its config.toml, in
     // place of the files its manifest lists (only a folder crushdem started as a run has one).
     if (!RunManifest::present(d)) {
-      throw ConfigError("crushdem resume: '" + dir +
+      throw ConfigError("crushdem-sand resume: '" + dir +
                         "' has a config.toml but no checkpoint and no manifest.json, so it is not "
-                        "a run crushdem started there; start one with `crushdem run " +
+                        "a run crushdem started there; start one with `crushdem-sand run " +
                         path + " --out NEW_DIR`");
     }
     if (opt.progress) {

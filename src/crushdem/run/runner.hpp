@@ -6,7 +6,7 @@
 //   vtk/*_STEP.vtp, vtk/*.pvd   ParaView snapshots (particles, contacts, box) and their series
 //   checkpoint.bin   the whole state while the run is going (at every ageing event, between
 //                    stages, every output.checkpoint_seconds and on a stop request); removed
-//                    when the run ends. `crushdem resume DIR` continues from it, and the files
+//                    when the run ends. `crushdem-sand resume DIR` continues from it, and the files
 //                    come out identical to those of an uninterrupted run.
 //   stages/stage_K.bin  the state at the start of stage K, kept for branches (RunOptions)
 //   branch.json      where a branch started (run directory and stage)

@@ -40,7 +40,7 @@ class Interrupted : public std::runtime_error {
   Interrupted(int signal, const std::string& out_dir)
       : std::runtime_error("stopped by signal " + std::to_string(signal) +
                            "; the state is saved in " + out_dir +
-                           "/checkpoint.bin. Continue with: crushdem resume " + out_dir),
+                           "/checkpoint.bin. Continue with: crushdem-sand resume " + out_dir),
         signal_(signal),
         out_dir_(out_dir) {}
   int signal() const { return signal_; }

@@ -108,7 +108,7 @@ def is_finished(run_dir: PathLike) -> bool:
 
 def has_stage_state(run_dir: PathLike, stage: int) -> bool:
     """Whether the run kept its state at the start of stage ``stage`` (DIR/stages/stage_K.bin),
-    which a branch (``crushdem run --from DIR:STAGE``) starts from."""
+    which a branch (``crushdem-sand run --from DIR:STAGE``) starts from."""
     return os.path.isfile(os.path.join(run_dir, "stages", f"stage_{int(stage)}.bin"))
 
 
@@ -275,7 +275,7 @@ class RunData:
     """What the figures of one run directory read, loaded once.
 
     ``timeseries`` has its contact columns NaN on rows written before the contact measurements
-    were computed (:func:`crushdem.analysis.mask_unmeasured_contacts`). ``summary`` is
+    were computed (:func:`crushdem_sand.analysis.mask_unmeasured_contacts`). ``summary`` is
     summary.json, or for a run not ``finished`` only the stages of config.toml.
     """
 
@@ -302,7 +302,7 @@ def read_run(run_dir: PathLike) -> RunData:
     summary = read_summary(run_dir)
     finished = bool(summary)
     if not finished:
-        # Still running, or stopped (a checkpoint waits for `crushdem resume`): the stage types
+        # Still running, or stopped (a checkpoint waits for `crushdem-sand resume`): the stage types
         # come from the configuration, the figures from the rows written so far.
         summary = {"stages": stages_from_config(run_dir)}
     return RunData(directory=run_dir, timeseries=d, summary=summary, finished=finished,

@@ -1,4 +1,4 @@
-"""The figures of laboratory tests (``crushdem plot``): stress against strain, the compression
+"""The figures of laboratory tests (``crushdem-sand plot``): stress against strain, the compression
 curves, the triaxial and oedometric stages, the stress path, the inertial number and the sample
 preparation."""
 
@@ -25,7 +25,7 @@ _LATERALLY_FIXED = {"oedometric", "hold", "age"}
 
 
 def oedometric_stages(run: RunData) -> List[Tuple[int, np.ndarray, Dict[str, Any]]]:
-    """The stages of ``run`` with rows (:func:`~crushdem.analysis.stage_rows`) when it is an
+    """The stages of ``run`` with rows (:func:`~crushdem_sand.analysis.stage_rows`) when it is an
     oedometric test: every stage oedometric, hold or age (its type from summary.json, or
     config.toml for a run still going), one oedometric at least; [] otherwise."""
     stages = [(k, rows, info) for k, rows, info in stage_rows(run.timeseries, run.summary)

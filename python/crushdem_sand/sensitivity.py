@@ -1,12 +1,12 @@
-"""``crushdem sensitivity --out DIR --sample FILE``: the influence of the uncertain choices of
+"""``crushdem-sand sensitivity --out DIR --sample FILE``: the influence of the uncertain choices of
 docs/model.md section 5 on the drained triaxial strength q_max.
 
 Each variant changes one choice of the base settings (Table 1 and the documented defaults, as
-``crushdem reproduce`` uses them for its triaxial shear: crushing on, density scaling, no crack
+``crushdem-sand reproduce`` uses them for its triaxial shear: crushing on, density scaling, no crack
 growth) and runs the same test on the same prepared sample: isotropic compression to sigma_3,
 then drained shear at ``strain_rate`` to ``axial_strain`` with the lateral walls at sigma_3.
 
-The variants are a preset sweep (``crushdem sweep``): ``DIR/sensitivity_base.toml`` is the test
+The variants are a preset sweep (``crushdem-sand sweep``): ``DIR/sensitivity_base.toml`` is the test
 on the sample, ``DIR/sensitivity_sweep.toml`` names each variant as a ``[[variant]]`` with the
 keys it changes, and the sweep runs them as Dask tasks, ``--workers`` at a time (default: the
 cores divided by ``--threads``), into ``DIR/runs/<variant>/`` (a run directory each), with
@@ -178,7 +178,7 @@ def write_sweep(out: str, sample: str, names: Sequence[str], base: Mapping[str, 
     text = _core.resolved_run_config(base_config(base, sample), out)
     with open(os.path.join(out, "sensitivity_base.toml"), "w") as f:
         f.write(text)
-    lines = ["# crushdem sensitivity: each variant changes the base test's choices below",
+    lines = ["# crushdem-sand sensitivity: each variant changes the base test's choices below",
              'base = "sensitivity_base.toml"', ""]
     for name in names:
         changed = variant_settings(base, name)
@@ -359,7 +359,7 @@ def run_sensitivity(out: str, sample: str, names: Optional[Sequence[str]] = None
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem sensitivity --out DIR --sample FILE [--only A,B] [--axial-strain E]``."""
+    """``crushdem-sand sensitivity --out DIR --sample FILE [--only A,B] [--axial-strain E]``."""
     parser = CommandParser("sensitivity", __doc__)
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="directory for the variants' runs and the tables")
@@ -383,13 +383,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     names = [n.strip() for n in args.only.split(",")] if args.only else None
 
     def log(msg: str) -> None:
-        print(f"crushdem sensitivity: {msg}", flush=True)
+        print(f"crushdem-sand sensitivity: {msg}", flush=True)
 
     try:
         run_sensitivity(args.out, args.sample, names, args.threads, args.sigma_3,
                         args.strain_rate, args.axial_strain, log, args.workers)
     except (OSError, ValueError, RuntimeError) as e:
-        print(f"crushdem sensitivity: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand sensitivity: error: {e}", file=sys.stderr)
         return 2
     with open(os.path.join(args.out, "qmax_sensitivity.md")) as f:
         print(f.read())

@@ -1,12 +1,12 @@
-"""The analysis of one reproduction's runs (``crushdem reproduce``, docs/model.md 4.4 and 4.5):
+"""The analysis of one reproduction's runs (``crushdem-sand reproduce``, docs/model.md 4.4 and 4.5):
 q_max and the plateau of the triaxial shear, and each relaxation as the table its figure draws,
 one row per dynamic phase against the ageing time t, with the values at 4 s, 1 h and 1 day and
-the straight line in log t (:func:`crushdem.analysis.fit_log_t`).
+the straight line in log t (:func:`crushdem_sand.analysis.fit_log_t`).
 
 Each ``*_relaxation``, :func:`dynamic_phase` and :func:`force_statistics` returns a
 :class:`FigureData`: the columns the figure draws (the CSV written beside it), the lines that say
 how they were found (the CSV's ``#`` lines) and the key numbers (reproduce.json). The figures of
-:mod:`crushdem.figures.study` draw them; nothing here draws or writes."""
+:mod:`crushdem_sand.figures.study` draw them; nothing here draws or writes."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ class FigureData:
     """What one of the study's figures draws: ``columns`` (the rows of its CSV), ``notes`` (how
     they were found: the CSV's ``#`` lines), ``numbers`` (its key numbers for reproduce.json;
     ``{"skipped": reason}`` when there is nothing to draw) and ``fit`` (the straight line in
-    log t, as :func:`crushdem.analysis.fit_log_t` returns it, where the figure has one)."""
+    log t, as :func:`crushdem_sand.analysis.fit_log_t` returns it, where the figure has one)."""
 
     columns: Dict[str, Any]
     notes: List[str]
@@ -61,7 +61,7 @@ def oedometric_relaxation(run_dir: str) -> FigureData:
     sigma_v(4 s), sigma_v = mean of the two axial wall stresses at the end of each phase.
     sigma_v(4 s) is interpolated linearly in log t between the phases on either side of 4 s, or,
     when the first phase after t = 0 is later than 4 s, linearly in t from the t = 0 phase
-    (:func:`crushdem.analysis.value_at`). Raises ValueError without the columns."""
+    (:func:`crushdem_sand.analysis.value_at`). Raises ValueError without the columns."""
     ev = read_events(run_dir)
     if ev is None or not has_values(ev, "ageing_time_s"):
         raise ValueError(f"{run_dir}: no events.csv with ageing_time_s (no age stage ran?)")

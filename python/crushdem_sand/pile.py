@@ -1,15 +1,15 @@
-"""``crushdem pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing time
+"""``crushdem-sand pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing time
 (docs/pile.md).
 
 CONFIG is a run configuration whose stages are, in order: the installation (one or more
 "penetrate" stages of the pile, and any "hold" after them, the head load taken off, say), the
 ageing ("age" stages, each ending at an ageing time: ``until = 3600.0``, ``86400.0``, ...) and one
-or more "load_test" stages after the last age stage. ``crushdem run CONFIG`` would run those tests
-one after the other on the same pile; ``crushdem pile`` instead tests a fresh copy of the aged
+or more "load_test" stages after the last age stage. ``crushdem-sand run CONFIG`` would run those tests
+one after the other on the same pile; ``crushdem-sand pile`` instead tests a fresh copy of the aged
 pile at every ageing time, without running the installation or the ageing again:
 
 * ``DIR/main``: the installation, every age stage and the first load test;
-* ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem run --from``) from the state of
+* ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem-sand run --from``) from the state of
   DIR/main at the end of age stage i, for every age stage and every load test DIR/main did not
   run; ``DIR/configs/`` holds each run's configuration.
 
@@ -17,7 +17,7 @@ Then ``DIR/pile_capacity.csv`` (a row per load test: the ageing time, the test, 
 capacity and the shaft and base loads at it, the head displacement there), ``DIR/pile_setup.json``
 (per test, the set-up factor A of Q(t)/Q(t0) = 1 + A log10(t/t0), Skov and Denver 1988, fitted by
 least squares over the ageing times t >= t0 = the first positive one, with its standard error),
-``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem plot``). Called again, finished runs
+``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem-sand plot``). Called again, finished runs
 are kept, interrupted ones resumed, and the tables redrawn.
 """
 
@@ -75,7 +75,7 @@ def fit_setup(t: Sequence[float], Q: Sequence[float], t0: Optional[float] = None
 
 
 def plan(config: Mapping[str, Any], path: str = "CONFIG") -> Dict[str, Any]:
-    """What ``crushdem pile`` runs for ``config`` (a configuration as a dict): ``ages`` (the
+    """What ``crushdem-sand pile`` runs for ``config`` (a configuration as a dict): ``ages`` (the
     indices of the age stages), ``tests`` (those of the load tests after the last one),
     ``main`` (the stages of DIR/main) and ``branches`` ([(name, stages, from_stage, age index,
     test)]). ValueError naming the stage when the order is not installation, ageing, load tests."""
@@ -240,7 +240,7 @@ def _raise_stop(signum, _frame):
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem pile CONFIG --out DIR [--threads N] [--backend B]``."""
+    """``crushdem-sand pile CONFIG --out DIR [--threads N] [--backend B]``."""
     parser = CommandParser("pile", __doc__)
     parser.add_argument("config", metavar="CONFIG",
                         help="the pile's run configuration: installation, age stages, a load test")
@@ -252,7 +252,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
-        print(f"crushdem pile: {msg}", flush=True)
+        print(f"crushdem-sand pile: {msg}", flush=True)
 
     signal.signal(signal.SIGTERM, _raise_stop)
     try:
@@ -262,7 +262,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         return 128 + signal.SIGINT
     except (OSError, ValueError, RuntimeError) as e:
-        print(f"crushdem pile: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand pile: error: {e}", file=sys.stderr)
         return 2
     return 0
 

@@ -1,6 +1,6 @@
-"""The reference study's four figures (``crushdem reproduce``), one point per dynamic phase (the
+"""The reference study's four figures (``crushdem-sand reproduce``), one point per dynamic phase (the
 study's red dots) against the ageing time t (the relaxation clock, off-DEM jumps only) on a log
-axis. Each draws the table of :mod:`crushdem.study_analysis` that ``crushdem reproduce`` writes
+axis. Each draws the table of :mod:`crushdem_sand.study_analysis` that ``crushdem-sand reproduce`` writes
 beside it as CSV, so the figure and its CSV hold the same numbers."""
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _draw_fit(ax, fit: Mapping[str, Any], t: np.ndarray, scale: float, unit: str
 
 def figure_oedometric_relaxation(run: Run) -> Optional[Figure]:
     """fig1_oedometric_relaxation.png: sigma_v(t) / sigma_v(4 s) of the oedometric relaxation
-    (:func:`crushdem.study_analysis.oedometric_relaxation`) against ageing time, with its
+    (:func:`crushdem_sand.study_analysis.oedometric_relaxation`) against ageing time, with its
     straight line in log t, sigma_v(4 s) marked and the plausible band at 1 day."""
     try:
         data = oedometric_relaxation(run_directory(run))
@@ -76,7 +76,7 @@ def figure_oedometric_relaxation(run: Run) -> Optional[Figure]:
 
 def figure_dynamic_phase(run: Run, phase: int = FIG2_PHASE) -> Optional[Figure]:
     """fig2_dynamic_phase4.png: during dynamic phase ``phase`` (0-based: the study's 4th) of the
-    triaxial relaxation (:func:`crushdem.study_analysis.dynamic_phase`, from phases.csv), (a) the
+    triaxial relaxation (:func:`crushdem_sand.study_analysis.dynamic_phase`, from phases.csv), (a) the
     confining pressure fluctuation and (b) the volumetric strain generated [%], against the
     cycles of the phase. None without phases.csv or without that phase."""
     data = dynamic_phase(run_directory(run), phase)
@@ -104,7 +104,7 @@ def figure_dynamic_phase(run: Run, phase: int = FIG2_PHASE) -> Optional[Figure]:
 
 def figure_triaxial_relaxation(run: Run, q_max: float = math.nan) -> Optional[Figure]:
     """fig3_triaxial_relaxation.png: q [MPa] of the triaxial relaxation
-    (:func:`crushdem.study_analysis.triaxial_relaxation`) against ageing time with its straight
+    (:func:`crushdem_sand.study_analysis.triaxial_relaxation`) against ageing time with its straight
     line in log t, q at t = 0 as a level; ``q_max`` (the shear's) in the title."""
     try:
         data = triaxial_relaxation(run_directory(run), q_max)
@@ -146,7 +146,7 @@ def _by_test(data: FigureData) -> Sequence[Tuple[str, np.ndarray, Any]]:
 def figure_force_statistics(runs: Sequence[Tuple[str, Run]]) -> Optional[Figure]:
     """fig4_force_statistics.png: standard deviations of |F_n| (a) and |F_t| (b) [N] against
     ageing time for each (label, run) that has them
-    (:func:`crushdem.study_analysis.force_statistics`), their t = 0 values in the legend. None
+    (:func:`crushdem_sand.study_analysis.force_statistics`), their t = 0 values in the legend. None
     when no run has them."""
     try:
         data = force_statistics([(label, run_directory(run)) for label, run in runs])

@@ -1,5 +1,5 @@
-"""What the figures of :mod:`crushdem.figures` share: how a run is given (a directory or its
-:class:`~crushdem.rundir.RunData`), pyplot imported when a figure is drawn (never on import, and
+"""What the figures of :mod:`crushdem_sand.figures` share: how a run is given (a directory or its
+:class:`~crushdem_sand.rundir.RunData`), pyplot imported when a figure is drawn (never on import, and
 under whatever backend is in use), the legend, log-tick, time-mark and colour helpers."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Laboratory tests from Python: the same configurations as the TOML files, run by the same
-C++ driver (``crushdem run``), with the results read back: each table of the run as a pandas
+C++ driver (``crushdem-sand run``), with the results read back: each table of the run as a pandas
 DataFrame (:class:`Result`).
 
 Each function writes a run directory (``timeseries.csv``, ``summary.json``, ``config.toml``,
@@ -15,7 +15,7 @@ with CUDA) or ``"emulated"`` (the GPU's step run on the host: its results withou
 laboratory function, sample preparation and resuming take it.
 
 The keyword arguments that are keys of a stage (``stress``, ``n_break``, ...) take their type,
-default and meaning from the engine's parameter tables (``crushdem.parameter_reference()``),
+default and meaning from the engine's parameter tables (``crushdem_sand.parameter_reference()``),
 as the configuration reader does; each function lists them in its docstring.
 """
 
@@ -39,7 +39,7 @@ SampleSpec = Union[str, os.PathLike, Mapping[str, Any]]
 
 
 class Result:
-    """A run directory: what ``crushdem run`` or a laboratory function wrote there
+    """A run directory: what ``crushdem-sand run`` or a laboratory function wrote there
     (docs/configuration.md, "Result directory", lists the files and their columns).
     ``Result(path)`` opens any run directory, one of the command line's too.
 
@@ -101,7 +101,7 @@ class Result:
         positions and stresses, strains, void ratio, contact statistics, ...; the stage and
         crushing columns when they apply). The values as written: the contact columns of a
         test's first row are 0 before its contacts are computed
-        (:func:`crushdem.analysis.mask_unmeasured_contacts` marks them)."""
+        (:func:`crushdem_sand.analysis.mask_unmeasured_contacts` marks them)."""
         return read_table(self._path("timeseries.csv"))
 
     def events(self) -> pd.DataFrame:
@@ -128,7 +128,7 @@ class Result:
         return read_table(self._path(name if name.endswith(".csv") else name + ".csv"))
 
     def __repr__(self) -> str:
-        return f"crushdem.lab.Result({self.directory!r})"
+        return f"crushdem_sand.lab.Result({self.directory!r})"
 
 
 # The columns of the tables a run writes only when they apply (an empty table has them).
@@ -199,7 +199,7 @@ def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: st
     ``out`` must be new or empty; ``overwrite=True`` replaces a crushdem run already there (every
     laboratory function below takes it too). ``branch_from``: a run directory whose state at the
     start of stage ``branch_stage`` (index or name; default: the first stage ``config``
-    changes) this run starts from, as ``crushdem run --from DIR:STAGE`` (the stages before it
+    changes) this run starts from, as ``crushdem-sand run --from DIR:STAGE`` (the stages before it
     and the grains must be the original's)."""
     _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite,
               os.fspath(branch_from) if branch_from is not None else "",

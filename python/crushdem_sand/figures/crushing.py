@@ -1,4 +1,4 @@
-"""The figures of grain crushing (``crushdem plot``): the grading curves, the breakages with
+"""The figures of grain crushing (``crushdem-sand plot``): the grading curves, the breakages with
 B_r and the void ratios, and the sizes of the broken grains."""
 
 from __future__ import annotations

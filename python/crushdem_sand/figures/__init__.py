@@ -1,25 +1,25 @@
 """One function per figure of a run directory, each returning its matplotlib Figure.
 
-Every ``figure_*(run)`` takes a run directory (a path) or the :class:`~crushdem.rundir.RunData`
-that :func:`~crushdem.rundir.read_run` returns (read once when drawing several), and returns a
+Every ``figure_*(run)`` takes a run directory (a path) or the :class:`~crushdem_sand.rundir.RunData`
+that :func:`~crushdem_sand.rundir.read_run` returns (read once when drawing several), and returns a
 :class:`matplotlib.figure.Figure`, laid out and ready to save or show, or ``None`` when the run
 lacks the data the figure needs. The figures are made with pyplot under whatever backend is in
 use (inline in a notebook); nothing here selects one. :data:`FIGURES` maps each file name that
-``crushdem plot`` writes to its function; the module docstring of :mod:`crushdem.plot`
-describes them. The reference study's four figures (``crushdem reproduce``) follow the same
-rule, with the arguments their figure needs besides the run (:mod:`crushdem.figures.study`).
+``crushdem-sand plot`` writes to its function; the module docstring of :mod:`crushdem_sand.plot`
+describes them. The reference study's four figures (``crushdem-sand reproduce``) follow the same
+rule, with the arguments their figure needs besides the run (:mod:`crushdem_sand.figures.study`).
 
 Time: the figures against time use the DEM clock, except for "age" stages, whose off-DEM jumps
 make a day of ageing a few milliseconds of DEM time: the figures with an ageing panel draw the
 age stages against the ageing time (events.csv, one point per dynamic phase, log axis) and the
 other stages against DEM time.
 
-The figures live in modules by subject: :mod:`~crushdem.figures.time_series`,
-:mod:`~crushdem.figures.laboratory`, :mod:`~crushdem.figures.crushing`,
-:mod:`~crushdem.figures.ageing`, :mod:`~crushdem.figures.penetration`,
-:mod:`~crushdem.figures.pile` and
-:mod:`~crushdem.figures.study`, on the helpers of
-:mod:`~crushdem.figures.common`; every one is importable from here.
+The figures live in modules by subject: :mod:`~crushdem_sand.figures.time_series`,
+:mod:`~crushdem_sand.figures.laboratory`, :mod:`~crushdem_sand.figures.crushing`,
+:mod:`~crushdem_sand.figures.ageing`, :mod:`~crushdem_sand.figures.penetration`,
+:mod:`~crushdem_sand.figures.pile` and
+:mod:`~crushdem_sand.figures.study`, on the helpers of
+:mod:`~crushdem_sand.figures.common`; every one is importable from here.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ __all__ = [
 ]
 
 
-# The figures of `crushdem plot`, in the order they are written: file name -> function.
+# The figures of `crushdem-sand plot`, in the order they are written: file name -> function.
 FIGURES: Dict[str, Callable[[Run], Any]] = {
     "stress_time.png": figure_stress_time,
     "strain_stress.png": figure_strain_stress,

@@ -1,4 +1,4 @@
-"""The figures of ageing (``crushdem plot``; events.csv, one point per dynamic phase against the
+"""The figures of ageing (``crushdem-sand plot``; events.csv, one point per dynamic phase against the
 ageing time on a log axis): the vertical stress relaxation or creep with q and the axial strain,
 the contact forces, and the breakages."""
 

@@ -1,8 +1,8 @@
-"""The pipeline of ``crushdem reproduce``: the study's runs (the recipes of
-:mod:`crushdem.study`, each run by a function of :mod:`crushdem.lab` into a run directory of its
-own, skipped when finished and resumed when interrupted: :func:`crushdem.runs.run_step`), then
-what a reproduction directory holds: the study's figures (:mod:`crushdem.figures.study`), each PNG
-with the CSV of what it draws (:mod:`crushdem.study_analysis`), and ``reproduce.json``."""
+"""The pipeline of ``crushdem-sand reproduce``: the study's runs (the recipes of
+:mod:`crushdem_sand.study`, each run by a function of :mod:`crushdem_sand.lab` into a run directory of its
+own, skipped when finished and resumed when interrupted: :func:`crushdem_sand.runs.run_step`), then
+what a reproduction directory holds: the study's figures (:mod:`crushdem_sand.figures.study`), each PNG
+with the CSV of what it draws (:mod:`crushdem_sand.study_analysis`), and ``reproduce.json``."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from .study_analysis import (FigureData, age_counts, dynamic_phase, force_statis
 
 
 def run_sections(cfg: Mapping[str, Any], progress: bool) -> Dict[str, Any]:
-    """The keyword arguments every run of the settings ``cfg`` gets from crushdem.lab: the
+    """The keyword arguments every run of the settings ``cfg`` gets from crushdem_sand.lab: the
     material, contact and output sections, the backend and the progress lines."""
     return {"material": cfg["material"], "contact": cfg["contact"], "output": cfg["output"],
             "backend": backend_of(cfg), "progress": progress}
@@ -129,7 +129,7 @@ def run_triaxial_relaxation(cfg: Mapping[str, Any], run_dir: str, sample_file: s
 
 def record_shear(shear_dir: str, runs: Dict[str, Any]) -> float:
     """q_max of the finished triaxial shear in ``shear_dir``, its figures recorded in
-    runs["triaxial_shear"] (:func:`crushdem.study_analysis.shear_figures`)."""
+    runs["triaxial_shear"] (:func:`crushdem_sand.study_analysis.shear_figures`)."""
     figures = shear_figures(shear_dir)
     runs.setdefault("triaxial_shear", {"skipped": True, **timing_record(shear_dir)})
     runs["triaxial_shear"].update(figures)
@@ -287,7 +287,7 @@ def write_figure(out: str, name: str, data: FigureData, fig: Any) -> str:
     ``out``/name.png (``fig``, then closed); returns the PNG's path."""
     from ._optional import require
 
-    plt = require("matplotlib.pyplot", "crushdem reproduce")
+    plt = require("matplotlib.pyplot", "crushdem-sand reproduce")
     write_csv(os.path.join(out, name + ".csv"), data.notes, data.columns)
     path = os.path.join(out, name + ".png")
     try:

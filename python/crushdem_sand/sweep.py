@@ -1,10 +1,10 @@
-"""``crushdem sweep SWEEP.toml --out DIR``: many runs of one base configuration on Dask.
+"""``crushdem-sand sweep SWEEP.toml --out DIR``: many runs of one base configuration on Dask.
 
 A sweep file names a base configuration and the values to vary::
 
     base = "relaxation_small.toml"      # relative to the sweep file
     from = "runs/loaded:relaxation"     # optional: every variant branches from this run's
-                                        # state at the start of that stage (crushdem run --from)
+                                        # state at the start of that stage (crushdem-sand run --from)
     [vary]                              # combined as a product
     "contact.rolling_friction" = [0.1, 0.3]
     "crushing.seed" = [1, 2, 3]
@@ -19,7 +19,7 @@ A sweep file names a base configuration and the values to vary::
 Named variants give their directory names (joined with ``__`` to the other factors' values).
 A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
 and a key: ``stage.1.strain_rate`` (by index) or ``stage.shear.strain_rate`` (by name). Each
-variant is one task: ``crushdem run`` in a subprocess with ``--threads-per-run`` threads, on a
+variant is one task: ``crushdem-sand run`` in a subprocess with ``--threads-per-run`` threads, on a
 local Dask cluster of ``--workers`` processes (default: the cores divided by the threads per
 run), or on the cluster at ``--scheduler ADDRESS``. Its configuration is written to
 ``DIR/configs/NAME.toml`` and its run to ``DIR/runs/NAME``. A finished variant is not run again
@@ -261,7 +261,7 @@ def run_variant(config_path: str, run_dir: str, threads: int,
     the end of the run's error output when it fails."""
     if os.path.isfile(os.path.join(run_dir, "summary.json")):
         return {"resumed": False, "skipped": True}
-    crushdem = [sys.executable, "-m", "crushdem"]
+    crushdem = [sys.executable, "-m", "crushdem_sand"]
     resumed = os.path.isdir(run_dir) and bool(os.listdir(run_dir))
     if resumed:
         cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"]
@@ -273,7 +273,7 @@ def run_variant(config_path: str, run_dir: str, threads: int,
     deadline = t0 + LOCK_WAIT_S
     while True:
         p = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=_die_with_parent)
-        if p.returncode == 2 and "another crushdem run" in p.stderr and time.perf_counter() < deadline:
+        if p.returncode == 2 and "another crushdem-sand run" in p.stderr and time.perf_counter() < deadline:
             time.sleep(1.0)
             continue
         break
@@ -378,7 +378,7 @@ def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
     if not figures or not numeric:
         return None
     # No pyplot: no backend is chosen for the caller.
-    Figure = require("matplotlib.figure", "crushdem.sweep.figure").Figure
+    Figure = require("matplotlib.figure", "crushdem_sand.sweep.figure").Figure
     fig = Figure(figsize=(3.6 * len(numeric), 2.6 * len(figures)))
     axes = fig.subplots(len(figures), len(numeric), squeeze=False)
     for i, f in enumerate(figures):
@@ -462,7 +462,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
 
 def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
                branch=None, backend="cpu") -> None:
-    distributed = require("distributed", "crushdem sweep")
+    distributed = require("distributed", "crushdem-sand sweep")
     Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     previous = signal.signal(signal.SIGTERM, _raise_stop)
@@ -530,8 +530,8 @@ def _follow(client, futures, errors, progress, log) -> None:
 
 def cluster_parser(command: str, details: Optional[str], file: str,
                    metavar: str) -> CommandParser:
-    """The command line of a command whose runs are sweep tasks (``crushdem sweep``,
-    ``crushdem calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
+    """The command line of a command whose runs are sweep tasks (``crushdem-sand sweep``,
+    ``crushdem-sand calibrate``): its file (argument ``file``, shown as ``metavar``), --out,
     --workers, --threads-per-run, --scheduler."""
     parser = CommandParser(command, details)
     parser.add_argument(file, metavar=metavar, help=f"the {file} file")
@@ -548,7 +548,7 @@ def cluster_parser(command: str, details: Optional[str], file: str,
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
+    """``crushdem-sand sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
     parser = cluster_parser("sweep", __doc__, "sweep", "SWEEP.toml")
     parser.add_backend("what advances every run: cpu (default), cuda (a GPU, in a build with "
@@ -556,7 +556,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
-        print(f"crushdem sweep: {msg}", flush=True)
+        print(f"crushdem-sand sweep: {msg}", flush=True)
 
     try:
         df = sweep(args.sweep, args.out, args.workers, args.threads_per_run, args.scheduler,
@@ -566,7 +566,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         return 128 + signal.SIGINT
     except (OSError, ValueError) as e:
-        print(f"crushdem sweep: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand sweep: error: {e}", file=sys.stderr)
         return 2
     failed = int((df["status"] != "done").sum())
     log(f"results: {os.path.join(args.out, 'results.csv')} ({len(df) - failed} done, "

@@ -1,4 +1,4 @@
-"""The figures of a penetration test (``crushdem plot``, "penetrate" stages): the cone
+"""The figures of a penetration test (``crushdem-sand plot``, "penetrate" stages): the cone
 resistance q_c and the sleeve friction f_s against the travel, the radial stress on the shaft
 along it at a few travels, and where grains broke around the body (penetration.csv,
 shaft_profile.csv, breakage.csv; docs/chamber.md)."""

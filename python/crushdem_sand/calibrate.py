@@ -1,4 +1,4 @@
-"""``crushdem calibrate CALIBRATION.toml --out DIR``: the values of one or two parameters that
+"""``crushdem-sand calibrate CALIBRATION.toml --out DIR``: the values of one or two parameters that
 make a run match targets, found by a library optimiser whose evaluations are sweep tasks.
 
 A calibration file::
@@ -81,9 +81,9 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
 
     from . import _core
 
-    distributed = require("distributed", "crushdem calibrate", "calibrate")
+    distributed = require("distributed", "crushdem-sand calibrate", "calibrate")
     Client, LocalCluster = distributed.Client, distributed.LocalCluster
-    optimize = require("scipy.optimize", "crushdem calibrate")
+    optimize = require("scipy.optimize", "crushdem-sand calibrate")
 
     cal = read_calibration(path)
     keys, targets, tol = list(cal["parameters"]), cal["targets"], cal["tolerance"]
@@ -185,7 +185,7 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
             w.writerows(evaluations)
         text = _core.resolved_run_config(config_of([best[k] for k in keys]), cal["base_dir"])
         with open(os.path.join(out, "calibrated.toml"), "w") as f:
-            f.write(f"# crushdem calibrate {os.path.abspath(path)}: "
+            f.write(f"# crushdem-sand calibrate {os.path.abspath(path)}: "
                     + ", ".join(f"{k} = {best[k]!r}" for k in keys) + "\n" + text)
         if available("matplotlib"):
             _figure(evaluations, os.path.join(out, "convergence.png"), tol)
@@ -201,7 +201,7 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
 
 
 def _figure(evaluations: List[Dict[str, Any]], path: str, tol: float) -> None:
-    Figure = require("matplotlib.figure", "crushdem calibrate's figure", "plot").Figure
+    Figure = require("matplotlib.figure", "crushdem-sand calibrate's figure", "plot").Figure
     fig = Figure(figsize=(6, 3.8))
     ax = fig.subplots()
     n = [e["evaluation"] for e in evaluations]
@@ -216,19 +216,19 @@ def _figure(evaluations: List[Dict[str, Any]], path: str, tol: float) -> None:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem calibrate CALIBRATION.toml --out DIR [--workers N] [--threads-per-run T]
+    """``crushdem-sand calibrate CALIBRATION.toml --out DIR [--workers N] [--threads-per-run T]
     [--scheduler ADDRESS]``."""
     parser = cluster_parser("calibrate", __doc__, "calibration", "CALIBRATION.toml")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
-        print(f"crushdem calibrate: {msg}", flush=True)
+        print(f"crushdem-sand calibrate: {msg}", flush=True)
 
     try:
         result = calibrate(args.calibration, args.out, args.workers, args.threads_per_run,
                            args.scheduler, log)
     except (OSError, ValueError, RuntimeError) as e:
-        print(f"crushdem calibrate: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand calibrate: error: {e}", file=sys.stderr)
         return 2
     log(("converged: " if result["converged"] else "NOT converged: ")
         + json.dumps(result["calibrated"]) + f" after {result['evaluations']} evaluations")

@@ -1,16 +1,16 @@
 """crushdem: discrete element simulation of crushable granular materials.
 
-The engine is C++ (``crushdem._core``); this package is a thin Python front end.
+The engine is C++ (``crushdem_sand._core``); this package is a thin Python front end.
 All quantities are SI: lengths in m, times in s, forces in N, stresses and moduli in Pa,
 masses in kg, energies in J.
 
 A simulation is configured with the same sections and keys as a TOML configuration file
-(``crushdem check FILE`` validates one), given as keyword arguments::
+(``crushdem-sand check FILE`` validates one), given as keyword arguments::
 
     import numpy as np
-    import crushdem
+    import crushdem_sand
 
-    sim = crushdem.Simulation(
+    sim = crushdem_sand.Simulation(
         material={"shear_modulus": 32e9, "poisson_ratio": 0.19},
         contact={"law": "hertz"},
         box={"min": [0, 0, 0], "max": [1e-3] * 3},
@@ -24,8 +24,8 @@ A simulation is configured with the same sections and keys as a TOML configurati
 Invalid or unknown keys raise :class:`ConfigError` (a subclass of :class:`ValueError`) with a
 message naming the key, e.g. ``material.shear_modulus``.
 
-Run directories (``crushdem run``, the laboratory functions of :mod:`crushdem.lab`) are read
-with :class:`crushdem.lab.Result`, each table as a pandas DataFrame.
+Run directories (``crushdem-sand run``, the laboratory functions of :mod:`crushdem_sand.lab`) are read
+with :class:`crushdem_sand.lab.Result`, each table as a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -156,7 +156,7 @@ class Simulation:
 
     Keyword arguments are the sections of a configuration file, each a dict (SI units). The
     keys of ``material``, ``contact``, ``damping``, ``timestep`` and ``neighbor`` are listed at
-    the end, from the engine's parameter tables (``crushdem.parameter_reference()``); besides:
+    the end, from the engine's parameter tables (``crushdem_sand.parameter_reference()``); besides:
 
     ``box``
         ``min``, ``max``: corners [m] as 3-lists.
@@ -440,11 +440,11 @@ class Simulation:
 
     @property
     def core(self) -> "_core.Simulation":
-        """The underlying C++ object (crushdem._core.Simulation)."""
+        """The underlying C++ object (crushdem_sand._core.Simulation)."""
         return self._sim
 
     def __repr__(self) -> str:
-        return (f"<crushdem.Simulation: {self.num_particles} particles, "
+        return (f"<crushdem_sand.Simulation: {self.num_particles} particles, "
                 f"t = {self.time:.6g} s, {self.step_count} steps>")
 
 

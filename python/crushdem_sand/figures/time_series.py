@@ -1,4 +1,4 @@
-"""The figures against time (``crushdem plot``): the DEM clock, and for the "age" stages, whose
+"""The figures against time (``crushdem-sand plot``): the DEM clock, and for the "age" stages, whose
 off-DEM jumps make a day of ageing a few milliseconds of DEM time, the ageing time on a second
 panel (events.csv, one point per dynamic phase, log axis)."""
 

@@ -10,6 +10,10 @@ import argparse
 import sys
 from typing import NoReturn, Optional
 
+# The command's name: the C++ front end's (src/crushdem/cli/cli.hpp: kCommand, kAliasNote).
+PROG = "crushdem-sand"
+ALIAS_NOTE = "note: `crushdem` is now `crushdem-sand`; the old name is an alias until version 0.2\n"
+
 # The Python package's commands and their one-line descriptions: the top-level help's list and
 # the first line of each command's help.
 COMMANDS = {
@@ -54,11 +58,11 @@ def _entry(names: str, description: str) -> str:
 
 class CommandParser(argparse.ArgumentParser):
     """An ``argparse.ArgumentParser`` whose help and errors read as the C++ commands' do:
-    ``crushdem NAME: error: MESSAGE`` and ``Run 'crushdem NAME --help' for the options.``, exit
+    ``crushdem-sand NAME: error: MESSAGE`` and ``Run 'crushdem-sand NAME --help' for the options.``, exit
     status 2."""
 
     def __init__(self, name: str, details: Optional[str] = None) -> None:
-        super().__init__(prog=f"crushdem {name}", description=COMMANDS[name], epilog=details,
+        super().__init__(prog=f"{PROG} {name}", description=COMMANDS[name], epilog=details,
                          add_help=False)
         self.add_argument("-h", "--help", action="help",
                           help="Print this help message and exit")

@@ -1,5 +1,5 @@
-"""The figures of a pile's ageing (``crushdem plot`` of a run whose "age" stages name a pile, and
-``crushdem pile``; docs/pile.md): the radial stress on the shaft by depth against ageing time, the
+"""The figures of a pile's ageing (``crushdem-sand plot`` of a run whose "age" stages name a pile, and
+``crushdem-sand pile``; docs/pile.md): the radial stress on the shaft by depth against ageing time, the
 radial and hoop stress in rings of grains about the shaft, the contact forces near the shaft, where
 grains failed while the sand aged, and the capacities of the load tests against ageing time with
 the fitted set-up factor. They read DIR/pile_ageing.csv, pile_shaft.csv, pile_rings.csv,
@@ -216,7 +216,7 @@ def figure_pile_breakage(run: Run) -> Optional[Figure]:
 
 def figure_pile_setup(table: Mapping[str, Any], fits: Mapping[str, Mapping[str, float]],
                       title: str = "") -> Optional[Figure]:
-    """pile_setup.png (``crushdem pile``): each load test's capacity over its value at the first
+    """pile_setup.png (``crushdem-sand pile``): each load test's capacity over its value at the first
     ageing time against ageing time (log axis), with the fitted Q(t)/Q(t0) = 1 + A log10(t/t0)
     (Skov and Denver 1988) and A with its standard error; table: columns ``test``,
     ``ageing_time_s``, ``capacity_N``; fits: test -> {A, A_std, Q0_N, t0_s}."""

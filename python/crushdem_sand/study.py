@@ -2,8 +2,8 @@
 crushable sands based on fracture theory"; docs/model.md): Table 1 (material, rough contact law,
 grain strength and crack growth), the NE34 grading, crushdem's chosen parameter set, the study's
 own results that a reproduction is compared with, and the settings of every run of
-``crushdem reproduce`` (:func:`settings`, changed by ``--set``: :func:`apply_overrides`).
-``crushdem reproduce``, ``crushdem sensitivity`` and the tests read them from here.
+``crushdem-sand reproduce`` (:func:`settings`, changed by ``--set``: :func:`apply_overrides`).
+``crushdem-sand reproduce``, ``crushdem-sand sensitivity`` and the tests read them from here.
 
 A settings dict is plain JSON (``DIR/settings.json`` of a reproduction); nothing here runs,
 reads or draws."""
@@ -36,7 +36,7 @@ TABLE1_CRUSHING = {"sigma_lim0": 3.75e9, "weibull_m": 12.0, "var": 0.38, "distri
 # quartz grains: the study's q_max needs the strongest grains the band allows).
 CONTACT = {**TABLE1_CONTACT, "rotation": "blocked"}
 CRUSHING = {**TABLE1_CRUSHING, "d0": 1.07e-3}
-# Named parameter sets of `crushdem reproduce --parameters`: (contact, crushing, what it is).
+# Named parameter sets of `crushdem-sand reproduce --parameters`: (contact, crushing, what it is).
 PARAMETER_SETS: Dict[str, Tuple[Dict[str, Any], Dict[str, Any], str]] = {
     "crushdem": (CONTACT, CRUSHING,
                  "Table 1 with rotation blocked and d0 = 1.07 mm (the decision study's choice)"),

@@ -1,4 +1,4 @@
-"""``crushdem reproduce --out DIR [--quick] [--threads N]``: the reference study's section 3
+"""``crushdem-sand reproduce --out DIR [--quick] [--threads N]``: the reference study's section 3
 (stress relaxation of a crushable quartz sand) run end to end, with its four figures.
 
 The study ("Discrete modelling of stress relaxation in crushable sands based on fracture
@@ -12,8 +12,8 @@ theory", section 3; docs/model.md 4.4 and 4.5) has one sample and three tests:
   held (lateral walls servo-controlled at 10 MPa during dynamic phases) for one day of ageing.
 
 Each run is an ordinary run directory under DIR (``sample/``, ``oedometric_relaxation/``,
-``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem.lab`, so
-``crushdem plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
+``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem_sand.lab`, so
+``crushdem-sand plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
 (written last, when a run finishes) is not run again: a re-invocation after an interruption goes
 on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one that left
 none starts over). ``DIR/settings.json`` records the settings of the first invocation; a later
@@ -47,13 +47,13 @@ the call that wrote it); a table of them is printed at the end.
 looser, docs/laboratory-tests.md) with short dynamic phases, to check the pipeline in a few
 minutes; its numbers are not the study's.
 
-Threads: ``--threads`` sets the OpenMP thread count of the engine (``crushdem.set_threads``);
+Threads: ``--threads`` sets the OpenMP thread count of the engine (``crushdem_sand.set_threads``);
 each run's ``timing.json`` records the count used. Results do not depend on it.
 
 This module is the command: its options and the tables it prints. The recipes are
-:mod:`crushdem.study`, the runs and the files they leave :mod:`crushdem.study_pipeline`, the
-numbers :mod:`crushdem.study_analysis` (one reproduction) and :mod:`crushdem.study_summary`
-(``--summarize``, ``--against``), the figures :mod:`crushdem.figures.study`.
+:mod:`crushdem_sand.study`, the runs and the files they leave :mod:`crushdem_sand.study_pipeline`, the
+numbers :mod:`crushdem_sand.study_analysis` (one reproduction) and :mod:`crushdem_sand.study_summary`
+(``--summarize``, ``--against``), the figures :mod:`crushdem_sand.figures.study`.
 """
 
 from __future__ import annotations
@@ -158,7 +158,7 @@ def format_table(result: Mapping[str, Any]) -> str:
     tri = result.get("triaxial_relaxation") or {}
     dyn = result.get("dynamic_phase") or {}
     runs = result.get("runs") or {}
-    lines = [f"crushdem reproduce ({result.get('mode')}): study section 3",
+    lines = [f"crushdem-sand reproduce ({result.get('mode')}): study section 3",
              f"  {'sigma_v(4 s) [MPa]':<40}{num(oe.get('sigma_v_4s_Pa'), MPA)}",
              f"  {'sigma_v(1 h) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1h'))}",
              f"  {'sigma_v(1 day) / sigma_v(4 s)':<40}{num(oe.get('sigma_v_ratio_1day'))}"
@@ -205,7 +205,7 @@ quartz sand, one day of ageing each) and draw its four figures into DIR:
 fig1_oedometric_relaxation, fig2_dynamic_phase4, fig3_triaxial_relaxation and
 fig4_force_statistics (PNG, with the CSV of what each draws), plus DIR/reproduce.json with the key
 numbers. Each run is a run directory of its own (DIR/sample, DIR/oedometric_relaxation,
-DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem plot` can draw; the triaxial
+DIR/triaxial_shear, DIR/triaxial_relaxation) that `crushdem-sand plot` can draw; the triaxial
 relaxation starts from the shear's state after its isotropic compression (same results)."""
 
 _EPILOG = """\
@@ -241,7 +241,7 @@ _AGAINST = (
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem reproduce --out DIR [--quick] [--threads N] [--sample FILE]``."""
+    """``crushdem-sand reproduce --out DIR [--quick] [--threads N] [--sample FILE]``."""
     parser = CommandParser("reproduce", _DESCRIPTION + "\n\n" + _EPILOG)
     parser.add_argument("--out", metavar="DIR", help="directory for everything (required "
                         "unless --summarize; with it, where samples.json and samples.md go)")
@@ -285,7 +285,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         parser.error("the following arguments are required: --out")
 
     def log(msg: str) -> None:
-        print(f"crushdem reproduce: {msg}", flush=True)
+        print(f"crushdem-sand reproduce: {msg}", flush=True)
 
     use_file_backend_without_display()
 
@@ -295,7 +295,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                            tests=[t.strip() for t in args.only.split(",") if t.strip()],
                            backend=args.backend, progress=not args.quiet)
     except (OSError, ValueError, RuntimeError) as e:
-        print(f"crushdem reproduce: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand reproduce: error: {e}", file=sys.stderr)
         return 2
     for name in result.get("figures", []):
         print(os.path.join(args.out, name))
@@ -306,7 +306,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 def _summarize_main(dirs: Sequence[str], out: Optional[str],
                     against: Optional[Sequence[str]] = None) -> int:
-    """``crushdem reproduce --summarize DIR... [--against DIR...] [--out DIR]``."""
+    """``crushdem-sand reproduce --summarize DIR... [--against DIR...] [--out DIR]``."""
     try:
         if against is None:
             result = summarize_samples(dirs)
@@ -315,7 +315,7 @@ def _summarize_main(dirs: Sequence[str], out: Optional[str],
             result = compare_recipes(dirs, against)
             table, name = format_comparison(result), "comparison"
     except (OSError, ValueError) as e:
-        print(f"crushdem reproduce: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand reproduce: error: {e}", file=sys.stderr)
         return 2
     if out is not None:
         os.makedirs(out, exist_ok=True)

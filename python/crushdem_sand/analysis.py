@@ -1,10 +1,10 @@
 """Pure analysis of a run's columns (NumPy only, no files, no figures; tested on synthetic
 data): the time series split by stage, the rows whose contact measurements were not computed,
 and relaxation and creep curves, one value per dynamic phase against ageing time. Used by
-:mod:`crushdem.rundir`, the figures (:mod:`crushdem.figures`), ``crushdem reproduce`` and the
+:mod:`crushdem_sand.rundir`, the figures (:mod:`crushdem_sand.figures`), ``crushdem-sand reproduce`` and the
 sweep tool.
 
-A set of columns is a dict {column name: float64 array}, as :func:`crushdem.rundir.read_csv`
+A set of columns is a dict {column name: float64 array}, as :func:`crushdem_sand.rundir.read_csv`
 returns it."""
 
 from __future__ import annotations
@@ -263,7 +263,7 @@ def fit_log_t(t: np.ndarray, y: np.ndarray) -> Dict[str, float]:
 N_BREAK_TOLERANCE = 0.03
 
 # How far a run on another backend (the GPU, or its emulation) may land from the CPU's on the
-# quick settings of `crushdem reproduce` (500 grains; docs/performance.md, "Backends"). The two
+# quick settings of `crushdem-sand reproduce` (500 grains; docs/performance.md, "Backends"). The two
 # follow each other to rounding at first and then as two samples would, so the bounds are those
 # of the sample-to-sample scatter measured on the CPU (sample seeds 3, 4, 5: q_max 22.75, 20.06,
 # 20.46 MPa, sd 7 %; sigma_v(1 day) / sigma_v(4 s) 0.943, 0.884, 0.968, sd 0.04), about 2.5

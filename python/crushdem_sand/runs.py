@@ -1,4 +1,4 @@
-"""Run-or-resume: the step of a pipeline (``crushdem reproduce``, ``crushdem sensitivity``) that
+"""Run-or-resume: the step of a pipeline (``crushdem-sand reproduce``, ``crushdem-sand sensitivity``) that
 runs one test into its own run directory, unless it has finished, and continues it from its
 checkpoint when an earlier call was interrupted."""
 
@@ -14,7 +14,7 @@ from .rundir import is_being_written, is_finished, read_timing
 
 
 def set_threads(n: int) -> int:
-    """Sets the OpenMP thread count of every later run (``crushdem._core.set_threads``);
+    """Sets the OpenMP thread count of every later run (``crushdem_sand._core.set_threads``);
     returns the count in force (1 in a build without OpenMP)."""
     from . import _core
 

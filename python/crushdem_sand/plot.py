@@ -1,4 +1,4 @@
-"""``crushdem plot DIR``: figures of a run's DIR/timeseries.csv (and DIR/summary.json).
+"""``crushdem-sand plot DIR``: figures of a run's DIR/timeseries.csv (and DIR/summary.json).
 
 The CSV has one header row whose column names carry their SI unit (``time_s``,
 ``wall_zmax_stress_Pa``, ``kinetic_energy_J``, ...); strains are fractions, compression positive,
@@ -117,9 +117,9 @@ A day of ageing is a few milliseconds of DEM time, so the figures against time (
 coordination, kinetic_energy) draw the stages before the age stages against DEM time and the age
 stages, from events.csv, against ageing time on a second panel.
 
-From Python, :mod:`crushdem.figures` has one function per figure returning its matplotlib
+From Python, :mod:`crushdem_sand.figures` has one function per figure returning its matplotlib
 Figure (``figure_stress_time(run_dir)``, ...), drawn under the backend in use; only the command
-``crushdem plot`` selects the file backend Agg, and only when there is no display.
+``crushdem-sand plot`` selects the file backend Agg, and only when there is no display.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
     (default: ``run_dir``) as PNG files; returns the paths written."""
     from ._optional import require
 
-    plt = require("matplotlib.pyplot", "crushdem plot")
+    plt = require("matplotlib.pyplot", "crushdem-sand plot")
     run = read_run(run_dir)
     out_dir = out_dir or run_dir
     os.makedirs(out_dir, exist_ok=True)
@@ -168,7 +168,7 @@ def make_plots(run_dir: str, out_dir: Optional[str] = None) -> List[str]:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem plot DIR [--out OUT]``; returns the exit status."""
+    """``crushdem-sand plot DIR [--out OUT]``; returns the exit status."""
     parser = CommandParser("plot")
     parser.add_argument("dir", metavar="DIR", help="run directory containing timeseries.csv")
     parser.add_argument("--out", default=None, help="directory for the PNGs (default: DIR)")
@@ -177,10 +177,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         written = make_plots(args.dir, args.out)
     except (OSError, ValueError) as e:
-        print(f"crushdem plot: error: {e}", file=sys.stderr)
+        print(f"crushdem-sand plot: error: {e}", file=sys.stderr)
         return 2
     if not written:
-        print(f"crushdem plot: {os.path.join(args.dir, 'timeseries.csv')} has no column to plot",
+        print(f"crushdem-sand plot: {os.path.join(args.dir, 'timeseries.csv')} has no column to plot",
               file=sys.stderr)
         return 1
     for path in written:

@@ -1,4 +1,4 @@
-"""Several reproductions side by side (``crushdem reproduce --summarize DIR...``): the triaxial
+"""Several reproductions side by side (``crushdem-sand reproduce --summarize DIR...``): the triaxial
 figures of samples of one recipe with their mean, standard deviation and standard error, and the
 mean q_max against the study's; with ``--against``, two recipes paired by sample, the mean
 difference with its standard error. Reads the reproduction directories; writes nothing."""
@@ -46,7 +46,7 @@ def sample_of(d: str, cfg: Mapping[str, Any]) -> Dict[str, Any]:
 
 
 def summarize_samples(out_dirs: Sequence[str]) -> Dict[str, Any]:
-    """The triaxial figures of several ``crushdem reproduce`` directories (samples of one
+    """The triaxial figures of several ``crushdem-sand reproduce`` directories (samples of one
     recipe: ``--set sample.seed=K``, or prepared samples given by ``--sample``) side by side,
     with their mean, standard deviation (n - 1) and standard error, and the mean q_max against
     the study's.
