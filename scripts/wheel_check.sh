@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Checks that a wheel built by scripts/wheel.sh suits any x86-64 machine of the last decade:
 #  1. pip installs it into a fresh environment with --only-binary=:all:, so nothing is compiled
-#     (a step that needed a compiler would fail);
+#     (a step that needed a compiler would fail); a manylinux wheel loads OpenMP's libgomp from
+#     the copy it carries, not from the system;
 #  2. its compiled module holds no instruction beyond what a Westmere CPU has: no VEX or EVEX
 #     form (AVX, AVX2, AVX-512: a v-prefixed mnemonic or a ymm/zmm register), no BMI1/BMI2,
 #     LZCNT, TZCNT or MOVBE (LZCNT and TZCNT would not even fault there: they run as BSR/BSF and
@@ -24,8 +25,17 @@ trap 'rm -rf "$env_dir"' EXIT
 echo "== 1. pip install --only-binary=:all: $wheel"
 "$env_dir/venv/bin/python" -m pip install --quiet --only-binary=:all: "$wheel"
 
-echo "== 2. the compiled module's instructions"
 core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem_sand/_core*.so)
+if [[ $(basename "$wheel") == *manylinux* ]]; then
+  gomp=$(ldd "$core" | grep -o '=> [^ ]*libgomp[^ ]*' || true)
+  echo "libgomp ${gomp:-not needed}"
+  if [[ -n $gomp && $gomp != *crushdem_sand.libs/* ]]; then
+    echo "the manylinux wheel's module loads the system's libgomp, not its own" >&2
+    exit 1
+  fi
+fi
+
+echo "== 2. the compiled module's instructions"
 objdump -d --no-show-raw-insn "$core" >"$env_dir/core.asm"
 total=$(grep -c $'^ *[0-9a-f]*:\t' "$env_dir/core.asm" || true)
 beyond=$'^ *[0-9a-f]*:\t(v[a-z0-9]+|andn|bextr|blsi|blsmsk|blsr|bzhi|mulx|pdep|pext|rorx|sarx|shlx|shrx|lzcnt|tzcnt|movbe)( |$)|%[yz]mm[0-9]'
