@@ -36,8 +36,11 @@ class HoldStage final : public Stage {
     Stage::begin(sim);
   }
 
-  /// The profile at the stage's end reads the contacts (brought from a device at every check).
-  bool reads_grains(const Simulation&) const override { return cfg_.profile_bins > 0; }
+  /// The profile at the stage's end reads the contacts, brought from a device at the check that
+  /// ends the stage (with `settle`, any check may: the settled state is seen there first).
+  bool reads_grains(const Simulation& sim) const override {
+    return cfg_.profile_bins > 0 && (cfg_.settle || at_its_length(sim));
+  }
 
   double fraction(const Simulation& sim) const override {
     if (cfg_.steps > 0) {
@@ -51,8 +54,7 @@ class HoldStage final : public Stage {
     const char* reason = nullptr;
     if (cfg_.settle && at_equilibrium(sim)) {
       reason = "settled";
-    } else if ((cfg_.steps > 0 && res_.steps >= cfg_.steps) ||
-               (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12))) {
+    } else if (at_its_length(sim)) {
       reason = "duration";
     }
     if (reason && cfg_.profile_bins > 0) record_profile(sim);
@@ -70,6 +72,12 @@ class HoldStage final : public Stage {
   }
 
  private:
+  /// `steps` or `duration` done.
+  bool at_its_length(const Simulation& sim) const {
+    return (cfg_.steps > 0 && sim.step_count() - start_step_ >= cfg_.steps) ||
+           (cfg_.duration > 0.0 && sim.time() - start_time_ >= cfg_.duration * (1.0 - 1e-12));
+  }
+
   /// stress_profile.csv: the core's stress by slice, from the bottom platen up.
   void record_profile(const Simulation& sim) const {
     StageOutputs* out = outputs();
