@@ -135,3 +135,25 @@ def test_the_ring_profile_averages_the_slices_per_event_and_ring():
     some = pile_figures.ring_profile(rings)
     assert list(some["ageing_time_s"]) == [0, 0, 5]
     assert list(some["sigma_rr_Pa"]) == [10.0, 12.5, 14.5]
+
+
+def test_the_breakage_map_outlines_the_pile_where_its_degree_of_freedom_puts_it(tmp_path):
+    """The outline of pile_breakage.png: from the tip up the cone to the shaft's radius and up the
+    shaft, the tip at origin + q direction (q: head_position_m); none for a pile off the z axis
+    or a run whose age stages name no pile."""
+    def write(body, stage_body="pile"):
+        (tmp_path / "config.toml").write_text(
+            "[[body]]\n" + body + "\n[[stage]]\ntype = \"penetrate\"\nbody = \"pile\"\n"
+            f"[[stage]]\ntype = \"age\"\nbody = \"{stage_body}\"\n")
+        return pile_figures.pile_outline(str(tmp_path), 0.004)
+
+    cone = ('name = "pile"\nshape = "pile"\norigin = [0.0, 0.0, 0.05]\nradius = 3e-4\n'
+            'length = 5e-3\nhalf_angle = 30.0')
+    o = write(cone)
+    rise = 3e-4 / math.tan(math.radians(30.0))
+    assert np.allclose(o, [[0.0, 0.046], [3e-4, 0.046 + rise], [3e-4, 0.046 + 5e-3]])
+    o = write(cone + '\ntip = "flat"\ndirection = [0.0, 0.0, -2.0]')
+    assert np.allclose(o, [[0.0, 0.046], [3e-4, 0.046], [3e-4, 0.051]])
+    assert write(cone.replace("[0.0, 0.0, 0.05]", "[1e-3, 0.0, 0.05]")) is None
+    assert write(cone + "\naxis = [1.0, 0.0, 0.0]") is None
+    assert write(cone, stage_body="other") is None

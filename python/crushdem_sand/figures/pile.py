@@ -117,6 +117,7 @@ def figure_pile_rings(run: Run) -> Optional[Figure]:
                  label=lab)
     for a in (a_r, a_t):
         a.set_xscale("log")
+        plain_log_ticks(a)
     label_axes(a_r, "distance from the axis r / R", r"radial stress $\sigma_{rr}$ [kPa]",
                f"{run.title}: rings about the shaft", fontsize=7)
     label_axes(a_t, "distance from the axis r / R", r"hoop stress $\sigma_{\theta\theta}$ [kPa]",
@@ -173,6 +174,41 @@ def read_breakages(run_dir: str) -> Optional[Dict[str, np.ndarray]]:
                                                    "crack"))}
 
 
+def pile_outline(run_dir: str, head_position_m: float) -> Optional[np.ndarray]:
+    """The outline of the pile that the age stages of DIR/config.toml name, in the plane of its
+    axis, for the degree of freedom ``head_position_m`` (pile_ageing.csv): points (r, z) [m] from
+    the tip (a cone's apex or a flat tip's centre) round the tip's edge and up the shaft to the
+    pile's top, from its [[body]] (origin, axis, direction, radius, length, half_angle, tip).
+    None for a run without such a pile, or one whose axis is not the z axis (the figure's r is
+    the distance from the z axis)."""
+    import tomllib
+
+    try:
+        with open(os.path.join(run_dir, "config.toml"), "rb") as f:
+            cfg = tomllib.load(f)
+    except (OSError, ValueError):
+        return None
+    names = {st.get("body") for st in cfg.get("stage", []) if isinstance(st, dict)
+             and st.get("type") == "age"}
+    bodies = [b for b in cfg.get("body", []) if isinstance(b, dict) and b.get("name") in names
+              and b.get("shape") == "pile"]
+    if not bodies:
+        return None
+    b = bodies[0]
+    axis = np.asarray(b.get("axis", [0.0, 0.0, 1.0]), dtype=float)
+    axis /= np.linalg.norm(axis)
+    origin = np.asarray(b.get("origin", [0.0, 0.0, 0.0]), dtype=float)
+    if axis[2] < 0.999 or np.hypot(origin[0], origin[1]) > 1e-12:
+        return None
+    d = np.asarray(b.get("direction", [0.0, 0.0, 0.0]), dtype=float)
+    d = -axis if not np.any(d) else d / np.linalg.norm(d)
+    z_tip = float(origin[2] + head_position_m * d[2])
+    R, L = float(b["radius"]), float(b["length"])
+    rise = 0.0 if b.get("tip", "cone") == "flat" else R / np.tan(np.radians(b.get("half_angle",
+                                                                                  30.0)))
+    return np.array([[0.0, z_tip], [R, z_tip + rise], [R, z_tip + L]])
+
+
 def figure_pile_breakage(run: Run) -> Optional[Figure]:
     """pile_breakage.png: where grains failed while the sand aged (breakages during the age
     stages, by crack growth as dots, instant ones as crosses), in the plane of the pile's axis:
@@ -207,6 +243,15 @@ def figure_pile_breakage(run: Run) -> Optional[Figure]:
                             marker=marker, label=f"{lab} ({int(mask.sum())})")
     if sc is not None:
         fig.colorbar(sc, ax=ax, label="ageing time of the phase [s]")
+    outline = pile_outline(run.directory, float(a["head_position_m"][-1]))
+    if outline is not None:
+        lo = min(float(z.min()), outline[0, 1] * 1e3)
+        hi = max(float(z.max()), outline[1, 1] * 1e3)
+        ax.fill_betweenx(outline[:, 1] * 1e3, 0.0, outline[:, 0] * 1e3, color="0.85", zorder=0,
+                         label="the pile")
+        ax.plot(outline[:, 0] * 1e3, outline[:, 1] * 1e3, color="0.4", lw=1.0, zorder=1)
+        margin = 0.05 * (hi - lo)
+        ax.set_ylim(lo - margin, hi + margin)
     ax.set_xlim(left=0.0)
     label_axes(ax, "distance from the pile's axis r [mm]", "z [mm]",
                f"{run.title}: failures while ageing", fontsize=8)
