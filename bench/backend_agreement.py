@@ -1,10 +1,10 @@
 """Do the CPU engine and the device step (its emulation, which has the GPU's bits) agree on the
 triaxial shear, or is one of them biased? Paired runs: each sample seed is prepared once on the
-CPU, then sheared on both backends with the settings of `crushdem-sand reproduce --quick` (500 grains,
-crushdem's set with crushing, sigma_3 = 10 MPa, 100 /s to 15 %); the two runs of a pair drift
-apart by the order of the force sums, as two samples do, so only the mean of many pairs can show
-a bias. Prints each pair and the mean relative difference of q_max and of the plateau (the mean q
-from 5 to 15 % axial strain) with their standard errors (docs/performance.md, "Backends").
+CPU, then sheared on both backends with the settings of `crushdem-sand reproduce --quick` (500
+grains, crushdem's set with crushing, sigma_3 = 10 MPa, 100 /s to 15 %); the two runs of a pair
+drift apart by the order of the force sums, as two samples do, so only the mean of many pairs can
+show a bias. Prints each pair and the mean relative difference of q_max and of the plateau (the mean
+q from 5 to 15 % axial strain) with their standard errors (docs/performance.md, "Backends").
 
     python bench/backend_agreement.py OUT [--seeds 3-26] [--backend emulated]
 

@@ -198,8 +198,8 @@ def document_class(w: Writer, qualname: str, cls: Any) -> None:
     init = vars(cls).get("__init__")
     if init is not None and type(init).__name__ == "nb_method":
         sig, rest = split_native(init.__doc__)
-        w.code([re.sub(r" -> None$", "", re.sub(r"^__init__\(self(, )?", "class " + cls.__name__ + "(", s))
-                for s in sig])
+        opening = "class " + cls.__name__ + "("
+        w.code([re.sub(r" -> None$", "", re.sub(r"^__init__\(self(, )?", opening, s)) for s in sig])
         class_doc = cls.__doc__ or ""
         doc = "\n\n".join(d for d in (inspect.cleandoc(class_doc) if class_doc else "", rest) if d)
         w.text(clean_doc(doc))

@@ -299,3 +299,26 @@ TEST(Crushing, LoadedShareCountsCrushableGrainsNearTheirStrength) {
   EXPECT_EQ(crusher.loaded_share(sim, 1.01 * ratio), 0.0);
   EXPECT_EQ(crusher.loaded_share(sim, 0.0), 1.0);
 }
+
+TEST(Crushing, OverStrengthCountsTheGrainsAlreadyFailing) {
+  // The setting above: the pressed grain's sigma / sigma_lim is known; lowering its strength
+  // below its load puts it over, and the free grain never counts.
+  const double d = 0.21e-3, R = 0.5 * d, delta = 1e-7;
+  Simulation sim(squeeze_config(1e-3, d - 2.0 * delta));
+  sim.add_particle({0.0, 0.0, R - delta}, R);
+  sim.add_particle({-8e-4, -8e-4, R - delta}, 0.7 * R);
+  Crusher crusher(exact_strength(d), SplitPattern::default14());
+  crusher.begin(sim);
+  sim.step();
+  const std::vector<double>& sigma = sim.contact_load().sigma;
+  const std::size_t pressed = sigma[0] > sigma[1] ? 0 : 1;
+  Crusher::OverStrength o = crusher.over_strength(sim);
+  EXPECT_EQ(o.grains, 0u);
+  EXPECT_DOUBLE_EQ(o.max_ratio, sigma[pressed] / 3.75e9);
+  sim.particles().field(crusher.strength_field())[pressed] = 0.5 * sigma[pressed];
+  o = crusher.over_strength(sim);
+  EXPECT_EQ(o.grains, 1u);
+  EXPECT_DOUBLE_EQ(o.max_ratio, 2.0);
+  sim.particles().field(crusher.strength_field())[pressed] = sigma[pressed];  // at it: fails
+  EXPECT_EQ(crusher.over_strength(sim).grains, 1u);
+}

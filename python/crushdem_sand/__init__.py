@@ -24,8 +24,8 @@ A simulation is configured with the same sections and keys as a TOML configurati
 Invalid or unknown keys raise :class:`ConfigError` (a subclass of :class:`ValueError`) with a
 message naming the key, e.g. ``material.shear_modulus``.
 
-Run directories (``crushdem-sand run``, the laboratory functions of :mod:`crushdem_sand.lab`) are read
-with :class:`crushdem_sand.lab.Result`, each table as a pandas DataFrame.
+Run directories (``crushdem-sand run``, the laboratory functions of :mod:`crushdem_sand.lab`) are
+read with :class:`crushdem_sand.lab.Result`, each table as a pandas DataFrame.
 """
 
 from __future__ import annotations
@@ -472,4 +472,5 @@ def _parameter_doc() -> str:
     return "\n".join(lines)
 
 
-Simulation.__doc__ = (Simulation.__doc__ or "") + "\n    Parameter tables:\n\n" + _parameter_doc() + "\n"
+Simulation.__doc__ = ((Simulation.__doc__ or "") + "\n    Parameter tables:\n\n" + _parameter_doc()
+                      + "\n")

@@ -1,13 +1,13 @@
 """The ``crushdem-sand`` command: the C++ command line (run, check, bench, ...) plus ``plot``,
 ``reproduce`` and ``sensitivity``.
 
-``crushdem-sand plot DIR`` draws the time series of a finished run; ``crushdem-sand reproduce --out DIR``
-runs the reference study's section 3 and draws its figures; ``crushdem-sand sensitivity`` measures
-q_max under each uncertain choice of docs/model.md section 5; ``crushdem-sand sweep`` runs many
-variants of one configuration on Dask and ``crushdem-sand calibrate`` fits one or two parameters to
-targets with them; ``crushdem-sand pile`` installs, ages and load-tests a pile at every ageing time
-and fits its set-up; every other command is handed to the same C++ front end as the standalone
-executable.
+``crushdem-sand plot DIR`` draws the time series of a finished run;
+``crushdem-sand reproduce --out DIR`` runs the reference study's section 3 and draws its figures;
+``crushdem-sand sensitivity`` measures q_max under each uncertain choice of docs/model.md section 5;
+``crushdem-sand sweep`` runs many variants of one configuration on Dask and
+``crushdem-sand calibrate`` fits one or two parameters to targets with them; ``crushdem-sand pile``
+installs, ages and load-tests a pile at every ageing time and fits its set-up; every other command
+is handed to the same C++ front end as the standalone executable.
 """
 
 from __future__ import annotations

@@ -58,8 +58,8 @@ def _entry(names: str, description: str) -> str:
 
 class CommandParser(argparse.ArgumentParser):
     """An ``argparse.ArgumentParser`` whose help and errors read as the C++ commands' do:
-    ``crushdem-sand NAME: error: MESSAGE`` and ``Run 'crushdem-sand NAME --help' for the options.``, exit
-    status 2."""
+    ``crushdem-sand NAME: error: MESSAGE`` and ``Run 'crushdem-sand NAME --help' for the options.``,
+    exit status 2."""
 
     def __init__(self, name: str, details: Optional[str] = None) -> None:
         super().__init__(prog=f"{PROG} {name}", description=COMMANDS[name], epilog=details,

@@ -1,8 +1,8 @@
 """Pure analysis of a run's columns (NumPy only, no files, no figures; tested on synthetic
 data): the time series split by stage, the rows whose contact measurements were not computed,
 and relaxation and creep curves, one value per dynamic phase against ageing time. Used by
-:mod:`crushdem_sand.rundir`, the figures (:mod:`crushdem_sand.figures`), ``crushdem-sand reproduce`` and the
-sweep tool.
+:mod:`crushdem_sand.rundir`, the figures (:mod:`crushdem_sand.figures`), ``crushdem-sand reproduce``
+and the sweep tool.
 
 A set of columns is a dict {column name: float64 array}, as :func:`crushdem_sand.rundir.read_csv`
 returns it."""

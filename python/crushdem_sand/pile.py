@@ -1,24 +1,28 @@
-"""``crushdem-sand pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing time
-(docs/pile.md).
+"""``crushdem-sand pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing
+time (docs/pile.md).
 
 CONFIG is a run configuration whose stages are, in order: the installation (one or more
 "penetrate" stages of the pile, and any "hold" after them, the head load taken off, say), the
 ageing ("age" stages, each ending at an ageing time: ``until = 3600.0``, ``86400.0``, ...) and one
-or more "load_test" stages after the last age stage. ``crushdem-sand run CONFIG`` would run those tests
-one after the other on the same pile; ``crushdem-sand pile`` instead tests a fresh copy of the aged
-pile at every ageing time, without running the installation or the ageing again:
+or more "load_test" stages after the last age stage. ``crushdem-sand run CONFIG`` would run those
+tests one after the other on the same pile; ``crushdem-sand pile`` instead tests a fresh copy of the
+aged pile at every ageing time, without running the installation or the ageing again:
 
 * ``DIR/main``: the installation, every age stage and the first load test;
-* ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem-sand run --from``) from the state of
-  DIR/main at the end of age stage i, for every age stage and every load test DIR/main did not
+* ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem-sand run --from``) from the state
+  of DIR/main at the end of age stage i, for every age stage and every load test DIR/main did not
   run; ``DIR/configs/`` holds each run's configuration.
 
 Then ``DIR/pile_capacity.csv`` (a row per load test: the ageing time, the test, its direction, the
 capacity and the shaft and base loads at it, the head displacement there), ``DIR/pile_setup.json``
 (per test, the set-up factor A of Q(t)/Q(t0) = 1 + A log10(t/t0), Skov and Denver 1988, fitted by
 least squares over the ageing times t >= t0 = the first positive one, with its standard error),
-``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem-sand plot``). Called again, finished runs
-are kept, interrupted ones resumed, and the tables redrawn.
+``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem-sand plot``). Called again, finished
+runs are kept, interrupted ones resumed, and the tables redrawn.
+
+``--from RUN[:STAGE]`` branches DIR/main from another run's state (``crushdem-sand run --from``):
+a variant of the unloading, the ageing or the tests starts from an installed pile instead of
+installing it again (CONFIG's stages before STAGE must be the run's).
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 import numpy as np
 
 from ._cli import CommandParser
-from .rundir import read_summary
+from .rundir import read_summary, stages_from_config
 
 
 def fit_setup(t: Sequence[float], Q: Sequence[float], t0: Optional[float] = None
@@ -154,10 +158,38 @@ def capacity_rows(out: str, p: Mapping[str, Any]) -> List[Dict[str, Any]]:
     return rows
 
 
+def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
+    """A DIR/main begun before must have begun as this call says (from ``branch``, or from its
+    own sample); ValueError otherwise, so that one experiment never mixes two origins."""
+    if not os.path.isdir(main_dir) or not os.listdir(main_dir):
+        return
+    path = os.path.join(main_dir, "branch.json")
+    was, b = None, {}
+    if os.path.isfile(path):
+        with open(path) as f:
+            b = json.load(f)
+        was = f"{b.get('run')}:{b.get('stage')}"
+    if branch is None and was is None:
+        return
+    if branch is not None and was is not None:
+        run, _, stage = branch.rpartition(":") if ":" in branch else (branch, "", "")
+        same_run = os.path.realpath(run) == os.path.realpath(str(b.get("run")))
+        if stage and not stage.isdigit():  # a stage's name: its index in RUN
+            names = [s.get("name") or s.get("type") for s in stages_from_config(run)]
+            stage = str(names.index(stage)) if stage in names else stage
+        if same_run and (not stage or stage == str(b.get("stage"))):
+            return
+    raise ValueError(f"{main_dir} was begun " + (f"from {was}" if was else "from its own sample")
+                     + ", not " + (f"from {branch}" if branch else "from its own sample")
+                     + " (--from): use another --out")
+
+
 def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
-         log: Callable[[str], None] = print) -> Dict[str, Any]:
+         log: Callable[[str], None] = print, branch: Optional[str] = None) -> Dict[str, Any]:
     """Runs (or resumes) every run of the pile experiment of ``config_path`` into ``out`` and
-    writes its tables and figures; returns {"capacity": rows, "fits": {test: fit}}."""
+    writes its tables and figures; returns {"capacity": rows, "fits": {test: fit}}. With
+    ``branch`` (RUN[:STAGE]) DIR/main starts from that run's state (``crushdem-sand run
+    --from``) instead of its own sample."""
     from .sweep import run_variant
 
     with open(config_path, "rb") as f:
@@ -171,9 +203,10 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
     main_cfg = os.path.join(out, "configs", "main.toml")
     _write_config(config, p["main"], main_cfg, base_dir)
     main_dir = os.path.join(out, "main")
+    _check_main_origin(main_dir, branch)
     log(f"main: installation, {len(p['ages'])} age stages and load test "
-        f"'{p['test_names'][0]}' in {main_dir}")
-    r = run_variant(main_cfg, main_dir, threads, backend=backend)
+        f"'{p['test_names'][0]}' in {main_dir}" + (f", branched from {branch}" if branch else ""))
+    r = run_variant(main_cfg, main_dir, threads, branch=branch, backend=backend)
     log("main: " + ("finished before" if r.get("skipped") else f"done in {r['wall_s']:.1f} s"))
     for name, stages, from_stage, _, test in p["branches"]:
         cfg_path = os.path.join(out, "configs", name + ".toml")
@@ -240,7 +273,7 @@ def _raise_stop(signum, _frame):
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem-sand pile CONFIG --out DIR [--threads N] [--backend B]``."""
+    """``crushdem-sand pile CONFIG --out DIR [--from RUN[:STAGE]] [--threads N] [--backend B]``."""
     parser = CommandParser("pile", __doc__)
     parser.add_argument("config", metavar="CONFIG",
                         help="the pile's run configuration: installation, age stages, a load test")
@@ -248,6 +281,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="directory for DIR/main, the branches and the set-up fit")
     parser.add_argument("--threads", type=int, default=1, metavar="N",
                         help="threads of each run (they run one after the other)")
+    parser.add_argument("--from", dest="branch", metavar="RUN[:STAGE]",
+                        help="start DIR/main from the state of run RUN at the start of its stage "
+                             "STAGE (index or name; without it, the first stage CONFIG changes): "
+                             "a variant of an installed pile without installing it again")
     parser.add_backend("what advances the runs: cpu (default), cuda or emulated")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
@@ -256,7 +293,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     signal.signal(signal.SIGTERM, _raise_stop)
     try:
-        pile(args.config, args.out, args.threads, args.backend, log)
+        pile(args.config, args.out, args.threads, args.backend, log, branch=args.branch)
     except _Stop as e:
         return 128 + int(e.args[0])
     except KeyboardInterrupt:

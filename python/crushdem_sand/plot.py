@@ -180,8 +180,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"crushdem-sand plot: error: {e}", file=sys.stderr)
         return 2
     if not written:
-        print(f"crushdem-sand plot: {os.path.join(args.dir, 'timeseries.csv')} has no column to plot",
-              file=sys.stderr)
+        series = os.path.join(args.dir, "timeseries.csv")
+        print(f"crushdem-sand plot: {series} has no column to plot", file=sys.stderr)
         return 1
     for path in written:
         print(path)

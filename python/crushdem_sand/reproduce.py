@@ -12,13 +12,13 @@ theory", section 3; docs/model.md 4.4 and 4.5) has one sample and three tests:
   held (lateral walls servo-controlled at 10 MPa during dynamic phases) for one day of ageing.
 
 Each run is an ordinary run directory under DIR (``sample/``, ``oedometric_relaxation/``,
-``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem_sand.lab`, so
-``crushdem-sand plot DIR/<run>`` works on each. A run whose directory already holds ``summary.json``
-(written last, when a run finishes) is not run again: a re-invocation after an interruption goes
-on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one that left
-none starts over). ``DIR/settings.json`` records the settings of the first invocation; a later
-one with other settings (``--quick`` against the study scale, another ``--sample``) stops rather
-than mixing results.
+``triaxial_shear/``, ``triaxial_relaxation/``), made by the functions of :mod:`crushdem_sand.lab`,
+so ``crushdem-sand plot DIR/<run>`` works on each. A run whose directory already holds
+``summary.json`` (written last, when a run finishes) is not run again: a re-invocation after an
+interruption goes on where it stopped (an interrupted run continues from its ``checkpoint.bin``; one
+that left none starts over). ``DIR/settings.json`` records the settings of the first invocation; a
+later one with other settings (``--quick`` against the study scale, another ``--sample``) stops
+rather than mixing results.
 
 Figures (PNG, with the CSV of what each draws; ``#`` lines at the top of a CSV say how it was
 computed), all against the ageing time t (the relaxation clock, off-DEM jumps only) on a log axis,
@@ -51,9 +51,10 @@ Threads: ``--threads`` sets the OpenMP thread count of the engine (``crushdem_sa
 each run's ``timing.json`` records the count used. Results do not depend on it.
 
 This module is the command: its options and the tables it prints. The recipes are
-:mod:`crushdem_sand.study`, the runs and the files they leave :mod:`crushdem_sand.study_pipeline`, the
-numbers :mod:`crushdem_sand.study_analysis` (one reproduction) and :mod:`crushdem_sand.study_summary`
-(``--summarize``, ``--against``), the figures :mod:`crushdem_sand.figures.study`.
+:mod:`crushdem_sand.study`, the runs and the files they leave :mod:`crushdem_sand.study_pipeline`,
+the numbers :mod:`crushdem_sand.study_analysis` (one reproduction) and
+:mod:`crushdem_sand.study_summary` (``--summarize``, ``--against``), the figures
+:mod:`crushdem_sand.figures.study`.
 """
 
 from __future__ import annotations

@@ -3,8 +3,9 @@
 A run directory holds ``config.toml`` (written when the run starts), ``timeseries.csv``,
 ``summary.json`` (written when it ends), and, depending on the run, ``events.csv`` and
 ``phases.csv`` (age stages), ``penetration.csv`` and ``shaft_profile.csv`` (penetrate
-stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and ``timing.json``; docs/configuration.md lists their columns. Every reader here returns an empty
-or ``None`` result for a file that is missing, so a run still going can be read too.
+stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and ``timing.json``;
+docs/configuration.md lists their columns. Every reader here returns an empty or ``None`` result for
+a file that is missing, so a run still going can be read too.
 
 :func:`read_run` reads everything the figures need into one :class:`RunData`.
 """
@@ -131,18 +132,23 @@ def is_being_written(run_dir: PathLike) -> bool:
     return False
 
 
-def stages_from_config(run_dir: PathLike) -> List[Dict[str, Any]]:
-    """The stages (type and name) of DIR/config.toml, which a run writes when it starts: the
-    stage types for a run still going or stopped before summary.json exists. [] when the file
-    is missing, unreadable or has no [[stage]]."""
+def read_config(run_dir: PathLike) -> Dict[str, Any]:
+    """DIR/config.toml (the resolved configuration a run writes when it starts) as a dict; {}
+    when it is missing or unreadable."""
     import tomllib
 
     try:
         with open(os.path.join(run_dir, "config.toml"), "rb") as f:
-            cfg = tomllib.load(f)
+            return tomllib.load(f)
     except (OSError, ValueError):
-        return []
-    listed = cfg.get("stage")
+        return {}
+
+
+def stages_from_config(run_dir: PathLike) -> List[Dict[str, Any]]:
+    """The stages (type and name) of DIR/config.toml, which a run writes when it starts: the
+    stage types for a run still going or stopped before summary.json exists. [] when the file
+    is missing, unreadable or has no [[stage]]."""
+    listed = read_config(run_dir).get("stage")
     if not isinstance(listed, list):
         return []
     return [{"type": st.get("type"), "name": st.get("name")} for st in listed

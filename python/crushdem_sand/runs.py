@@ -1,6 +1,6 @@
-"""Run-or-resume: the step of a pipeline (``crushdem-sand reproduce``, ``crushdem-sand sensitivity``) that
-runs one test into its own run directory, unless it has finished, and continues it from its
-checkpoint when an earlier call was interrupted."""
+"""Run-or-resume: the step of a pipeline (``crushdem-sand reproduce``,
+``crushdem-sand sensitivity``) that runs one test into its own run directory, unless it has
+finished, and continues it from its checkpoint when an earlier call was interrupted."""
 
 from __future__ import annotations
 
@@ -39,9 +39,10 @@ def run_step(name: str, run_dir: str, start: Callable[[], Any], log: Callable[[s
 
     An interrupted run that left ``checkpoint.bin`` is continued with ``resume`` instead of
     being started over; if that fails (e.g. the checkpoint belongs to another build), or
-    ``resume`` is None (explicitly: nothing can resume this run), the run starts over. A run that another process is writing (DIR/.lock held) raises
-    RuntimeError: it is neither resumed nor removed. progress: passed to ``resume`` (the
-    engine's progress lines); ``start`` chooses its own.
+    ``resume`` is None (explicitly: nothing can resume this run), the run starts over. A run that
+    another process is writing (DIR/.lock held) raises RuntimeError: it is neither resumed nor
+    removed. progress: passed to ``resume`` (the engine's progress lines); ``start`` chooses its
+    own.
     """
     if is_finished(run_dir):
         log(f"{name}: {run_dir} has finished (summary.json): not run again")

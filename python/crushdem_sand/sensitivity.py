@@ -10,11 +10,11 @@ The variants are a preset sweep (``crushdem-sand sweep``): ``DIR/sensitivity_bas
 on the sample, ``DIR/sensitivity_sweep.toml`` names each variant as a ``[[variant]]`` with the
 keys it changes, and the sweep runs them as Dask tasks, ``--workers`` at a time (default: the
 cores divided by ``--threads``), into ``DIR/runs/<variant>/`` (a run directory each), with
-the sweep's ``DIR/results.csv`` beside the sensitivity tables. Writes ``DIR/qmax_sensitivity.csv`` and
-``DIR/qmax_sensitivity.md`` (q_max, q_max / sigma_3, the axial strain at q_max, the peak friction
-angle, breakages, B_r, grains and wall-clock time per variant, and which comes closest to the
-study's 22.6 MPa) and ``DIR/sensitivity.json`` (the settings). A variant that has finished is not
-run again and an interrupted one resumes from its checkpoint, so the command can be repeated
+the sweep's ``DIR/results.csv`` beside the sensitivity tables. Writes ``DIR/qmax_sensitivity.csv``
+and ``DIR/qmax_sensitivity.md`` (q_max, q_max / sigma_3, the axial strain at q_max, the peak
+friction angle, breakages, B_r, grains and wall-clock time per variant, and which comes closest to
+the study's 22.6 MPa) and ``DIR/sensitivity.json`` (the settings). A variant that has finished is
+not run again and an interrupted one resumes from its checkpoint, so the command can be repeated
 until every variant is done, or run on several machines with ``--only``. Variant directories
 directly under ``DIR`` (an older layout) are read as well.
 

@@ -1,8 +1,9 @@
 """The pipeline of ``crushdem-sand reproduce``: the study's runs (the recipes of
-:mod:`crushdem_sand.study`, each run by a function of :mod:`crushdem_sand.lab` into a run directory of its
-own, skipped when finished and resumed when interrupted: :func:`crushdem_sand.runs.run_step`), then
-what a reproduction directory holds: the study's figures (:mod:`crushdem_sand.figures.study`), each PNG
-with the CSV of what it draws (:mod:`crushdem_sand.study_analysis`), and ``reproduce.json``."""
+:mod:`crushdem_sand.study`, each run by a function of :mod:`crushdem_sand.lab` into a run directory
+of its own, skipped when finished and resumed when interrupted:
+:func:`crushdem_sand.runs.run_step`), then what a reproduction directory holds: the study's figures
+(:mod:`crushdem_sand.figures.study`), each PNG with the CSV of what it draws
+(:mod:`crushdem_sand.study_analysis`), and ``reproduce.json``."""
 
 from __future__ import annotations
 

@@ -4,7 +4,8 @@ A sweep file names a base configuration and the values to vary::
 
     base = "relaxation_small.toml"      # relative to the sweep file
     from = "runs/loaded:relaxation"     # optional: every variant branches from this run's
-                                        # state at the start of that stage (crushdem-sand run --from)
+                                        # state at the start of that stage
+                                        # (crushdem-sand run --from)
     [vary]                              # combined as a product
     "contact.rolling_friction" = [0.1, 0.3]
     "crushing.seed" = [1, 2, 3]
@@ -188,8 +189,8 @@ def set_dotted(cfg: Dict[str, Any], key: str, value: Any, check_only: bool = Fal
         else:
             named = [st for st in stages if st.get("name") == which]
             if not named:
-                raise ValueError(f"'{key}': no stage '{which}' (stages: "
-                                 f"{', '.join(str(st.get('name', i)) for i, st in enumerate(stages))})")
+                names = ", ".join(str(st.get("name", i)) for i, st in enumerate(stages))
+                raise ValueError(f"'{key}': no stage '{which}' (stages: {names})")
             target = named[0]
         if not check_only:
             target[parts[2]] = value
@@ -273,7 +274,8 @@ def run_variant(config_path: str, run_dir: str, threads: int,
     deadline = t0 + LOCK_WAIT_S
     while True:
         p = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=_die_with_parent)
-        if p.returncode == 2 and "another crushdem-sand run" in p.stderr and time.perf_counter() < deadline:
+        locked = p.returncode == 2 and "another crushdem-sand run" in p.stderr
+        if locked and time.perf_counter() < deadline:
             time.sleep(1.0)
             continue
         break

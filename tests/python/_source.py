@@ -1,6 +1,6 @@
 """The Python modules of the checkout, for tests that must follow the source without a rebuild:
-python/crushdem_sand/<name>.py (or the subpackage python/crushdem_sand/<name>/, or a dotted name such as
-``figures.study``) imported as a module of a stand-in package (so that its relative imports
+python/crushdem_sand/<name>.py (or the subpackage python/crushdem_sand/<name>/, or a dotted name
+such as ``figures.study``) imported as a module of a stand-in package (so that its relative imports
 resolve in the source tree too, without the package __init__ and its compiled _core); the
 installed crushdem_sand module where this file does not sit in a checkout."""
 

@@ -22,8 +22,8 @@ MIN_CYCLES = tomllib.loads(CONFIG)["stage"][1]["min_cycles"]  # of each dynamic 
 
 
 def crushdem(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "crushdem_sand", *args], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True, **kw)
+    return subprocess.Popen([sys.executable, "-m", "crushdem_sand", *args],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, **kw)
 
 
 def mid_phase(run_dir):

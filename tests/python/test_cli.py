@@ -1,7 +1,7 @@
-"""The ``crushdem-sand`` console command (python/crushdem_sand/__main__.py): every command, the Python ones
-(plot, reproduce, sensitivity) and the C++ ones (run, resume, check, bench), answers -h/--help
-with its usage and exit status 0, and --version works after any command; ``--backend`` names
-the backends, refuses others, and the emulated device follows the CPU to rounding."""
+"""The ``crushdem-sand`` console command (python/crushdem_sand/__main__.py): every command, the
+Python ones (plot, reproduce, sensitivity) and the C++ ones (run, resume, check, bench), answers
+-h/--help with its usage and exit status 0, and --version works after any command; ``--backend``
+names the backends, refuses others, and the emulated device follows the CPU to rounding."""
 
 import csv
 import os

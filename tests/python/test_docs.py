@@ -1,8 +1,8 @@
 """The documentation stays true to the code: docs/api.md is what scripts/api_reference.py
 generates from the docstrings, every relative link in the Markdown files leads to a file (and
 heading) that exists, every path to a page or an example named in their text exists, every
-example configuration passes `crushdem-sand check`, and the README's first Python example prints what
-the README says it prints. All fast: the one thing run is that example (27 grains, a tenth of a
+example configuration passes `crushdem-sand check`, and the README's first Python example prints
+what the README says it prints. All fast: the one thing run is that example (27 grains, a tenth of a
 second)."""
 
 import glob

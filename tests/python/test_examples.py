@@ -1,5 +1,5 @@
-"""Every configuration in examples/ passes `crushdem-sand check`: the examples are the documented way
-in, and a renamed or retyped key must not leave one of them failing at its first run (hours
+"""Every configuration in examples/ passes `crushdem-sand check`: the examples are the documented
+way in, and a renamed or retyped key must not leave one of them failing at its first run (hours
 later, for the study-scale ones)."""
 
 import glob

@@ -239,7 +239,7 @@ def test_a_negative_hold_is_refused(tmp_path):
         lab.triaxial_test(tmp_path / "t", str(tmp_path / "none.txt"), sigma_3=1e6, hold_steps=2.5)
 
 
-# --- crushdem_sand.lab.Result: a run directory's tables as DataFrames --------------------------------
+# --- crushdem_sand.lab.Result: a run directory's tables as DataFrames -----------------------------
 
 def _write(path, text):
     path.write_text(text)

@@ -74,7 +74,8 @@ def _python(code, *args):
 
 
 def test_importing_crushdem_imports_no_optional_package():
-    r = _python("import crushdem_sand, crushdem_sand.lab, crushdem_sand.rundir, crushdem_sand.runs, sys; "
+    r = _python("import crushdem_sand, crushdem_sand.lab, crushdem_sand.rundir, "
+                "crushdem_sand.runs, sys; "
                 f"print([m for m in {OPTIONAL!r} if m in sys.modules])")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"
@@ -83,10 +84,12 @@ def test_importing_crushdem_imports_no_optional_package():
 # Each command with a missing optional package: exit status 2 before it runs anything, and the
 # package and the pip command of its extra on stderr.
 @pytest.mark.parametrize("missing, command, message", [
-    ("matplotlib", "plot", 'crushdem-sand plot needs matplotlib: pip install "crushdem-sand[plot]"'),
+    ("matplotlib", "plot",
+     'crushdem-sand plot needs matplotlib: pip install "crushdem-sand[plot]"'),
     ("matplotlib", "reproduce",
      'crushdem-sand reproduce needs matplotlib: pip install "crushdem-sand[plot]"'),
-    ("distributed", "sweep", 'crushdem-sand sweep needs distributed: pip install "crushdem-sand[sweep]"'),
+    ("distributed", "sweep",
+     'crushdem-sand sweep needs distributed: pip install "crushdem-sand[sweep]"'),
     ("scipy", "calibrate",
      'crushdem-sand calibrate needs scipy: pip install "crushdem-sand[calibrate]"'),
 ])

@@ -114,6 +114,22 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
     with pytest.raises(ValueError, match="holds another configuration"):
         pile.pile(str(cfg), str(out), log=lambda s: None)
 
+    # --from: that variant (the ageing changed) branched from the installed pile of the first.
+    variant = tmp_path / "variant"
+    r2 = pile.pile(str(cfg), str(variant), log=lambda s: None, branch=f"{out / 'main'}:age_1h")
+    branch = json.load(open(variant / "main" / "branch.json"))
+    assert os.path.realpath(branch["run"]) == os.path.realpath(out / "main")
+    assert branch["stage"] == 2  # install, unload, then the first age stage
+    # The installation is the first run's, to the byte; the ageing (n_break 3) is its own.
+    for name in ("penetration.csv", "shaft_profile.csv"):
+        assert (variant / "main" / name).read_bytes() == (out / "main" / name).read_bytes()
+    assert [row["ageing_time_s"] for row in r2["capacity"]] == [3600.0, 86400.0]
+    assert json.load(open(variant / "main" / "summary.json"))["stages"][2]["type"] == "age"
+    # Called again with another origin, or none, it refuses rather than mix two origins.
+    for other in (None, f"{out / 't0_compression'}:0"):
+        with pytest.raises(ValueError, match="was begun from"):
+            pile.pile(str(cfg), str(variant), log=lambda s: None, branch=other)
+
 
 def test_the_ring_profile_averages_the_slices_per_event_and_ring():
     rings = {"ageing_time_s": np.array([0, 0, 0, 0, 5, 5, 5, 5], float),

@@ -1,11 +1,12 @@
-"""Tests of ``crushdem-sand plot`` (python/crushdem_sand/plot.py) on small synthetic run directories: which
-figures a run gets, what each draws (its lines read back from the matplotlib Figure against the
-run's time series, events.csv, grading.csv and summary.json), and that the PNGs show a drawing.
+"""Tests of ``crushdem-sand plot`` (python/crushdem_sand/plot.py) on small synthetic run
+directories: which figures a run gets, what each draws (its lines read back from the matplotlib
+Figure against the run's time series, events.csv, grading.csv and summary.json), and that the PNGs
+show a drawing.
 
 Run with `python -m pytest tests/python` after `pip install .`. The plotting module needs only
-NumPy and Matplotlib, not the compiled ``crushdem_sand._core``: when this file sits in the source tree
-the module is loaded from python/crushdem_sand/plot.py (so the tests follow the checkout without a
-rebuild), otherwise from the installed package.
+NumPy and Matplotlib, not the compiled ``crushdem_sand._core``: when this file sits in the source
+tree the module is loaded from python/crushdem_sand/plot.py (so the tests follow the checkout
+without a rebuild), otherwise from the installed package.
 """
 
 import csv
@@ -1029,7 +1030,21 @@ def test_log_time_axes_label_the_minor_ticks_only_when_they_have_room():
         major = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
         assert bool(minor) == labelled, (span, minor)
         assert "100" in major, major
+        # A month of ageing in seconds: 10^6, not Python's 1e+06.
+        assert not any("e+" in t for t in major + minor), major
+        if span[1] >= 1e6:
+            assert "$10^{6}$" in major, major
         plt.close(fig)
+
+
+def test_tick_numbers_are_plain_to_1e5_and_powers_of_ten_beyond():
+    from crushdem_sand.figures.common import tick_number
+
+    assert [tick_number(v) for v in (0.0, 0.001, 0.2, 3600.0, 86400.0)] == [
+        "0", "0.001", "0.2", "3600", "86400"]
+    assert tick_number(1e6) == "$10^{6}$"
+    assert tick_number(2.592e6) == "$2.59\\times10^{6}$"
+    assert tick_number(1e-5) == "$10^{-5}$"
 
 
 def test_a_chamber_at_rest_draws_its_stress_profile_with_depth(tmp_path):

@@ -1,4 +1,5 @@
-"""Tests of the Python front end (run with `python -m pytest tests/python` after `pip install .`)."""
+"""Tests of the Python front end (run with `python -m pytest tests/python` after
+`pip install .`)."""
 
 import math
 import os
@@ -256,7 +257,8 @@ def test_value_conversion():
     with pytest.raises(ValueError, match="material.density"):
         crushdem_sand.Simulation(material={"density": object()}, box=BOX)
     with pytest.raises(ValueError):
-        crushdem_sand.Simulation(neighbor={"sort_particles": 1}, box=BOX)  # an integer is not a boolean
+        # an integer is not a boolean
+        crushdem_sand.Simulation(neighbor={"sort_particles": 1}, box=BOX)
     with pytest.raises(ValueError, match="neighbor.prune"):
         crushdem_sand.Simulation(neighbor={"prune": "yes"}, box=BOX)
 
@@ -373,8 +375,9 @@ def test_plot_writes_png(tmp_path):
         assert f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(f) in res.stdout
 
-    missing = subprocess.run([sys.executable, "-m", "crushdem_sand", "plot", str(tmp_path / "nope")],
-                             capture_output=True, text=True)
+    missing = subprocess.run(
+        [sys.executable, "-m", "crushdem_sand", "plot", str(tmp_path / "nope")],
+        capture_output=True, text=True)
     assert missing.returncode == 2 and "timeseries.csv" in missing.stderr
 
 
@@ -772,7 +775,8 @@ def test_add_particles_refuses_what_the_sample_reader_refuses():
     sim.add_particles(np.array([[5e-4, 5e-4, 5e-4]]), np.array([1e-4]))
     with pytest.raises(crushdem_sand.ConfigError, match="grain id 0 and new grain 0"):
         sim.add_particle([5e-4, 5e-4, 5e-4], 1e-4)
-    with pytest.raises(crushdem_sand.ConfigError, match="new grain 0 and new grain 1 overlap by 175 %"):
+    with pytest.raises(crushdem_sand.ConfigError,
+                       match="new grain 0 and new grain 1 overlap by 175 %"):
         sim.add_particles(np.array([[2e-4, 2e-4, 2e-4], [2.25e-4, 2e-4, 2e-4]]),
                           np.array([1e-4, 1e-4]))
     assert sim.num_particles == 1

@@ -1,13 +1,13 @@
-"""Tests of ``crushdem-sand reproduce``: its recipes (python/crushdem_sand/study.py), the analysis of its
-runs (study_analysis.py, study_summary.py), its figures (figures/study.py), its pipeline
+"""Tests of ``crushdem-sand reproduce``: its recipes (python/crushdem_sand/study.py), the analysis
+of its runs (study_analysis.py, study_summary.py), its figures (figures/study.py), its pipeline
 (study_pipeline.py) and the command (reproduce.py).
 
 The figure and CSV code is tested on synthetic events.csv / phases.csv files with known answers
 (the 4 s normalisation, the log-t fit), and each figure against the CSV written beside it; it
 needs only NumPy and Matplotlib, and is loaded from python/crushdem_sand when this file sits in the
 source tree (so the tests follow the checkout without a rebuild), otherwise from the installed
-package. One end-to-end ``crushdem-sand reproduce --quick`` runs the real pipeline (about two minutes
-on one core).
+package. One end-to-end ``crushdem-sand reproduce --quick`` runs the real pipeline (about two
+minutes on one core).
 """
 
 import csv
@@ -730,7 +730,8 @@ def test_set_overrides_change_settings_and_name_what_is_wrong():
     with pytest.raises(ValueError, match="unknown key 'cycles' in 'age'"):
         study.apply_overrides(study.settings(quick=True), ["age.cycles=1"])
     # another sample of the same recipe: its seed, and nothing the recipe lacks
-    assert study.apply_overrides(study.settings(quick=False), ["sample.seed=2"])["sample"]["seed"] == 2
+    seeded = study.apply_overrides(study.settings(quick=False), ["sample.seed=2"])
+    assert seeded["sample"]["seed"] == 2
     with pytest.raises(ValueError, match="unknown key 'seeds' in 'sample'"):
         study.apply_overrides(study.settings(quick=False), ["sample.seeds=2"])
 

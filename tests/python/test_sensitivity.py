@@ -1,6 +1,6 @@
-"""Tests of ``crushdem-sand sensitivity`` (python/crushdem_sand/sensitivity.py): each variant changes one
-choice only, every variant is a valid configuration, and the table reads finished runs (here
-synthetic run directories with known figures) and names the one closest to the study."""
+"""Tests of ``crushdem-sand sensitivity`` (python/crushdem_sand/sensitivity.py): each variant
+changes one choice only, every variant is a valid configuration, and the table reads finished runs
+(here synthetic run directories with known figures) and names the one closest to the study."""
 
 import csv
 import json
@@ -21,7 +21,8 @@ def test_each_variant_changes_one_choice_only():
     assert base["crushing"]["crack_growth"] is False
     for name, (_, contact, crushing) in sensitivity.VARIANTS.items():
         s = sensitivity.variant_settings(base, name)
-        changed = {("contact", k) for k in s["contact"] if s["contact"][k] != base["contact"].get(k)}
+        changed = {("contact", k) for k in s["contact"]
+                   if s["contact"][k] != base["contact"].get(k)}
         changed |= {("crushing", k) for k in s["crushing"]
                     if s["crushing"][k] != base["crushing"].get(k)}
         assert changed == {("contact", k) for k in contact} | {("crushing", k) for k in crushing}

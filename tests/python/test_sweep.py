@@ -1,7 +1,7 @@
-"""``crushdem-sand sweep`` (python/crushdem_sand/sweep.py) on a local Dask cluster of 2 workers, with the
-64-grain lattice of tests/data (a run takes a second or two): the table equals the runs made one
-by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again completes with the same
-results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
+"""``crushdem-sand sweep`` (python/crushdem_sand/sweep.py) on a local Dask cluster of 2 workers,
+with the 64-grain lattice of tests/data (a run takes a second or two): the table equals the runs
+made one by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again completes with the
+same results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
 and a worker started here."""
 
 import json

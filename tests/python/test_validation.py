@@ -50,7 +50,8 @@ def _reproduce_settings():
 def test_n_break_10_and_30_give_the_same_oedometric_relaxation():
     from crushdem_sand import lab
     from crushdem_sand import study_pipeline as pipeline
-    from crushdem_sand.analysis import N_BREAK_TOLERANCE, age_rows, compare_relaxation, vertical_stress
+    from crushdem_sand.analysis import (N_BREAK_TOLERANCE, age_rows, compare_relaxation,
+                                        vertical_stress)
     from crushdem_sand.rundir import read_events
     from crushdem_sand.runs import run_step
 

@@ -1,5 +1,5 @@
-"""The figures of ageing (``crushdem-sand plot``; events.csv, one point per dynamic phase against the
-ageing time on a log axis): the vertical stress relaxation or creep with q and the axial strain,
+"""The figures of ageing (``crushdem-sand plot``; events.csv, one point per dynamic phase against
+the ageing time on a log axis): the vertical stress relaxation or creep with q and the axial strain,
 the contact forces, and the breakages."""
 
 from __future__ import annotations

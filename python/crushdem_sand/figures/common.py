@@ -1,9 +1,10 @@
 """What the figures of :mod:`crushdem_sand.figures` share: how a run is given (a directory or its
-:class:`~crushdem_sand.rundir.RunData`), pyplot imported when a figure is drawn (never on import, and
-under whatever backend is in use), the legend, log-tick, time-mark and colour helpers."""
+:class:`~crushdem_sand.rundir.RunData`), pyplot imported when a figure is drawn (never on import,
+and under whatever backend is in use), the legend, log-tick, time-mark and colour helpers."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -76,8 +77,19 @@ def label_axes(ax: Axes, x_label: str, y_label: str, title: str, **legend: Any) 
         unique_legend(ax, **legend)
 
 
+def tick_number(v: float) -> str:
+    """A tick label: plain from 1e-4 to 1e5 (0.001, 0.2, 3600, 86400), else a power of ten in
+    mathtext ($10^{6}$, $2.6\\times10^{6}$) instead of Python's 1e+06."""
+    if v == 0 or 1e-4 <= abs(v) < 1e5:
+        return f"{v:g}"
+    e = int(math.floor(math.log10(abs(v)) + 1e-9))
+    m = float(f"{v / 10.0 ** e:.3g}")
+    return f"$10^{{{e}}}$" if m == 1.0 else f"${m:g}\\times10^{{{e}}}$"
+
+
 def plain_log_ticks(ax: Axes) -> None:
-    """Tick labels of a log x axis as plain numbers (0.1, 0.2, 1) instead of powers of ten."""
+    """Tick labels of a log x axis as plain numbers (0.1, 0.2, 1) instead of powers of ten,
+    up to 1e5; beyond it as $10^{6}$ (tick_number)."""
     from matplotlib.ticker import FuncFormatter
 
     def minor(v: float, _pos: int) -> str:
@@ -85,9 +97,9 @@ def plain_log_ticks(ax: Axes) -> None:
         # their labels (20000, 50000, 100000) run into each other.
         lo, hi = sorted(ax.get_xlim())
         narrow = lo > 0 and hi / lo <= 10 ** 2.05
-        return f"{v:g}" if narrow and f"{v:.0e}"[0] in "25" else ""
+        return tick_number(v) if narrow and f"{v:.0e}"[0] in "25" else ""
 
-    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: tick_number(v)))
     ax.xaxis.set_minor_formatter(FuncFormatter(minor))
 
 

@@ -1,8 +1,8 @@
-"""The figures of a pile's ageing (``crushdem-sand plot`` of a run whose "age" stages name a pile, and
-``crushdem-sand pile``; docs/pile.md): the radial stress on the shaft by depth against ageing time, the
-radial and hoop stress in rings of grains about the shaft, the contact forces near the shaft, where
-grains failed while the sand aged, and the capacities of the load tests against ageing time with
-the fitted set-up factor. They read DIR/pile_ageing.csv, pile_shaft.csv, pile_rings.csv,
+"""The figures of a pile's ageing (``crushdem-sand plot`` of a run whose "age" stages name a pile,
+and ``crushdem-sand pile``; docs/pile.md): the radial stress on the shaft by depth against ageing
+time, the radial and hoop stress in rings of grains about the shaft, the contact forces near the
+shaft, where grains failed while the sand aged, and the capacities of the load tests against ageing
+time with the fitted set-up factor. They read DIR/pile_ageing.csv, pile_shaft.csv, pile_rings.csv,
 phases.csv and breakage.csv."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Dict, Mapping, Optional
 
 import numpy as np
 
-from ..rundir import Columns, read_run_table
+from ..rundir import Columns, read_config, read_run_table
 from .common import AGEING_TIME_LABEL, Run, as_run, label_axes, plain_log_ticks, pyplot
 
 if TYPE_CHECKING:
@@ -181,13 +181,7 @@ def pile_outline(run_dir: str, head_position_m: float) -> Optional[np.ndarray]:
     pile's top, from its [[body]] (origin, axis, direction, radius, length, half_angle, tip).
     None for a run without such a pile, or one whose axis is not the z axis (the figure's r is
     the distance from the z axis)."""
-    import tomllib
-
-    try:
-        with open(os.path.join(run_dir, "config.toml"), "rb") as f:
-            cfg = tomllib.load(f)
-    except (OSError, ValueError):
-        return None
+    cfg = read_config(run_dir)
     names = {st.get("body") for st in cfg.get("stage", []) if isinstance(st, dict)
              and st.get("type") == "age"}
     bodies = [b for b in cfg.get("body", []) if isinstance(b, dict) and b.get("name") in names
@@ -261,8 +255,8 @@ def figure_pile_breakage(run: Run) -> Optional[Figure]:
 
 def figure_pile_setup(table: Mapping[str, Any], fits: Mapping[str, Mapping[str, float]],
                       title: str = "") -> Optional[Figure]:
-    """pile_setup.png (``crushdem-sand pile``): each load test's capacity over its value at the first
-    ageing time against ageing time (log axis), with the fitted Q(t)/Q(t0) = 1 + A log10(t/t0)
+    """pile_setup.png (``crushdem-sand pile``): each load test's capacity over its value at the
+    first ageing time against ageing time (log axis), with the fitted Q(t)/Q(t0) = 1 + A log10(t/t0)
     (Skov and Denver 1988) and A with its standard error; table: columns ``test``,
     ``ageing_time_s``, ``capacity_N``; fits: test -> {A, A_std, Q0_N, t0_s}."""
     tests = list(dict.fromkeys(table["test"]))

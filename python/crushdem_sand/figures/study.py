@@ -1,7 +1,7 @@
-"""The reference study's four figures (``crushdem-sand reproduce``), one point per dynamic phase (the
-study's red dots) against the ageing time t (the relaxation clock, off-DEM jumps only) on a log
-axis. Each draws the table of :mod:`crushdem_sand.study_analysis` that ``crushdem-sand reproduce`` writes
-beside it as CSV, so the figure and its CSV hold the same numbers."""
+"""The reference study's four figures (``crushdem-sand reproduce``), one point per dynamic phase
+(the study's red dots) against the ageing time t (the relaxation clock, off-DEM jumps only) on a log
+axis. Each draws the table of :mod:`crushdem_sand.study_analysis` that ``crushdem-sand reproduce``
+writes beside it as CSV, so the figure and its CSV hold the same numbers."""
 
 from __future__ import annotations
 
@@ -76,8 +76,8 @@ def figure_oedometric_relaxation(run: Run) -> Optional[Figure]:
 
 def figure_dynamic_phase(run: Run, phase: int = FIG2_PHASE) -> Optional[Figure]:
     """fig2_dynamic_phase4.png: during dynamic phase ``phase`` (0-based: the study's 4th) of the
-    triaxial relaxation (:func:`crushdem_sand.study_analysis.dynamic_phase`, from phases.csv), (a) the
-    confining pressure fluctuation and (b) the volumetric strain generated [%], against the
+    triaxial relaxation (:func:`crushdem_sand.study_analysis.dynamic_phase`, from phases.csv), (a)
+    the confining pressure fluctuation and (b) the volumetric strain generated [%], against the
     cycles of the phase. None without phases.csv or without that phase."""
     data = dynamic_phase(run_directory(run), phase)
     if "skipped" in data.numbers:

@@ -208,6 +208,20 @@ double Crusher::loaded_share(const Simulation& sim, double ratio) const {
   return crushable ? static_cast<double>(above) / static_cast<double>(crushable) : 0.0;
 }
 
+Crusher::OverStrength Crusher::over_strength(const Simulation& sim) const {
+  const ParticleStore& p = sim.particles();
+  const ContactLoad& load = sim.contact_load();
+  const std::vector<double>& strength = p.field(strength_field_);
+  OverStrength out;
+  if (load.sigma.size() != p.size()) return out;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (2.0 * p.radius[i] < d_c_) continue;
+    out.max_ratio = std::max(out.max_ratio, load.sigma[i] / strength[i]);
+    if (load.sigma[i] >= strength[i]) ++out.grains;
+  }
+  return out;
+}
+
 double Crusher::fragment_density(double d) const {
   if (!cfg_.density_scaling || d >= d_ref_) return rho_;
   return rho_ * (d_ref_ / d) * (d_ref_ / d);

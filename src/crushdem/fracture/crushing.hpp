@@ -113,6 +113,14 @@ class Crusher {
   /// of their strength at the current contact load: at n = 60 the grains above about 0.72 are
   /// those that can fail by crack growth within a day (docs/model.md 3).
   double loaded_share(const Simulation& sim, double ratio) const;
+  /// The crushable grains at or over their strength (sigma >= sigma_lim) at the current
+  /// contact load, and the largest sigma / sigma_lim among all crushable grains: at the start of
+  /// a test, the grains a sample prepared without crushing hands over already failing.
+  struct OverStrength {
+    std::size_t grains = 0;
+    double max_ratio = 0.0;
+  };
+  OverStrength over_strength(const Simulation& sim) const;
 
   double d0() const { return d0_; }
   double d_c() const { return d_c_; }

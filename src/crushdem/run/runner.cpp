@@ -461,9 +461,27 @@ class Run {
         // Tracking the contact loads invalidates the forces: evaluate them now (as the first
         // step would) so that the test's first row measures the contacts, not an empty list.
         sim_->compute_forces();
+        warn_about_over_strength();
       }
     }
     if (crusher_) sieves_ = grading_sieves(*crusher_);
+  }
+
+  // A sample is prepared without crushing, so at a high stress some grains may start the test
+  // over their strength: the first crushing check breaks them before the test has loaded them.
+  void warn_about_over_strength() {
+    const Crusher::OverStrength o = crusher_->over_strength(*sim_);
+    if (o.grains == 0) return;
+    char b[400];
+    std::snprintf(
+        b, sizeof b,
+        "%zu grain%s of the sample %s at or over %s strength when the test starts (up "
+        "to %.3g times it): the first crushing check breaks %s, before the test loads "
+        "the sample (samples are prepared without crushing: docs/configuration.md [crushing])",
+        o.grains, o.grains == 1 ? "" : "s", o.grains == 1 ? "is" : "are",
+        o.grains == 1 ? "its" : "their", o.max_ratio, o.grains == 1 ? "it" : "them");
+    pos_.warnings.emplace_back(b);
+    driver_->say(std::string("warning: ") + b);
   }
 
   void warn_about_timestep() {
