@@ -10,7 +10,8 @@ import argparse
 import sys
 from typing import NoReturn, Optional
 
-# The command's name: the C++ front end's (src/crushdem/cli/cli.hpp: kCommand, kAliasNote).
+# The command's name: the C++ front end's (src/crushdem/cli/cli.hpp: kCommand, kAliasNote; held
+# equal by tests/python/test_cli.py).
 PROG = "crushdem-sand"
 ALIAS_NOTE = "note: `crushdem` is now `crushdem-sand`; the old name is an alias until version 0.2\n"
 

@@ -52,7 +52,7 @@ import numpy as np
 from ._cli import CommandParser
 from ._optional import available, message, require
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
-from .rundir import read_events, read_summary, read_timing
+from .rundir import read_events, read_penetration, read_summary, read_timing
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -291,16 +291,31 @@ def run_variant(config_path: str, run_dir: str, threads: int,
 def summary_figures(run_dir: str) -> Dict[str, float]:
     """The summary figures of a finished run: per stage (named by the stage's name) q_max, the
     peak friction angle, K0, and for age stages sigma_v and q at 1 h and 1 day over their value
-    at 4 s of ageing and the axial strain at 1 day; breakages, B_r, the final void ratio,
-    coordination number, stresses and volumetric strain, grains and steps."""
+    at 4 s of ageing and the axial strain at 1 day; for a penetrate stage the cone resistance at
+    its end (q_c averaged over the records of the last 10 % of its travel) and the largest; for
+    a load test the capacity with the shaft and base loads at it (a pile sweep's result);
+    breakages, B_r, the final void ratio, coordination number, stresses and volumetric strain,
+    grains and steps."""
     s = read_summary(run_dir)
     out: Dict[str, float] = {}
     if not s:
         return out
     ev = read_events(run_dir)
+    pen = None
     for k, st in enumerate(s.get("stages") or []):
         name = st.get("name") or f"stage{k}"
         kind = st.get("type")
+        if kind == "load_test":
+            for key in ("capacity_N", "shaft_at_capacity_N", "base_at_capacity_N"):
+                out[f"{name}.{key}"] = as_float(st.get(key))
+        if kind == "penetrate":
+            pen = read_penetration(run_dir) if pen is None else pen
+            rows = (pen["stage"] == k) if pen is not None and "stage" in pen else None
+            if rows is not None and rows.any():
+                travel, q_c = pen["travel_m"][rows], pen["q_c_Pa"][rows]
+                end = travel >= 0.9 * travel.max()
+                out[f"{name}.q_c_end_MPa"] = float(np.mean(q_c[end])) / 1e6
+                out[f"{name}.q_c_max_MPa"] = float(np.max(q_c)) / 1e6
         if kind == "triaxial":
             out[f"{name}.q_max_MPa"] = as_float(st.get("q_max_Pa")) / 1e6
             out[f"{name}.friction_angle_peak_deg"] = as_float(st.get("friction_angle_peak_deg"))

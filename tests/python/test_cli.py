@@ -186,3 +186,24 @@ def test_the_command_parser_writes_types_choices_lists_and_percent_signs_as_cli1
     assert ("\n  --a-rather-long-option-name VALUE\n" + " " * 30 + "on the next line\n") in text
     assert text.endswith("\nMore text.\n")
     assert parser.parse_args(["3", "--rate", "2"]).count == 3
+
+
+def test_the_python_and_cpp_front_ends_name_the_command_alike():
+    """The command's name and the old name's note live in src/crushdem/cli/cli.hpp (kCommand,
+    kAliasNote) and in python/crushdem_sand/_cli.py (PROG, ALIAS_NOTE): the Python front end
+    runs without the C++ one's constants, so the two copies are held equal here."""
+    from crushdem_sand import _cli
+
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    with open(os.path.join(root, "src", "crushdem", "cli", "cli.hpp")) as f:
+        text = f.read()
+
+    def constant(name):
+        m = re.search(r"constexpr const char\* " + name + r"\s*=\s*((?:\s*\"(?:[^\"\\]|\\.)*\")+);",
+                      text)
+        assert m, name
+        parts = re.findall(r"\"((?:[^\"\\]|\\.)*)\"", m.group(1))
+        return "".join(parts).encode().decode("unicode_escape")
+
+    assert constant("kCommand") == _cli.PROG
+    assert constant("kAliasNote") == _cli.ALIAS_NOTE

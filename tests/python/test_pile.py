@@ -81,6 +81,8 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
     out = tmp_path / "out"
     said = []
     r = pile.pile(str(cfg), str(out), log=said.append)
+    import pandas as pd
+
     # The main run (installation, both age stages, the test at 1 day) and the test at 1 hour.
     assert sorted(os.listdir(out / "configs")) == ["main.toml", "t0_compression.toml"]
     rows = r["capacity"]
@@ -92,7 +94,16 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
                                                   + row["base_at_capacity_N"], rel=1e-12)
     main = json.load(open(out / "main" / "summary.json"))
     assert main["stages"][-1]["capacity_N"] == rows[1]["capacity_N"]
-    import pandas as pd
+    # A sweep's table of the pile case: the capacity and the installation's end resistance.
+    from crushdem_sand import sweep
+
+    fig = sweep.summary_figures(str(out / "main"))
+    assert fig["compression.capacity_N"] == rows[1]["capacity_N"]
+    assert fig["compression.shaft_at_capacity_N"] == rows[1]["shaft_at_capacity_N"]
+    pen = pd.read_csv(out / "main" / "penetration.csv")
+    end = pen[pen["travel_m"] >= 0.9 * pen["travel_m"].max()]
+    assert fig["install.q_c_end_MPa"] == pytest.approx(end["q_c_Pa"].mean() / 1e6, rel=1e-12)
+    assert fig["install.q_c_max_MPa"] >= fig["install.q_c_end_MPa"] > 0
 
     table = pd.read_csv(out / "pile_capacity.csv")
     assert list(table["ageing_time_s"]) == [3600.0, 86400.0]
