@@ -281,44 +281,46 @@ TEST(Pattern, ReadFromFileAndRejectOverlaps) {
   }
 }
 
+// One grain pressed between the z walls, a smaller crushable one free beside it, after one step:
+// the pressed grain's sigma / sigma_lim is known from the contact load.
+struct PressedAndFreeGrain {
+  static constexpr double d = 0.21e-3, R = 0.5 * d, delta = 1e-7;
+  Simulation sim{squeeze_config(1e-3, d - 2.0 * delta)};
+  Crusher crusher{exact_strength(d), SplitPattern::default14()};
+  PressedAndFreeGrain() {
+    sim.add_particle({0.0, 0.0, R - delta}, R);
+    sim.add_particle({-8e-4, -8e-4, R - delta}, 0.7 * R);
+    crusher.begin(sim);
+    sim.step();
+  }
+};
+
 TEST(Crushing, LoadedShareCountsCrushableGrainsNearTheirStrength) {
-  // One grain pressed between the z walls, a smaller crushable one free beside it: half the
-  // crushable grains carry a load, at sigma / sigma_lim known from the contact load.
-  const double d = 0.21e-3, R = 0.5 * d, delta = 1e-7;
-  Simulation sim(squeeze_config(1e-3, d - 2.0 * delta));
-  sim.add_particle({0.0, 0.0, R - delta}, R);
-  sim.add_particle({-8e-4, -8e-4, R - delta}, 0.7 * R);
-  Crusher crusher(exact_strength(d), SplitPattern::default14());
-  crusher.begin(sim);
-  sim.step();
-  const std::vector<double>& sigma = sim.contact_load().sigma;  // grains in the store's order
+  // Half the crushable grains carry a load.
+  PressedAndFreeGrain g;
+  const std::vector<double>& sigma = g.sim.contact_load().sigma;  // grains in the store's order
   const double ratio = *std::max_element(sigma.begin(), sigma.end()) / 3.75e9;
   ASSERT_GT(ratio, 0.01);
-  ASSERT_GE(0.7 * d, crusher.d_c());
-  EXPECT_EQ(crusher.loaded_share(sim, 0.99 * ratio), 0.5);
-  EXPECT_EQ(crusher.loaded_share(sim, 1.01 * ratio), 0.0);
-  EXPECT_EQ(crusher.loaded_share(sim, 0.0), 1.0);
+  ASSERT_GE(0.7 * g.d, g.crusher.d_c());
+  EXPECT_EQ(g.crusher.loaded_share(g.sim, 0.99 * ratio), 0.5);
+  EXPECT_EQ(g.crusher.loaded_share(g.sim, 1.01 * ratio), 0.0);
+  EXPECT_EQ(g.crusher.loaded_share(g.sim, 0.0), 1.0);
 }
 
 TEST(Crushing, OverStrengthCountsTheGrainsAlreadyFailing) {
-  // The setting above: the pressed grain's sigma / sigma_lim is known; lowering its strength
-  // below its load puts it over, and the free grain never counts.
-  const double d = 0.21e-3, R = 0.5 * d, delta = 1e-7;
-  Simulation sim(squeeze_config(1e-3, d - 2.0 * delta));
-  sim.add_particle({0.0, 0.0, R - delta}, R);
-  sim.add_particle({-8e-4, -8e-4, R - delta}, 0.7 * R);
-  Crusher crusher(exact_strength(d), SplitPattern::default14());
-  crusher.begin(sim);
-  sim.step();
-  const std::vector<double>& sigma = sim.contact_load().sigma;
+  // Lowering the pressed grain's strength below its load puts it over; the free grain never
+  // counts.
+  PressedAndFreeGrain g;
+  const std::vector<double>& sigma = g.sim.contact_load().sigma;
   const std::size_t pressed = sigma[0] > sigma[1] ? 0 : 1;
-  Crusher::OverStrength o = crusher.over_strength(sim);
+  std::vector<double>& strength = g.sim.particles().field(g.crusher.strength_field());
+  Crusher::OverStrength o = g.crusher.over_strength(g.sim);
   EXPECT_EQ(o.grains, 0u);
   EXPECT_DOUBLE_EQ(o.max_ratio, sigma[pressed] / 3.75e9);
-  sim.particles().field(crusher.strength_field())[pressed] = 0.5 * sigma[pressed];
-  o = crusher.over_strength(sim);
+  strength[pressed] = 0.5 * sigma[pressed];
+  o = g.crusher.over_strength(g.sim);
   EXPECT_EQ(o.grains, 1u);
   EXPECT_DOUBLE_EQ(o.max_ratio, 2.0);
-  sim.particles().field(crusher.strength_field())[pressed] = sigma[pressed];  // at it: fails
-  EXPECT_EQ(crusher.over_strength(sim).grains, 1u);
+  strength[pressed] = sigma[pressed];  // at it: fails
+  EXPECT_EQ(g.crusher.over_strength(g.sim).grains, 1u);
 }
