@@ -198,6 +198,13 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
         except tomllib.TOMLDecodeError as e:
             raise ValueError(f"{config_path}: {e}") from None
     p = plan(config, config_path)
+    if branch is not None:
+        run = branch.rpartition(":")[0] if ":" in branch else branch
+        if not os.path.isdir(run) and os.path.isdir(branch):
+            run = branch  # a directory whose name holds a colon
+        if not os.path.isdir(run):
+            raise ValueError(f"--from {branch}: {run} is not a directory (expected RUN[:STAGE], "
+                             "RUN a crushdem-sand run directory)")
     base_dir = os.path.dirname(os.path.abspath(config_path))
     os.makedirs(os.path.join(out, "configs"), exist_ok=True)
     main_cfg = os.path.join(out, "configs", "main.toml")

@@ -136,6 +136,11 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
         assert (variant / "main" / name).read_bytes() == (out / "main" / name).read_bytes()
     assert [row["ageing_time_s"] for row in r2["capacity"]] == [3600.0, 86400.0]
     assert json.load(open(variant / "main" / "summary.json"))["stages"][2]["type"] == "age"
+    # A RUN that is not there is named before anything is written.
+    with pytest.raises(ValueError, match="is not a directory"):
+        pile.pile(str(cfg), str(tmp_path / "nowhere"), log=lambda s: None,
+                  branch=f"{tmp_path / 'none'}:age_1h")
+    assert not (tmp_path / "nowhere").exists()
     # Called again with another origin, or none, it refuses rather than mix two origins.
     for other in (None, f"{out / 't0_compression'}:0"):
         with pytest.raises(ValueError, match="was begun from"):
