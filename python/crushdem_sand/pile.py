@@ -158,6 +158,18 @@ def capacity_rows(out: str, p: Mapping[str, Any]) -> List[Dict[str, Any]]:
     return rows
 
 
+def _split_branch(branch: str) -> tuple:
+    """RUN[:STAGE] as (RUN, STAGE or ""): a directory whose own name holds a colon stays whole.
+    ValueError when RUN is not a directory."""
+    run, _, stage = branch.rpartition(":") if ":" in branch else (branch, "", "")
+    if not os.path.isdir(run) and os.path.isdir(branch):
+        run, stage = branch, ""
+    if not os.path.isdir(run):
+        raise ValueError(f"--from {branch}: {run} is not a directory (expected RUN[:STAGE], "
+                         "RUN a crushdem-sand run directory)")
+    return run, stage
+
+
 def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
     """A DIR/main begun before must have begun as this call says (from ``branch``, or from its
     own sample); ValueError otherwise, so that one experiment never mixes two origins."""
@@ -172,7 +184,7 @@ def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
     if branch is None and was is None:
         return
     if branch is not None and was is not None:
-        run, _, stage = branch.rpartition(":") if ":" in branch else (branch, "", "")
+        run, stage = _split_branch(branch)
         same_run = os.path.realpath(run) == os.path.realpath(str(b.get("run")))
         if stage and not stage.isdigit():  # a stage's name: its index in RUN
             names = [s.get("name") or s.get("type") for s in stages_from_config(run)]
@@ -199,12 +211,7 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
             raise ValueError(f"{config_path}: {e}") from None
     p = plan(config, config_path)
     if branch is not None:
-        run = branch.rpartition(":")[0] if ":" in branch else branch
-        if not os.path.isdir(run) and os.path.isdir(branch):
-            run = branch  # a directory whose name holds a colon
-        if not os.path.isdir(run):
-            raise ValueError(f"--from {branch}: {run} is not a directory (expected RUN[:STAGE], "
-                             "RUN a crushdem-sand run directory)")
+        _split_branch(branch)  # refused before anything is written
     base_dir = os.path.dirname(os.path.abspath(config_path))
     os.makedirs(os.path.join(out, "configs"), exist_ok=True)
     main_cfg = os.path.join(out, "configs", "main.toml")
