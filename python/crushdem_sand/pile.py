@@ -38,7 +38,7 @@ from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence
 import numpy as np
 
 from ._cli import CommandParser
-from .rundir import read_summary, stages_from_config
+from .rundir import MANIFEST, read_summary, stages_from_config
 
 
 def fit_setup(t: Sequence[float], Q: Sequence[float], t0: Optional[float] = None
@@ -159,15 +159,27 @@ def capacity_rows(out: str, p: Mapping[str, Any]) -> List[Dict[str, Any]]:
 
 
 def _split_branch(branch: str) -> tuple:
-    """RUN[:STAGE] as (RUN, STAGE or ""): a directory whose own name holds a colon stays whole.
-    ValueError when RUN is not a directory."""
+    """RUN[:STAGE] as (RUN, STAGE), STAGE the index of the stage named ("" when none is): a
+    directory whose own name holds a colon stays whole. ValueError, naming what is wrong, when RUN
+    is not a crushdem-sand run directory or has no such stage, so that the pile command refuses
+    it before it writes anything (the nested ``run --from`` checks the configurations)."""
     run, _, stage = branch.rpartition(":") if ":" in branch else (branch, "", "")
     if not os.path.isdir(run) and os.path.isdir(branch):
         run, stage = branch, ""
     if not os.path.isdir(run):
         raise ValueError(f"--from {branch}: {run} is not a directory (expected RUN[:STAGE], "
                          "RUN a crushdem-sand run directory)")
-    return run, stage
+    if not os.path.isfile(os.path.join(run, MANIFEST)):
+        raise ValueError(f"--from {branch}: {run} is not a crushdem-sand run directory (it has "
+                         f"no {MANIFEST})")
+    if not stage:
+        return run, stage
+    names = [s.get("name") or s.get("type") for s in stages_from_config(run)]
+    index = int(stage) if stage.isdigit() else names.index(stage) if stage in names else -1
+    if not 0 <= index < len(names):
+        raise ValueError(f"--from {branch}: {stage!r} is not a stage of {run} (expected a stage "
+                         f"index below {len(names)} or one of its names: {', '.join(names)})")
+    return run, str(index)
 
 
 def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
@@ -186,9 +198,6 @@ def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
     if branch is not None and was is not None:
         run, stage = _split_branch(branch)
         same_run = os.path.realpath(run) == os.path.realpath(str(b.get("run")))
-        if stage and not stage.isdigit():  # a stage's name: its index in RUN
-            names = [s.get("name") or s.get("type") for s in stages_from_config(run)]
-            stage = str(names.index(stage)) if stage in names else stage
         if same_run and (not stage or stage == str(b.get("stage"))):
             return
     raise ValueError(f"{main_dir} was begun " + (f"from {was}" if was else "from its own sample")

@@ -141,6 +141,13 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
         pile.pile(str(cfg), str(tmp_path / "nowhere"), log=lambda s: None,
                   branch=f"{tmp_path / 'none'}:age_1h")
     assert not (tmp_path / "nowhere").exists()
+    # So are a directory that is not a run, and a stage the run does not have.
+    for bad, said in ((f"{out}:age_1h", "not a crushdem-sand run directory"),
+                      (f"{out / 'main'}:age_1y", "'age_1y' is not a stage of .* age_1h"),
+                      (f"{out / 'main'}:9", "'9' is not a stage .* index below 5")):
+        with pytest.raises(ValueError, match=said):
+            pile.pile(str(cfg), str(tmp_path / "nowhere"), log=lambda s: None, branch=bad)
+        assert not (tmp_path / "nowhere").exists()
     # Called again with another origin, or none, it refuses rather than mix two origins.
     for other in (None, f"{out / 't0_compression'}:0"):
         with pytest.raises(ValueError, match="was begun from"):
