@@ -4,8 +4,8 @@
 # Results are the same bits either way (no fused multiply-add, IEEE rounding: CMakeLists.txt).
 # Then auditwheel makes it a manylinux wheel (PEP 600): it copies into the wheel the shared
 # libraries that a manylinux system need not have (OpenMP's libgomp) and tags the wheel with the
-# oldest glibc whose symbols the module uses (that of the building machine at most: build on an
-# older distribution, or in a manylinux container, for a wider reach). The CUDA runtime is linked
+# oldest glibc whose symbols the module uses (that of the building machine at most:
+# scripts/wheel_debian11.sh runs this script inside Debian 11, for glibc 2.31). The CUDA runtime is linked
 # statically and the driver loaded at run time, so the wheel imports where no GPU is.
 # Usage: bash scripts/wheel.sh   (prints the wheel's path last)
 set -euo pipefail

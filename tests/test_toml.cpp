@@ -1,18 +1,23 @@
 // Tests for crushdem's side of TOML: toml++'s tree converted to Values (every node type, the line
 // field), every class of error located by source and line, files that cannot be read, and the
-// writer (parse(serialize(x)) == x). The grammar itself is toml++'s, tested by its own suite.
+// writer (parse(serialize(x)) == x) with its shortest number text. The grammar itself is toml++'s,
+// tested by its own suite.
 #include <gtest/gtest.h>
 
+#include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/io/shortest.hpp"
 #include "crushdem/io/toml.hpp"
 #include "fixtures.hpp"
 
@@ -433,3 +438,54 @@ TEST(TomlSerialize, BuiltInCodeTree) {
 }
 
 }  // namespace
+
+// The shortest form built from printf and strtod (what a standard library without floating-point
+// to_chars gets, GCC 10's) is std::to_chars's, character for character: on powers of two (where
+// the interval that reads back is not centred), powers of ten and their neighbours, integers,
+// subnormals, the extremes and random bit patterns.
+TEST(ShortestChars, ThePrintfFormIsToCharsOwn) {
+  std::vector<double> v = {0.0,
+                           -0.0,
+                           1.0,
+                           0.1,
+                           0.3,
+                           2650.0,
+                           3.2e10,
+                           6e-7,
+                           1e-5,
+                           1e-4,
+                           1e-3,
+                           1e21,
+                           1e22,
+                           1e23,
+                           123456789012345680000.0,
+                           std::numeric_limits<double>::max(),
+                           std::numeric_limits<double>::min(),
+                           std::numeric_limits<double>::denorm_min(),
+                           std::numeric_limits<double>::epsilon()};
+  for (int e = -1074; e <= 1023; ++e) v.push_back(std::ldexp(1.0, e));
+  for (int e = -320; e <= 308; ++e) {
+    const double p = std::pow(10.0, e);
+    v.insert(v.end(), {p, std::nextafter(p, 0.0), std::nextafter(p, HUGE_VAL)});
+  }
+  for (int i = 0; i <= 2000; ++i) v.push_back(i * 0.25);
+  std::mt19937_64 rng(20261206);
+  for (int i = 0; i < 100000; ++i) {
+    const std::uint64_t bits = rng();
+    double d = 0.0;
+    std::memcpy(&d, &bits, sizeof d);
+    if (std::isfinite(d)) v.push_back(d);
+  }
+  int differ = 0;
+  for (const double d : v) {
+    char a[64], b[64];
+    const auto ra = std::to_chars(a, a + sizeof a, d);
+    const auto rb = crushdem::detail::shortest_chars_printf(b, b + sizeof b, d);
+    const std::string sa(a, ra.ptr), sb(b, rb.ptr);
+    if (sa != sb && ++differ <= 10) ADD_FAILURE() << "to_chars " << sa << ", printf form " << sb;
+  }
+  EXPECT_EQ(differ, 0) << "of " << v.size();
+  char tiny[3];
+  EXPECT_EQ(crushdem::detail::shortest_chars_printf(tiny, tiny + 3, 0.125).ec,
+            std::errc::value_too_large);
+}

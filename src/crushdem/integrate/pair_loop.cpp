@@ -333,16 +333,36 @@ inline void store4(double* p, v4d v) {
 inline void store2(double* p, v2d v) {
   std::memcpy(p, &v, sizeof v);
 }
+// Lanes i, j, k, l of the eight of (a, b) (0-3 are a's, 4-7 b's), and lanes i, j of a. GCC
+// before 12 has no __builtin_shufflevector: its __builtin_shuffle takes the same indices as a
+// mask (the portable wheel of scripts/wheel_debian11.sh is built with GCC 10).
+template <int i, int j, int k, int l>
+inline v4d shuffle4(v4d a, v4d b) {
+#if defined(__clang__) || __GNUC__ >= 12
+  return __builtin_shufflevector(a, b, i, j, k, l);
+#else
+  using v4l = long long __attribute__((vector_size(32)));
+  return __builtin_shuffle(a, b, v4l{i, j, k, l});
+#endif
+}
+template <int i, int j>
+inline v2d lanes2(v4d a) {
+#if defined(__clang__) || __GNUC__ >= 12
+  return __builtin_shufflevector(a, a, i, j);
+#else
+  return v2d{a[i], a[j]};
+#endif
+}
 // Rows k = 0..3 of the 4 x 4 matrix whose columns are a, b, c, d: (a[k], b[k], c[k], d[k]).
 inline void transpose4(v4d a, v4d b, v4d c, v4d d, v4d row[4]) {
-  const v4d ab_even = __builtin_shufflevector(a, b, 0, 4, 2, 6);  // a0 b0 a2 b2
-  const v4d ab_odd = __builtin_shufflevector(a, b, 1, 5, 3, 7);   // a1 b1 a3 b3
-  const v4d cd_even = __builtin_shufflevector(c, d, 0, 4, 2, 6);
-  const v4d cd_odd = __builtin_shufflevector(c, d, 1, 5, 3, 7);
-  row[0] = __builtin_shufflevector(ab_even, cd_even, 0, 1, 4, 5);
-  row[1] = __builtin_shufflevector(ab_odd, cd_odd, 0, 1, 4, 5);
-  row[2] = __builtin_shufflevector(ab_even, cd_even, 2, 3, 6, 7);
-  row[3] = __builtin_shufflevector(ab_odd, cd_odd, 2, 3, 6, 7);
+  const v4d ab_even = shuffle4<0, 4, 2, 6>(a, b);  // a0 b0 a2 b2
+  const v4d ab_odd = shuffle4<1, 5, 3, 7>(a, b);   // a1 b1 a3 b3
+  const v4d cd_even = shuffle4<0, 4, 2, 6>(c, d);
+  const v4d cd_odd = shuffle4<1, 5, 3, 7>(c, d);
+  row[0] = shuffle4<0, 1, 4, 5>(ab_even, cd_even);
+  row[1] = shuffle4<0, 1, 4, 5>(ab_odd, cd_odd);
+  row[2] = shuffle4<2, 3, 6, 7>(ab_even, cd_even);
+  row[3] = shuffle4<2, 3, 6, 7>(ab_odd, cd_odd);
 }
 
 // The scatter pass without a couple sub-model: each contact's force and torques added to both
@@ -368,8 +388,8 @@ void scatter_sums(const PairLoopView<Model>& L, PairBatch& pb, std::size_t n) {
   v4d F = zero, T = zero;  // its sums so far: force (lanes 0-2), torque (lanes 0-2)
   const auto finish_owner = [&] {
     double* const sum = PF + 8 * std::size_t{owner[q]};
-    store4(sum, load4(sum) + __builtin_shufflevector(F, T, 0, 1, 2, 4));    // fx fy fz tx
-    store2(sum + 4, load2(sum + 4) + __builtin_shufflevector(T, T, 1, 2));  // ty tz
+    store4(sum, load4(sum) + shuffle4<0, 1, 2, 4>(F, T));  // fx fy fz tx
+    store2(sum + 4, load2(sum + 4) + lanes2<1, 2>(T));     // ty tz
     F = T = zero;
     ++q;
   };
@@ -382,11 +402,10 @@ void scatter_sums(const PairLoopView<Model>& L, PairBatch& pb, std::size_t n) {
     transpose4(load4(fx + m0), load4(fy + m0), load4(fz + m0), -(AJ * TX), on_j);
     transpose4(AI * TX, AI * TY, AI * TZ, zero, on_i_torque);
     const v4d ajy = AJ * TY, ajz = AJ * TZ;
-    const v4d yz_lo = __builtin_shufflevector(ajy, ajz, 0, 4, 1, 5);  // y0 z0 y1 z1
-    const v4d yz_hi = __builtin_shufflevector(ajy, ajz, 2, 6, 3, 7);  // y2 z2 y3 z3
-    const v2d on_j_yz[4] = {
-        __builtin_shufflevector(yz_lo, yz_lo, 0, 1), __builtin_shufflevector(yz_lo, yz_lo, 2, 3),
-        __builtin_shufflevector(yz_hi, yz_hi, 0, 1), __builtin_shufflevector(yz_hi, yz_hi, 2, 3)};
+    const v4d yz_lo = shuffle4<0, 4, 1, 5>(ajy, ajz);  // y0 z0 y1 z1
+    const v4d yz_hi = shuffle4<2, 6, 3, 7>(ajy, ajz);  // y2 z2 y3 z3
+    const v2d on_j_yz[4] = {lanes2<0, 1>(yz_lo), lanes2<2, 3>(yz_lo), lanes2<0, 1>(yz_hi),
+                            lanes2<2, 3>(yz_hi)};
     const std::size_t group = std::min<std::size_t>(4, n - m0);
     for (std::size_t k = 0; k < group; ++k) {
       const std::size_t m = m0 + k;

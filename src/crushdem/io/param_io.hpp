@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cstdint>
 #include <set>
 #include <string>
@@ -17,6 +16,7 @@
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/params.hpp"
+#include "crushdem/io/shortest.hpp"
 #include "crushdem/io/toml.hpp"
 
 namespace crushdem::param_io {
@@ -205,7 +205,7 @@ Table write_params(const S& obj, const ParamTable<S>& table) {
 /// The shortest form that reads back exactly, with a plain exponent (2650, 3.2e10, 6e-7).
 inline std::string doc_number(double v) {
   char buf[32];
-  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  const auto res = shortest_chars(buf, buf + sizeof buf, v);
   std::string s(buf, static_cast<std::size_t>(res.ptr - buf));
   const std::size_t e = s.find('e');
   if (e == std::string::npos) return s;

@@ -2,7 +2,6 @@
 // writer of crushdem's own files, see toml.hpp.
 #include "crushdem/io/toml.hpp"
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,6 +11,7 @@
 #include <utility>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/io/shortest.hpp"
 
 // Header-only use in this one translation unit: no shared library at run time, and the Debian
 // package and the fetched release build the same way.
@@ -258,7 +258,7 @@ void write_float(std::string& out, double d) {
     out += d < 0 ? "-inf" : "inf";
   } else {
     char buf[64];
-    const auto res = std::to_chars(buf, buf + sizeof buf, d);  // shortest exact round trip
+    const auto res = shortest_chars(buf, buf + sizeof buf, d);  // shortest exact round trip
     const std::string_view s(buf, static_cast<size_t>(res.ptr - buf));
     out += s;
     // "1" would read back as an integer.

@@ -1,0 +1,123 @@
+#!/usr/bin/env bash
+# Builds the portable wheel of scripts/wheel.sh inside Debian 11 (glibc 2.31, GCC 10), so that
+# auditwheel tags it manylinux_2_31: it installs on Ubuntu 20.04, Debian 11 and newer systems, not
+# only where glibc is 2.35 or later (what a wheel built on Debian 12 needs). The module, and the
+# libgomp copied into the wheel, then use no glibc symbol newer than 2.31.
+#  - Debian 11 is installed by debootstrap into ROOT (default build-wheel/debian11; kept, so a
+#    second call only builds), from Debian's own mirror;
+#  - CPython (the host's minor version, 3.11) is built there from Debian's source of it (the
+#    upstream tarball, checked against its SHA-256), as Debian 11 ships 3.9;
+#  - toml++ and CLI11 are header-only: Debian 12's packages (Debian 11 has no toml++ and CLI11
+#    1.9) are unpacked into ROOT;
+#  - where the host has the CUDA toolkit (/usr/local/cuda), it is mounted into ROOT, and the
+#    wheel carries the CUDA backend, its runtime linked in, as scripts/wheel.sh says.
+# The source is the checkout's tracked and untracked files (not the ignored ones), copied into
+# ROOT. Needs root (debootstrap, chroot, mount) and a Debian host (apt-get download).
+# Usage: sudo bash scripts/wheel_debian11.sh [ROOT]   (prints the wheel's path last)
+# Check it there: sudo bash scripts/wheel_debian11.sh --check [ROOT] runs scripts/wheel_check.sh
+# on the newest dist/*manylinux_2_31*.whl inside ROOT, on glibc 2.31.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+check=0
+if [ "${1:-}" = "--check" ]; then check=1; shift; fi
+root=$(realpath -m "${1:-build-wheel/debian11}")
+[ "$(id -u)" = 0 ] || { echo "scripts/wheel_debian11.sh needs root (debootstrap, chroot)" >&2; exit 2; }
+source scripts/deps.sh
+apt_install_missing debootstrap
+
+py_version=3.11.2  # Debian 12's python3.11 source (its orig tarball is the upstream release)
+py_sha256=2411c74bda5bbcfcddaf4531f66d1adc73f247f529aee981b029513aefdbf849
+py=/opt/python3.11/bin/python3.11
+
+in_root() {  # runs a command in ROOT with a clean environment (but the host's proxy)
+  local proxy=()
+  for v in http_proxy https_proxy no_proxy HTTP_PROXY HTTPS_PROXY NO_PROXY; do
+    [ -n "${!v:-}" ] && proxy+=("$v=${!v}")
+  done
+  # pip trusts its own list of authorities unless told to use the system's.
+  chroot "$root" /usr/bin/env -i HOME=/root LANG=C.UTF-8 "${proxy[@]}" \
+    PIP_CERT=/etc/ssl/certs/ca-certificates.crt SSL_CERT_FILE=/etc/ssl/certs/ca-certificates.crt \
+    PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin "$@"
+}
+
+mounted=()
+cleanup() {
+  local m
+  for ((i = ${#mounted[@]} - 1; i >= 0; i--)); do umount "${mounted[i]}" || true; done
+}
+trap cleanup EXIT
+mount_in_root() {  # mount_in_root ARGS... TARGET (TARGET inside ROOT)
+  local target=${*: -1}
+  mkdir -p "$target"
+  mountpoint -q "$target" || { mount "$@"; mounted+=("$target"); }
+}
+
+if [ ! -f "$root/etc/debian_version" ] || ! grep -q '^11\.' "$root/etc/debian_version"; then
+  echo "# debootstrap Debian 11 into $root" >&2
+  debootstrap --variant=minbase --include=build-essential,ninja-build,git,ca-certificates,\
+libssl-dev,zlib1g-dev,libffi-dev,libbz2-dev,liblzma-dev,libsqlite3-dev,uuid-dev,cmake,\
+libgtest-dev,patchelf,binutils,qemu-user \
+    bullseye "$root" http://deb.debian.org/debian >&2
+fi
+cp /etc/resolv.conf "$root/etc/resolv.conf"
+# The host's own certificate authorities (a proxy's, say) are trusted in ROOT as on the host.
+if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
+  cp /usr/local/share/ca-certificates/*.crt "$root/usr/local/share/ca-certificates/"
+  in_root update-ca-certificates >/dev/null
+fi
+mount_in_root -t proc proc "$root/proc"
+
+if [ ! -x "$root$py" ]; then
+  echo "# building CPython $py_version in $root" >&2
+  tarball="$root/src/python3.11_$py_version.orig.tar.gz"
+  mkdir -p "$root/src"
+  [ -f "$tarball" ] || curl -fsSL -o "$tarball" \
+    "http://deb.debian.org/debian/pool/main/p/python3.11/python3.11_$py_version.orig.tar.gz"
+  echo "$py_sha256  $tarball" | sha256sum -c --quiet
+  rm -rf "$root/src/Python-$py_version"
+  tar -xzf "$tarball" -C "$root/src"
+  in_root /bin/bash -c "cd /src/Python-$py_version && ./configure --prefix=/opt/python3.11 \
+    --with-ensurepip=install >/dev/null && make -j$(nproc) >/dev/null && make install >/dev/null"
+fi
+
+if [ ! -f "$root/usr/include/toml++/toml.h" ] || [ ! -f "$root/usr/include/CLI/CLI.hpp" ]; then
+  debs=$(mktemp -d)
+  (cd "$debs" && apt-get download libtomlplusplus-dev libcli11-dev >&2)
+  for d in "$debs"/*.deb; do dpkg-deb -x "$d" "$root"; done
+  rm -rf "$debs"
+fi
+
+if [ -x /usr/local/cuda/bin/nvcc ]; then
+  cuda=$(realpath /usr/local/cuda)
+  mount_in_root --bind "$cuda" "$root$cuda"
+  mount -o remount,bind,ro "$root$cuda"
+  ln -sfn "$cuda" "$root/usr/local/cuda"
+fi
+
+src=/work/crushdem
+if [ "$check" = 1 ]; then
+  wheel=$(ls -t dist/crushdem_sand-*manylinux_2_31*.whl | head -1)
+  mkdir -p "$root$src/dist"
+  cp "$wheel" "$root$src/dist/"
+  cp scripts/wheel_check.sh scripts/deps.sh "$root$src/scripts/"
+  in_root /bin/bash -c "cd $src && ldd --version | head -1 && \
+    PYTHON=$py bash scripts/wheel_check.sh dist/$(basename "$wheel")"
+  exit
+fi
+
+echo "# copying the checkout into $root$src" >&2
+rm -rf "$root$src"
+mkdir -p "$root$src"
+git ls-files -z --cached --others --exclude-standard | while IFS= read -r -d '' f; do
+  [ -e "$f" ] && printf '%s\0' "$f"
+done | tar --null -T - -cf - | tar -xf - -C "$root$src"
+
+# A CMake from PyPI (scikit-build-core fetches it): Debian 11's 3.18 predates CUDA 13.
+# The copy has no .git: the commit that runs record (cmake/build_info.cmake) comes along.
+commit=$(git describe --always --dirty --abbrev=12 --exclude "*" 2>/dev/null || echo unknown)
+in_root /bin/bash -c "cd $src && PATH=/usr/local/cuda/bin:\$PATH PYTHON=$py CRUSHDEM_COMMIT=$commit \
+  SKBUILD_CMAKE_VERSION='>=3.25' bash scripts/wheel.sh >/dev/null"
+mkdir -p dist
+wheel=$(ls -t "$root$src"/dist/crushdem_sand-*manylinux*.whl | head -1)
+cp "$wheel" dist/
+echo "dist/$(basename "$wheel")"
