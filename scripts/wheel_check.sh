@@ -2,7 +2,8 @@
 # Checks that a wheel built by scripts/wheel.sh suits any x86-64 machine of the last decade:
 #  1. pip installs it into a fresh environment with --only-binary=:all:, so nothing is compiled
 #     (a step that needed a compiler would fail); a manylinux wheel loads OpenMP's libgomp from
-#     the copy it carries, not from the system;
+#     the copy it carries, not from the system; a stable-ABI wheel (cp312-abi3) holds
+#     _core.abi3.so, which every CPython from 3.12 on imports;
 #  2. its compiled module holds no instruction beyond what a Westmere CPU has: no VEX or EVEX
 #     form (AVX, AVX2, AVX-512: a v-prefixed mnemonic or a ymm/zmm register), no BMI1/BMI2,
 #     LZCNT, TZCNT or MOVBE (LZCNT and TZCNT would not even fault there: they run as BSR/BSF and
@@ -26,6 +27,11 @@ echo "== 1. pip install --only-binary=:all: $wheel"
 "$env_dir/venv/bin/python" -m pip install --quiet --only-binary=:all: "$wheel"
 
 core=$(ls "$env_dir"/venv/lib/python3*/site-packages/crushdem_sand/_core*.so)
+if [[ $(basename "$wheel") == *-abi3-* && $(basename "$core") != *.abi3.so ]]; then
+  echo "the stable-ABI wheel's module is $(basename "$core"), not _core.abi3.so: it would import" \
+    "into no other CPython" >&2
+  exit 1
+fi
 if [[ $(basename "$wheel") == *manylinux* ]]; then
   gomp=$(ldd "$core" | grep -o '=> [^ ]*libgomp[^ ]*' || true)
   echo "libgomp ${gomp:-not needed}"

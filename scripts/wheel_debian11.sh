@@ -5,17 +5,20 @@
 # libgomp copied into the wheel, then use no glibc symbol newer than 2.31.
 #  - Debian 11 is installed by debootstrap into ROOT (default build-wheel/debian11; kept, so a
 #    second call only builds), from Debian's own mirror;
-#  - CPython (the host's minor version, 3.11) is built there from Debian's source of it (the
-#    upstream tarball, checked against its SHA-256), as Debian 11 ships 3.9;
+#  - CPython 3.11 and 3.13 are built there from Debian's sources of them (the upstream
+#    tarballs, checked against their SHA-256), as Debian 11 ships 3.9: two wheels, one for
+#    CPython 3.11 (cp311) and one for 3.12 and every later CPython (cp312-abi3: the stable ABI,
+#    nanobind's STABLE_ABI, built with 3.13);
 #  - toml++ and CLI11 are header-only: Debian 12's packages (Debian 11 has no toml++ and CLI11
 #    1.9) are unpacked into ROOT;
 #  - where the host has the CUDA toolkit (/usr/local/cuda), it is mounted into ROOT, and the
 #    wheel carries the CUDA backend, its runtime linked in, as scripts/wheel.sh says.
 # The source is the checkout's tracked and untracked files (not the ignored ones), copied into
 # ROOT. Needs root (debootstrap, chroot, mount) and a Debian host (apt-get download).
-# Usage: sudo bash scripts/wheel_debian11.sh [ROOT]   (prints the wheel's path last)
-# Check it there: sudo bash scripts/wheel_debian11.sh --check [ROOT] runs scripts/wheel_check.sh
-# on the newest dist/*manylinux_2_31*.whl inside ROOT, on glibc 2.31.
+# Usage: sudo bash scripts/wheel_debian11.sh [ROOT]   (prints the wheels' paths last)
+# Check them there: sudo bash scripts/wheel_debian11.sh --check [ROOT] runs scripts/wheel_check.sh
+# on the newest dist/*manylinux_2_31*.whl of each tag inside ROOT, on glibc 2.31, with the
+# CPython each is for.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 check=0
@@ -25,9 +28,9 @@ root=$(realpath -m "${1:-build-wheel/debian11}")
 source scripts/deps.sh
 apt_install_missing debootstrap
 
-py_version=3.11.2  # Debian 12's python3.11 source (its orig tarball is the upstream release)
-py_sha256=2411c74bda5bbcfcddaf4531f66d1adc73f247f529aee981b029513aefdbf849
-py=/opt/python3.11/bin/python3.11
+# CPython SERIES: VERSION, the Debian release whose source it is, its orig tarball's SHA-256.
+pythons=("3.11 3.11.2 bookworm 2411c74bda5bbcfcddaf4531f66d1adc73f247f529aee981b029513aefdbf849 gz"
+         "3.13 3.13.5 trixie 93e583f243454e6e9e4588ca2c2662206ad961659863277afcdb96801647d640 xz")
 
 in_root() {  # runs a command in ROOT with a clean environment (but the host's proxy)
   local proxy=()
@@ -67,18 +70,20 @@ if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
 fi
 mount_in_root -t proc proc "$root/proc"
 
-if [ ! -x "$root$py" ]; then
-  echo "# building CPython $py_version in $root" >&2
-  tarball="$root/src/python3.11_$py_version.orig.tar.gz"
+for entry in "${pythons[@]}"; do
+  read -r series version release sha256 compression <<<"$entry"
+  [ -x "$root/opt/python$series/bin/python$series" ] && continue
+  echo "# building CPython $version ($release's source) in $root" >&2
+  tarball="$root/src/python${series}_$version.orig.tar.$compression"
   mkdir -p "$root/src"
   [ -f "$tarball" ] || curl -fsSL -o "$tarball" \
-    "http://deb.debian.org/debian/pool/main/p/python3.11/python3.11_$py_version.orig.tar.gz"
-  echo "$py_sha256  $tarball" | sha256sum -c --quiet
-  rm -rf "$root/src/Python-$py_version"
-  tar -xzf "$tarball" -C "$root/src"
-  in_root /bin/bash -c "cd /src/Python-$py_version && ./configure --prefix=/opt/python3.11 \
+    "http://deb.debian.org/debian/pool/main/p/python$series/$(basename "$tarball")"
+  echo "$sha256  $tarball" | sha256sum -c --quiet
+  rm -rf "$root/src/Python-$version"
+  tar -xf "$tarball" -C "$root/src"
+  in_root /bin/bash -c "cd /src/Python-$version && ./configure --prefix=/opt/python$series \
     --with-ensurepip=install >/dev/null && make -j$(nproc) >/dev/null && make install >/dev/null"
-fi
+done
 
 if [ ! -f "$root/usr/include/toml++/toml.h" ] || [ ! -f "$root/usr/include/CLI/CLI.hpp" ]; then
   debs=$(mktemp -d)
@@ -96,12 +101,16 @@ fi
 
 src=/work/crushdem
 if [ "$check" = 1 ]; then
-  wheel=$(ls -t dist/crushdem_sand-*manylinux_2_31*.whl | head -1)
-  mkdir -p "$root$src/dist"
-  cp "$wheel" "$root$src/dist/"
   cp scripts/wheel_check.sh scripts/deps.sh "$root$src/scripts/"
-  in_root /bin/bash -c "cd $src && ldd --version | head -1 && \
-    PYTHON=$py bash scripts/wheel_check.sh dist/$(basename "$wheel")"
+  for tag in cp311-cp311 cp312-abi3; do
+    wheel=$(ls -t dist/crushdem_sand-*-$tag-manylinux_2_31*.whl | head -1)
+    series=$([ $tag = cp311-cp311 ] && echo 3.11 || echo 3.13)
+    mkdir -p "$root$src/dist"
+    cp "$wheel" "$root$src/dist/"
+    in_root /bin/bash -c "cd $src && ldd --version | head -1 && \
+      PYTHON=/opt/python$series/bin/python$series bash scripts/wheel_check.sh \
+      dist/$(basename "$wheel")"
+  done
   exit
 fi
 
@@ -115,9 +124,15 @@ done | tar --null -T - -cf - | tar -xf - -C "$root$src"
 # A CMake from PyPI (scikit-build-core fetches it): Debian 11's 3.18 predates CUDA 13.
 # The copy has no .git: the commit that runs record (cmake/build_info.cmake) comes along.
 commit=$(git describe --always --dirty --abbrev=12 --exclude "*" 2>/dev/null || echo unknown)
-in_root /bin/bash -c "cd $src && PATH=/usr/local/cuda/bin:\$PATH PYTHON=$py CRUSHDEM_COMMIT=$commit \
-  SKBUILD_CMAKE_VERSION='>=3.25' bash scripts/wheel.sh >/dev/null"
 mkdir -p dist
-wheel=$(ls -t "$root$src"/dist/crushdem_sand-*manylinux*.whl | head -1)
-cp "$wheel" dist/
-echo "dist/$(basename "$wheel")"
+for series in 3.11 3.13; do
+  # scripts/wheel.sh's .venv is made with the CPython it builds for.
+  in_root /bin/bash -c "cd $src && rm -rf .venv && PATH=/usr/local/cuda/bin:\$PATH \
+    PYTHON=/opt/python$series/bin/python$series CRUSHDEM_COMMIT=$commit \
+    SKBUILD_CMAKE_VERSION='>=3.25' bash scripts/wheel.sh >/dev/null"
+done
+for tag in cp311-cp311 cp312-abi3; do
+  wheel=$(ls -t "$root$src"/dist/crushdem_sand-*-$tag-manylinux*.whl | head -1)
+  cp "$wheel" dist/
+  echo "dist/$(basename "$wheel")"
+done
