@@ -31,6 +31,7 @@ read with :class:`crushdem_sand.lab.Result`, each table as a pandas DataFrame.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import math
 import numbers
 import operator
@@ -461,16 +462,18 @@ def _parameter_doc() -> str:
     for section, table in _core.parameter_reference():
         if section not in ("material", "contact", "damping", "timestep", "neighbor"):
             continue
-        lines.append(f"    ``{section}``")
+        lines.append(f"``{section}``")
         for row in table.splitlines()[2:]:
             cells = [c.strip() for c in row.strip().strip("|").split(" | ")]
             if len(cells) >= 4:
                 key, default, unit, meaning = cells[0], cells[1], cells[2], " | ".join(cells[3:])
                 unit = f" [{unit}]" if unit and unit != "-" else ""
                 meaning = meaning.replace("\\|", "|")
-                lines.append(f"        {key}{unit}, default {default}: {meaning}")
+                lines.append(f"    {key}{unit}, default {default}: {meaning}")
     return "\n".join(lines)
 
 
-Simulation.__doc__ = ((Simulation.__doc__ or "") + "\n    Parameter tables:\n\n" + _parameter_doc()
-                      + "\n")
+# Cleaned first: CPython 3.13 strips a docstring's indentation when it compiles it, 3.11 does not,
+# and the tables appended must read the same under both.
+Simulation.__doc__ = (inspect.cleandoc(Simulation.__doc__ or "") + "\n\nParameter tables:\n\n"
+                      + _parameter_doc() + "\n")

@@ -134,7 +134,9 @@ def test_installed_cmake_package_passes_no_march(tmp_path):
                         "-DCRUSHDEM_TESTS=OFF", "-DCRUSHDEM_CUDA=OFF"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
-    exported = glob.glob(str(build / "CMakeFiles" / "Export" / "*" / "crushdemTargets*.cmake"))
+    # CMakeFiles/Export/<hash>/ (CMake 3.24 on) or CMakeFiles/Export/lib/cmake/crushdem/.
+    exported = glob.glob(str(build / "CMakeFiles" / "Export" / "**" / "crushdemTargets*.cmake"),
+                         recursive=True)
     assert exported
     for path in exported:
         with open(path) as f:

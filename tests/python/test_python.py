@@ -598,11 +598,11 @@ def _docstring_tables(doc):
     a docstring; a key listed twice fails."""
     tables, section = {}, None
     for line in doc.split("Parameter tables:", 1)[1].splitlines():
-        header = re.fullmatch(r" {4}``(\w+)``", line)
+        header = re.fullmatch(r"``(\w+)``", line)
         if header:
             section = tables.setdefault(header.group(1), {})
             continue
-        row = re.match(r" {8}`(\w+)`(?: \[([^\]]+)\])?, default (`[^`]*`|[^:`]+):", line)
+        row = re.match(r" {4}`(\w+)`(?: \[([^\]]+)\])?, default (`[^`]*`|[^:`]+):", line)
         if row:
             assert row.group(1) not in section, line
             section[row.group(1)] = (row.group(2), row.group(3).strip("`"))
