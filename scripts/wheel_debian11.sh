@@ -45,7 +45,6 @@ in_root() {  # runs a command in ROOT with a clean environment (but the host's p
 
 mounted=()
 cleanup() {
-  local m
   for ((i = ${#mounted[@]} - 1; i >= 0; i--)); do umount "${mounted[i]}" || true; done
 }
 trap cleanup EXIT

@@ -10,6 +10,8 @@
 #include <cstdlib>
 #include <string>
 #include <system_error>
+#include <utility>
+#include <vector>
 
 namespace crushdem {
 
@@ -29,49 +31,46 @@ inline std::to_chars_result shortest_chars_printf(char* first, char* last, doubl
   std::string digits;
   int E = 0;  // a = digits[0].digits[1..] x 10^E
   char buf[40];
+  // Whether the p digits dd, dd[0].dd[1..] x 10^ee, read back as a.
+  const auto reads_back = [a](const std::string& dd, int ee) {
+    const std::string t = dd + "e" + std::to_string(ee - (static_cast<int>(dd.size()) - 1));
+    return std::strtod(t.c_str(), nullptr) == a;
+  };
   for (int p = 1; p <= 17 && digits.empty(); ++p) {
     std::snprintf(buf, sizeof buf, "%.*e", p - 1, a);
     const std::string s(buf);
     const std::size_t e = s.find('e');
-    std::string d = s.substr(0, 1) + (p > 1 ? s.substr(2, e - 2) : "");
+    const std::string d = s.substr(0, 1) + (p > 1 ? s.substr(2, e - 2) : "");
     const int exp10 = std::atoi(s.c_str() + e + 1);
-    const auto reads_back = [&](const std::string& dd, int ee) {
-      const std::string t = dd + "e" + std::to_string(ee - (static_cast<int>(dd.size()) - 1));
-      return std::strtod(t.c_str(), nullptr) == a;
-    };
-    if (reads_back(d, exp10)) {
-      digits = d;
-      E = exp10;
-      break;
+    // The nearest p-digit decimal, then its neighbours one unit in its last digit up and down.
+    std::vector<std::pair<std::string, int>> candidates = {{d, exp10}};
+    std::string up = d;
+    int k = p - 1;
+    while (k >= 0 && up[static_cast<std::size_t>(k)] == '9')
+      up[static_cast<std::size_t>(k--)] = '0';
+    if (k < 0) {
+      candidates.emplace_back("1" + up.substr(0, up.size() - 1), exp10 + 1);
+    } else {
+      ++up[static_cast<std::size_t>(k)];
+      candidates.emplace_back(up, exp10);
     }
-    // The neighbours of the nearest p-digit decimal, one unit in its last digit up and down.
-    for (const int step : {+1, -1}) {
-      std::string n = d;
-      int ne = exp10;
-      int k = p - 1;
-      if (step > 0) {
-        while (k >= 0 && n[static_cast<std::size_t>(k)] == '9')
-          n[static_cast<std::size_t>(k--)] = '0';
-        if (k < 0) {
-          n = "1" + n.substr(0, n.size() - 1);
-          ++ne;
-        } else {
-          ++n[static_cast<std::size_t>(k)];
-        }
-      } else {
-        while (k >= 0 && n[static_cast<std::size_t>(k)] == '0')
-          n[static_cast<std::size_t>(k--)] = '9';
-        if (k < 0) continue;  // below zero
-        --n[static_cast<std::size_t>(k)];
-        if (n[0] == '0') {  // 1000 - 1 = 0999: one digit fewer, kept at p with a 9 added
-          if (p == 1) continue;
-          n = n.substr(1) + "9";
-          --ne;
-        }
+    std::string down = d;
+    k = p - 1;
+    while (k >= 0 && down[static_cast<std::size_t>(k)] == '0') {
+      down[static_cast<std::size_t>(k--)] = '9';
+    }
+    if (k >= 0) {  // else below zero
+      --down[static_cast<std::size_t>(k)];
+      if (down[0] != '0') {
+        candidates.emplace_back(down, exp10);
+      } else if (p > 1) {  // 1000 - 1 = 0999: one digit fewer, kept at p with a 9 added
+        candidates.emplace_back(down.substr(1) + "9", exp10 - 1);
       }
-      if (reads_back(n, ne)) {
-        digits = n;
-        E = ne;
+    }
+    for (const auto& [cd, ce] : candidates) {
+      if (reads_back(cd, ce)) {
+        digits = cd;
+        E = ce;
         break;
       }
     }
