@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Builds the portable wheel of scripts/wheel.sh inside Debian 11 (glibc 2.31, GCC 10), so that
-# auditwheel tags it manylinux_2_31: it installs on Ubuntu 20.04, Debian 11 and newer systems, not
-# only where glibc is 2.35 or later (what a wheel built on Debian 12 needs). The module, and the
-# libgomp copied into the wheel, then use no glibc symbol newer than 2.31.
+# Builds the portable wheel of scripts/wheel.sh inside Debian 11 (glibc 2.31, GCC 10). Its module
+# (libstdc++ linked in, libm's log and pow at their oldest version: CRUSHDEM_MANYLINUX) and the
+# libgomp copied into the wheel then use no glibc symbol newer than 2.17, and auditwheel tags it
+# manylinux2014 (manylinux_2_17): it installs on CentOS/RHEL 7, RHEL/Rocky 8, Ubuntu 18.04 and
+# newer systems.
 #  - Debian 11 is installed by debootstrap into ROOT (default build-wheel/debian11; kept, so a
 #    second call only builds), from Debian's own mirror;
 #  - CPython 3.11 and 3.13 are built there from Debian's sources of them (the upstream
@@ -17,7 +18,7 @@
 # ROOT. Needs root (debootstrap, chroot, mount) and a Debian host (apt-get download).
 # Usage: sudo bash scripts/wheel_debian11.sh [ROOT]   (prints the wheels' paths last)
 # Check them there: sudo bash scripts/wheel_debian11.sh --check [ROOT] runs scripts/wheel_check.sh
-# on the newest dist/*manylinux_2_31*.whl of each tag inside ROOT, on glibc 2.31, with the
+# on the newest wheel of each tag that it built, inside ROOT, on glibc 2.31, with the
 # CPython each is for.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -68,10 +69,15 @@ if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
   in_root update-ca-certificates >/dev/null
 fi
 mount_in_root -t proc proc "$root/proc"
+# POSIX semaphores (sem_open) live in /dev/shm: without it CPython's configure leaves out
+# multiprocessing's SemLock, and dask's process pools (the sweep and calibration tests) fail.
+mount_in_root -t tmpfs tmpfs "$root/dev/shm"
 
 for entry in "${pythons[@]}"; do
   read -r series version release sha256 compression <<<"$entry"
-  [ -x "$root/opt/python$series/bin/python$series" ] && continue
+  # Built before, and with SemLock (an earlier build without /dev/shm lacks it: built again).
+  in_root "/opt/python$series/bin/python$series" -c "from _multiprocessing import SemLock" \
+    2>/dev/null && continue
   echo "# building CPython $version ($release's source) in $root" >&2
   tarball="$root/src/python${series}_$version.orig.tar.$compression"
   mkdir -p "$root/src"
@@ -102,10 +108,9 @@ src=/work/crushdem
 if [ "$check" = 1 ]; then
   cp scripts/wheel_check.sh scripts/deps.sh "$root$src/scripts/"
   for tag in cp311-cp311 cp312-abi3; do
-    wheel=$(ls -t dist/crushdem_sand-*-$tag-manylinux_2_31*.whl | head -1)
+    # The newest wheel of the tag that this script built (ROOT's copy of dist/ holds no other).
+    wheel=$(ls -t "$root$src"/dist/crushdem_sand-*-$tag-manylinux*.whl | head -1)
     series=$([ $tag = cp311-cp311 ] && echo 3.11 || echo 3.13)
-    mkdir -p "$root$src/dist"
-    cp "$wheel" "$root$src/dist/"
     in_root /bin/bash -c "cd $src && ldd --version | head -1 && \
       PYTHON=/opt/python$series/bin/python$series bash scripts/wheel_check.sh \
       dist/$(basename "$wheel")"

@@ -86,10 +86,13 @@ struct BatchView {
   double* f(BatchField k) const { return data + k * ((kCap != 0 ? kCap : cap) + kBatchPad); }
 };
 
+}  // namespace
+
 // One thread's batch: kBatchFields arrays of `cap` (+ kBatchPad) doubles, plus the entry, partner
 // and owner bookkeeping of the scatter pass, and a second set of arrays for the contacts that need
-// the exact evaluation (evaluate_batch()).
-struct PairBatch {
+// the exact evaluation (evaluate_batch()). Aligned to a cache line: each thread's batches are its
+// own heap blocks, and their counters, written at every flush, share no line with another's.
+struct alignas(64) detail::PairBatch {
   // Slots of the fixed-size batch (about 43 KB, fits in L2): the list entries of the grains in
   // it, of which the touching ones are kept. That batch is reserved once with exactly this
   // capacity and never grown, so its views may use the constant (view<kTarget>()).
@@ -121,7 +124,16 @@ struct PairBatch {
   BatchView<kCap> exact_view() {
     return {exact_data.data(), cap};
   }
+  std::size_t memory_bytes() const {
+    return (data.capacity() + exact_data.capacity()) * sizeof(double) +
+           (entry.capacity() + partner.capacity() + owner.capacity() + owner_end.capacity()) *
+               sizeof(NeighborList::Index) +
+           exact_lane.capacity() * sizeof(std::size_t);
+  }
 };
+
+namespace {
+using detail::PairBatch;
 
 // Evaluates contacts 0 .. n-1 of a batch in vector lanes; kFastPath: without the rare steps
 // (contact_plane_spring()).
@@ -703,6 +715,10 @@ void CpuPairLoop::evaluate_model(const Model& model, double h, const ParticleSto
   const std::uint64_t* work = nl.column_work.data();
   WorkShares& shares = shares_;
   shares.reset(NeighborList::kColors, static_cast<std::size_t>(max_team_size()));
+  std::vector<std::unique_ptr<PairBatch>>& batches = batches_.slots;
+  if (batches.size() < 2 * static_cast<std::size_t>(max_team_size())) {
+    batches.resize(2 * static_cast<std::size_t>(max_team_size()));
+  }
 #pragma omp parallel if (worth_threading(N))
   {
     const auto threads = static_cast<std::uint64_t>(team_size());
@@ -722,8 +738,14 @@ void CpuPairLoop::evaluate_model(const Model& model, double h, const ParticleSto
       shares.set(color, t, static_cast<std::uint32_t>(share_start(t) - work),
                  static_cast<std::uint32_t>(share_start(t + 1) - work));
     }
-    // One batch per thread, kept between steps (its buffers are reused, not reallocated).
-    thread_local PairBatch batch, grown;
+    // The thread's two batches, made by the thread itself (their pages are then near its core)
+    // and kept between steps: their buffers are reused, not reallocated.
+    std::unique_ptr<PairBatch>& batch_of_t = batches[2 * t];
+    std::unique_ptr<PairBatch>& grown_of_t = batches[2 * t + 1];
+    if (!batch_of_t) batch_of_t = std::make_unique<PairBatch>();
+    if (!grown_of_t) grown_of_t = std::make_unique<PairBatch>();
+    PairBatch& batch = *batch_of_t;
+    PairBatch& grown = *grown_of_t;
     batch.reserve(PairBatch::kTarget);
     if (pack || zero) {
 #pragma omp for schedule(static)
@@ -758,10 +780,23 @@ void CpuPairLoop::evaluate_model(const Model& model, double h, const ParticleSto
   }
 }
 
+detail::PairBatches::PairBatches() = default;
+detail::PairBatches::~PairBatches() = default;
+detail::PairBatches::PairBatches(const PairBatches& /*other*/) {}
+detail::PairBatches& detail::PairBatches::operator=(const PairBatches& /*other*/) {
+  return *this;
+}
+detail::PairBatches::PairBatches(PairBatches&&) noexcept = default;
+detail::PairBatches& detail::PairBatches::operator=(PairBatches&&) noexcept = default;
+
 std::size_t CpuPairLoop::memory_bytes() const {
+  std::size_t batch_bytes = 0;
+  for (const auto& b : batches_.slots) {
+    if (b) batch_bytes += sizeof(detail::PairBatch) + b->memory_bytes();
+  }
   return positions_.capacity() * sizeof(detail::PackedPosition) +
          velocities_.capacity() * sizeof(detail::PackedVelocity) +
-         sums_.capacity() * sizeof(detail::PackedForce) + pruned_.memory_bytes();
+         sums_.capacity() * sizeof(detail::PackedForce) + pruned_.memory_bytes() + batch_bytes;
 }
 
 }  // namespace crushdem

@@ -12,10 +12,11 @@
 // The loop owns what only it reads: the packed per-grain copies of positions and velocities
 // (the integrator writes them as it updates the store, saving the loop a pass over eleven
 // arrays), the force and torque sums (one cache line per grain, which the integrator's gather
-// takes and zeroes), the work shares and the pruned list.
+// takes and zeroes), the work shares, the pruned list and each thread's batches.
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include "crushdem/contact/contact_model.hpp"
@@ -42,6 +43,21 @@ struct alignas(64) PackedVelocity {
 // partner's six sums would be six lines).
 struct alignas(64) PackedForce {
   double fx, fy, fz, tx, ty, tz, pad0, pad1;
+};
+// A thread's batch of touching pairs (pair_loop.cpp).
+struct PairBatch;
+// Two batches per thread slot (the fixed-size one, and one grown for a grain with more list
+// entries than it holds), each made by its thread on first use and kept between steps. Scratch,
+// not state: a copy starts with none. Held here, not as thread_local objects, which need glibc's
+// __cxa_thread_atexit_impl (2.18, newer than the portable wheel's glibc).
+struct PairBatches {
+  PairBatches();
+  ~PairBatches();
+  PairBatches(const PairBatches& /*other*/);
+  PairBatches& operator=(const PairBatches& /*other*/);
+  PairBatches(PairBatches&&) noexcept;
+  PairBatches& operator=(PairBatches&&) noexcept;
+  std::vector<std::unique_ptr<PairBatch>> slots;
 };
 }  // namespace detail
 
@@ -80,6 +96,7 @@ class CpuPairLoop {
   std::vector<detail::PackedVelocity> velocities_;
   std::vector<detail::PackedForce> sums_;
   WorkShares shares_;  // the column shares, one loop per colour
+  detail::PairBatches batches_;
   PrunedList pruned_;
   bool packed_fresh_ = false;
   bool sums_zero_ = false;
