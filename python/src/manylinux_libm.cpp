@@ -6,7 +6,7 @@
 // module, comes here and goes to the GLIBC_2.2.5 symbol. Where glibc is 2.29 or later that symbol
 // is a wrapper of the same implementation (identical results for every argument the engine
 // passes: finite, and for log positive); on an older glibc it is that glibc's own log and pow,
-// which may differ from the newer ones in the last bit (docs/install.md).
+// which may differ from the newer ones in the last bit (README.md, section Build).
 extern "C" {
 double crushdem_log_glibc_2_2_5(double x);
 double crushdem_pow_glibc_2_2_5(double x, double y);

@@ -62,7 +62,7 @@ int main() {
       mix(std::pow(va, vb));
     }
   }
-  std::printf("%ld %016llx\n", n, static_cast<unsigned long long>(h));
+  std::printf("%ld values, FNV-1a %016llx\n", n, static_cast<unsigned long long>(h));
   return 0;
 }
 """
@@ -73,9 +73,9 @@ def _gxx():
 
 
 pytestmark = pytest.mark.skipif(
-    platform.system() != "Linux" or platform.machine() != "x86_64" or _gxx() is None
-    or shutil.which("objdump") is None,
-    reason="the pin is for GCC on x86-64 Linux (glibc), with objdump to read the symbols")
+    platform.system() != "Linux" or platform.machine() != "x86_64"
+    or platform.libc_ver()[0] != "glibc" or _gxx() is None or shutil.which("objdump") is None,
+    reason="the pin is for GCC on x86-64 Linux with glibc, with objdump to read the symbols")
 
 
 def _build(tmp_path, name, extra):
@@ -101,6 +101,4 @@ def test_the_pinned_log_and_pow_are_the_glibc_2_2_5_symbols_with_the_same_bits(t
     assert "GLIBC_2.29" not in symbols
     out_plain = subprocess.run([str(plain)], capture_output=True, text=True, check=True).stdout
     out_pinned = subprocess.run([str(pinned)], capture_output=True, text=True, check=True).stdout
-    count = int(out_plain.split()[0])
-    assert count == 6 * 200000 + 9 * 7
     assert out_pinned == out_plain

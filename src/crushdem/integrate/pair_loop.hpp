@@ -48,8 +48,8 @@ struct alignas(64) PackedForce {
 struct PairBatch;
 // Two batches per thread slot (the fixed-size one, and one grown for a grain with more list
 // entries than it holds), each made by its thread on first use and kept between steps. Scratch,
-// not state: a copy starts with none. Held here, not as thread_local objects, which need glibc's
-// __cxa_thread_atexit_impl (2.18, newer than the portable wheel's glibc).
+// not state: a copy takes none of the source's. Held here, not as thread_local objects, which
+// need glibc's __cxa_thread_atexit_impl (2.18, newer than the portable wheel's glibc).
 struct PairBatches {
   PairBatches();
   ~PairBatches();
