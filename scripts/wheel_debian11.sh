@@ -73,11 +73,13 @@ mount_in_root -t proc proc "$root/proc"
 # multiprocessing's SemLock, and dask's process pools (the sweep and calibration tests) fail.
 mount_in_root -t tmpfs tmpfs "$root/dev/shm"
 
+has_semlock() {  # has_semlock SERIES: ROOT's CPython SERIES exists and has multiprocessing's SemLock
+  in_root "/opt/python$1/bin/python$1" -c "from _multiprocessing import SemLock"
+}
 for entry in "${pythons[@]}"; do
   read -r series version release sha256 compression <<<"$entry"
   # Built before, and with SemLock (an earlier build without /dev/shm lacks it: built again).
-  in_root "/opt/python$series/bin/python$series" -c "from _multiprocessing import SemLock" \
-    2>/dev/null && continue
+  has_semlock "$series" 2>/dev/null && continue
   echo "# building CPython $version ($release's source) in $root" >&2
   tarball="$root/src/python${series}_$version.orig.tar.$compression"
   mkdir -p "$root/src"
@@ -88,7 +90,7 @@ for entry in "${pythons[@]}"; do
   tar -xf "$tarball" -C "$root/src"
   in_root /bin/bash -c "cd /src/Python-$version && ./configure --prefix=/opt/python$series \
     --with-ensurepip=install >/dev/null && make -j$(nproc) >/dev/null && make install >/dev/null"
-  in_root "/opt/python$series/bin/python$series" -c "from _multiprocessing import SemLock" || {
+  has_semlock "$series" || {
     echo "CPython $version in $root has no multiprocessing SemLock (is /dev/shm a tmpfs there?)" >&2
     exit 1
   }
