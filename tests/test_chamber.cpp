@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "crushdem/experiments/protocol.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/io/toml.hpp"
@@ -240,6 +241,85 @@ TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) 
     EXPECT_NEAR(sigma_zz["emulated"][s] / sigma_zz["cpu"][s], 1.0, 1e-6) << "slice " << s;
   }
   EXPECT_GT(sigma_zz["cpu"][0] - sigma_zz["cpu"][3], 0.05 * W / (kPi * R * R));
+}
+
+TEST(Chamber, AffineCompactionCarriesTheCloudWithItsWallsThenPreparesTheSample) {
+  // follow_walls: the velocity of the walls' homogeneous deformation at every grain of a loose
+  // quarter cloud, radial about the chamber's axis in proportion to the radius and linear
+  // between the platens: the chamber's wall and the platens, where the grains touch them,
+  // move as fast as they do, so that the cloud contracts without being swept.
+  SampleConfig sc;
+  sc.shape = SampleShape::Cylinder;
+  sc.sector = 90.0;
+  sc.count = 300;
+  const LooseCloud cloud = make_loose_cloud(sc);
+  SimulationConfig sim_cfg;
+  sim_cfg.walls[4].position = 0.0;
+  sim_cfg.walls[5].position = cloud.height;
+  for (int a = 0; a < 2; ++a) {
+    sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = -cloud.side;
+    sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = cloud.side;
+  }
+  sim_cfg.bodies.push_back(chamber_body(cloud));
+  for (const BodyConfig& plane : symmetry_planes(cloud)) sim_cfg.bodies.push_back(plane);
+  Simulation sim(sim_cfg);
+  for (std::size_t i = 0; i < cloud.radius.size(); ++i) {
+    sim.add_particle(cloud.position[i], cloud.radius[i], {1.0, 2.0, 3.0});
+  }
+  Walls& w = sim.walls();
+  ASSERT_GE(w.chamber(), 0);
+  const double R = w.chamber_radius(), H = w.length(2);
+  w.state(w.chamber()).velocity = -0.2;  // dR/dt
+  w.state(4).velocity = 0.1;
+  w.state(5).velocity = -0.3;
+  follow_walls(sim);
+  const ParticleStore& p = sim.particles();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double r = std::hypot(p.x[i], p.y[i]);
+    const double v_r = (p.vx[i] * p.x[i] + p.vy[i] * p.y[i]) / r;
+    EXPECT_NEAR(v_r, -0.2 * r / R, 1e-15) << i;
+    EXPECT_NEAR(p.vx[i] * p.y[i] - p.vy[i] * p.x[i], 0.0, 1e-15) << i;  // no swirl
+    EXPECT_NEAR(p.vz[i], 0.1 + (p.z[i] / H) * (-0.3 - 0.1), 1e-15) << i;
+    EXPECT_EQ(p.wx[i], 0.0);
+  }
+
+  // The preparation: the grains follow the walls (phase 3) until the walls carry
+  // affine_release of the stress, then the walls finish as in the walls' compaction, to the
+  // same target; on the emulation (the device's step), whose velocities the controller sets on
+  // the host, to the CPU's sample within the preparation's tolerances.
+  std::string text = testing::test_data("chamber_400.toml");
+  const std::string at = "seed = 4\n";
+  text.replace(text.find(at), at.size(), at + "compaction = \"affine\"\n");
+  text.erase(text.find("[[stage]]"), text.find("[output]") - text.find("[[stage]]"));
+  const RunConfig cfg = config(text);
+  const testing::TempDir temp("chamber_affine");
+  RunOptions opt;
+  opt.progress = false;
+  std::map<std::string, double> e_end;
+  for (const std::string backend : {"cpu", "emulated"}) {
+    opt.backend = backend;
+    opt.out_dir = (temp.path() / backend).string();
+    run_to_directory(cfg, opt);
+    auto ts = testing::read_csv(opt.out_dir + "/timeseries.csv");
+    ASSERT_GT(ts["phase"].size(), 3u);
+    EXPECT_EQ(ts["phase"].front(), 3.0) << backend;
+    EXPECT_NE(ts["phase"].back(), 3.0) << backend;
+    // While they follow the walls the grains carry little (the release is checked every 1,000
+    // steps, the rows are every 2,000).
+    for (std::size_t r = 0; r < ts["phase"].size() && ts["phase"][r] == 3.0; ++r) {
+      EXPECT_LT(ts["mean_stress_Pa"][r], 0.2 * 100e3) << backend << " row " << r;
+    }
+    for (const char* col :
+         {"body_chamber_stress_Pa", "wall_zmin_stress_Pa", "wall_zmax_stress_Pa"}) {
+      EXPECT_NEAR(ts[col].back() / 1e5, 1.0, 0.01) << backend << " " << col;
+    }
+    const Packing pk = read_packing(opt.out_dir + "/sample.txt");
+    e_end[backend] = std::stod(pk.header.at("void_ratio"));
+    EXPECT_NEAR(e_end[backend], 0.75, cfg.sample.tolerance) << backend;
+  }
+  // The config.toml of the walls' compaction is as before the key; the affine one names it.
+  EXPECT_NE(testing::read_file(temp.path() / "cpu" / "config.toml").find("compaction = \"affine\""),
+            std::string::npos);
 }
 
 TEST(Chamber, BadChambersAreRefusedNamingTheKey) {

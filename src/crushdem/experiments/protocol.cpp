@@ -115,6 +115,26 @@ const ParamTable<SampleConfig>& sample_params() {
           "a solid fraction in (0, 0.3] (random placement jams above)"},
       Row{"max_speed", &SampleConfig::max_speed, "m/s", "wall speed limit during preparation",
           [](double v) { return v > 0.0; }, "a positive speed in m/s"},
+      Row{"compaction",
+          enum_choice(&SampleConfig::compaction, kCompactionNames),
+          "",
+          "how the loose cloud is compacted (CHOICE; docs/chamber.md, A chamber sample): "
+          "\"walls\", the servo walls sweep it inwards; \"affine\", every grain moves with the "
+          "walls' homogeneous strain until they carry affine_release x stress, then as walls",
+          nullptr,
+          {},
+          {},
+          // Written when affine: a config.toml of the walls' compaction is as it was before.
+          [](const SampleConfig& c) { return c.compaction != Compaction::Walls; }},
+      Row{"affine_release",
+          &SampleConfig::affine_release,
+          "-",
+          "affine compaction: the grains follow the walls until the walls' mean stress is this "
+          "fraction of stress",
+          [](double v) { return v > 0.0 && v < 1.0; },
+          "a fraction of sample.stress in (0, 1)",
+          {},
+          [](const SampleConfig& c) { return c.compaction == Compaction::Affine; }},
       Row{"unbalanced", &SampleConfig::unbalanced, "-",
           "equilibrium: unbalanced-force ratio below this",
           [](double v) { return v > 0.0 && v < 1.0; }, "an unbalanced-force ratio in (0, 1)"},
@@ -239,6 +259,37 @@ std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud) {
 
 // ---------------------------------------------------------------------------------------------
 
+double mean_wall_stress(const Walls& w) {
+  if (w.chamber() >= 0) return (2.0 * w.lateral_stress() + w.axial_stress()) / 3.0;
+  double p = 0.0;
+  for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
+  return p;
+}
+
+void follow_walls(Simulation& sim) {
+  const Walls& w = sim.walls();
+  // Along axis a: v = v_lo[a] + rate[a] (q - lo[a]), the velocity field that carries both walls
+  // of the axis (a chamber's radial one about its axis, x = y = 0).
+  std::array<double, 3> lo{}, v_lo{}, rate{};
+  for (int a = 0; a < 3; ++a) {
+    if (w.chamber() >= 0 && a < 2) {
+      rate[static_cast<std::size_t>(a)] = w.state(w.chamber()).velocity / w.chamber_radius();
+    } else {
+      const auto u = static_cast<std::size_t>(a);
+      lo[u] = w.position(2 * a);
+      v_lo[u] = w.state(2 * a).velocity;
+      rate[u] = (w.state(2 * a + 1).velocity - v_lo[u]) / w.length(a);
+    }
+  }
+  ParticleStore& p = sim.particles();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    p.vx[i] = v_lo[0] + rate[0] * (p.x[i] - lo[0]);
+    p.vy[i] = v_lo[1] + rate[1] * (p.y[i] - lo[1]);
+    p.vz[i] = v_lo[2] + rate[2] * (p.z[i] - lo[2]);
+    p.wx[i] = p.wy[i] = p.wz[i] = 0.0;
+  }
+}
+
 double inertial_number(const Walls& w, double d50, double density) {
   double rate = 0.0;
   for (int a = 0; a < 3; ++a) {
@@ -249,12 +300,7 @@ double inertial_number(const Walls& w, double d50, double density) {
       rate = std::max(rate, std::abs(w.state(2 * a).velocity - w.state(2 * a + 1).velocity) / L);
     }
   }
-  double p = 0.0;
-  if (w.chamber() >= 0) {
-    p = (2.0 * w.lateral_stress() + w.axial_stress()) / 3.0;
-  } else {
-    for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
-  }
+  const double p = mean_wall_stress(w);
   if (!(p > 0.0)) return std::numeric_limits<double>::quiet_NaN();
   return rate * d50 * std::sqrt(density / p);
 }
@@ -277,7 +323,8 @@ void PreparationController::begin(Simulation& sim) {
   mu_ = cfg_.friction_start;
   sim.set_friction(mu_);
   start_step_ = sim.step_count();
-  phase_ = Phase::Compact;
+  phase_ = cfg_.compaction == Compaction::Affine ? Phase::Affine : Phase::Compact;
+  if (phase_ == Phase::Affine) follow_walls(sim);
 }
 
 bool PreparationController::update(Simulation& sim) {
@@ -295,6 +342,16 @@ bool PreparationController::update(Simulation& sim) {
   const bool equilibrium = at_stress && ub <= cfg_.unbalanced;
   const double e_target = cfg_.void_ratio;
   switch (phase_) {
+    case Phase::Affine:
+      // The cloud contracts evenly until it carries load (or reaches the target), then the
+      // walls alone compact it as in the walls' compaction.
+      if (mean_wall_stress(sim.walls()) >= cfg_.affine_release * cfg_.stress ||
+          e_ <= e_target + 0.5 * cfg_.tolerance) {
+        phase_ = Phase::Compact;
+      } else {
+        follow_walls(sim);
+      }
+      return false;
     case Phase::Compact:
       // Restore the material friction a little before the target: the packing still settles.
       if (e_ <= e_target + 0.5 * cfg_.tolerance) {

@@ -31,6 +31,14 @@ enum class SampleShape { Cube, Cylinder };
 inline constexpr std::array<Named<SampleShape>, 2> kSampleShapeNames = {
     {{SampleShape::Cube, "cube"}, {SampleShape::Cylinder, "cylinder"}}};
 
+/// How the loose cloud is brought together (docs/chamber.md, "A chamber sample"): swept by the
+/// servo walls, or contracted evenly with them (each grain given the walls' homogeneous strain
+/// rate as its velocity while the cloud is loose) until the walls carry `affine_release` of the
+/// target stress.
+enum class Compaction { Walls, Affine };
+inline constexpr std::array<Named<Compaction>, 2> kCompactionNames = {
+    {{Compaction::Walls, "walls"}, {Compaction::Affine, "affine"}}};
+
 struct SampleConfig {
   GradingCurve grading = GradingCurve::ne34();
   SampleShape shape = SampleShape::Cube;
@@ -45,8 +53,12 @@ struct SampleConfig {
   std::uint64_t seed = 1;        // grain sizes and positions
   double friction_start = 0.5;   // preparation friction to start from [-]
   double friction_factor = 0.6;  // each lowering multiplies it by this [-]
-  double placement_fraction = 0.3;      // solid fraction of the initial loose cloud [-]
-  double max_speed = 0.3;               // wall speed limit during preparation [m/s]
+  double placement_fraction = 0.3;  // solid fraction of the initial loose cloud [-]
+  double max_speed = 0.3;           // wall speed limit during preparation [m/s]
+  // How the loose cloud is compacted, and (affine) the fraction of `stress` on the walls at
+  // which the grains stop following them (CHOICE).
+  Compaction compaction = Compaction::Walls;
+  double affine_release = 0.1;          // [-]
   double unbalanced = 5e-3;             // equilibrium: unbalanced-force ratio below this [-]
   double stress_tolerance = 0.01;       // equilibrium: every wall within this of `stress` [-]
   std::uint64_t check_interval = 1000;  // steps between checks
@@ -65,9 +77,18 @@ const ParamTable<SampleConfig>& sample_params();
 // Controllers
 // ---------------------------------------------------------------------------------------------
 
+/// The mean normal stress on the sample's walls [Pa]: of the six box walls, or in a chamber
+/// (2 sigma_r + sigma_z) / 3 from the chamber's wall and the platens.
+double mean_wall_stress(const Walls& w);
+
 /// Inertial number I = eps_dot d50 sqrt(rho / p) (docs/model.md 1.4), from the wall velocities
 /// (largest strain rate of the three axes) and the mean wall stress; NaN when p <= 0.
 double inertial_number(const Walls& w, double d50, double density);
+
+/// Gives every grain the velocity of the sample walls' homogeneous deformation at its place
+/// (along each axis, linear between the two walls; in a chamber, radial about the axis in
+/// proportion to the radius) and no spin: the cloud contracts or expands with its walls.
+void follow_walls(Simulation& sim);
 
 /// Every controller: begin() once, then update() after every steps_to_check() steps until it
 /// returns true. It may change walls and friction; it never steps the simulation itself.
@@ -126,8 +147,9 @@ class PreparationController final : public Controller {
   void begin(Simulation& sim) override;
   bool update(Simulation& sim) override;
   std::uint64_t steps_to_check(Simulation& sim) override;
-  /// Reads the walls, the grains' sizes and the unbalanced-force ratio only.
-  bool reads_grains(const Simulation&) const override { return false; }
+  /// Reads the walls, the grains' sizes and the unbalanced-force ratio only, except while the
+  /// grains follow the walls (affine compaction), which sets their velocities.
+  bool reads_grains(const Simulation&) const override { return phase_ == Phase::Affine; }
   Measurement columns(const Simulation& sim) const override;
   void state(StateArchive& a) override;
   double preparation_friction() const { return mu_found_; }
@@ -136,7 +158,8 @@ class PreparationController final : public Controller {
   const std::string& warning() const { return warning_; }
 
  private:
-  enum class Phase { Compact, Settle, Done };
+  // Saved by value in checkpoints: a new phase goes at the end.
+  enum class Phase { Compact, Settle, Done, Affine };
   SampleConfig cfg_;
   double mu_material_;
   double mu_ = 0.0, mu_found_ = 0.0, e_ = 0.0;
