@@ -1,0 +1,174 @@
+"""A prepared sample (``sample.txt``) and its void ratio by region (NumPy and pandas only).
+
+A sample is as homogeneous as the way it was compacted lets it be: a loose cloud swept together
+by its walls can jam with a looser core (docs/chamber.md, "Compaction"). :func:`void_ratio_map`
+measures the void ratio in bins of a chamber sample (radius and height, as fractions of the
+chamber's radius and the platens' distance) or of a cube (shells about its centre, and height),
+so that a sample can be checked before a long test starts on it.
+
+The solid fraction of a bin is the share of points, drawn uniformly in it, that lie inside a grain
+(a Monte Carlo estimate, exact in the limit: the grains cut by the bin's faces count by the part
+inside). Its error is that of a binomial share, sqrt(phi (1 - phi) / points): for the default
+20,000 points about 0.0035 in phi, 1.5 % of a void ratio near 0.65 (one standard error). The
+packing's own scatter in a bin of few grains is larger.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Dict, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import pandas as pd
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: The bins of a chamber sample when none are given: fractions of the chamber's radius (the axis,
+#: the body, the layer along the wall) and of the height (the platens' layers and the middle).
+CHAMBER_R_EDGES = (0.0, 0.1, 0.25, 0.5, 0.75, 0.9, 1.0)
+HEIGHT_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0)
+#: A cube's shells: fractions of the half-side (the largest of |x - x_c|, |y - y_c| over it).
+CUBE_SHELL_EDGES = (0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0)
+
+
+def read_sample(path: PathLike) -> Tuple[Dict[str, str], pd.DataFrame]:
+    """``sample.txt``: its ``# key=value`` header and its grains (``id``, ``x``, ``y``, ``z``,
+    ``diameter``, in m). Raises ValueError naming the file for a malformed line or no grains."""
+    path = os.fspath(path)
+    header: Dict[str, str] = {}
+    rows = []
+    with open(path, encoding="utf-8") as f:
+        for n, line in enumerate(f, 1):
+            line = line.strip()
+            if not line:
+                continue
+            if line.startswith("#"):
+                key, eq, value = line[1:].strip().partition("=")
+                if eq:
+                    header[key.strip()] = value.strip()
+                continue
+            fields = line.split()
+            try:
+                if len(fields) < 5:
+                    raise ValueError(line)
+                rows.append([float(v) for v in fields[:5]])
+            except ValueError:
+                raise ValueError(f"{path}:{n}: expected 'id x y z diameter', "
+                                 f"got '{line[:80]}'") from None
+    if not rows:
+        raise ValueError(f"{path}: no grains")
+    a = np.asarray(rows, dtype=float)
+    grains = pd.DataFrame({"id": a[:, 0].astype(np.int64), "x": a[:, 1], "y": a[:, 2],
+                           "z": a[:, 3], "diameter": a[:, 4]})
+    return header, grains
+
+
+def _inside_any(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """For each point, whether it lies in at least one sphere (a cell list of side the largest
+    diameter: a point's spheres are in its cell and the 26 around it)."""
+    cell = 2.0 * float(radii.max())
+    lo = centres.min(axis=0) - cell
+    dims = np.floor((centres.max(axis=0) + cell - lo) / cell).astype(np.int64) + 1
+
+    def flat(ijk: np.ndarray) -> np.ndarray:
+        return ijk[:, 0] + dims[0] * (ijk[:, 1] + dims[1] * ijk[:, 2])
+
+    key = flat(np.floor((centres - lo) / cell).astype(np.int64))
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    ncell = int(dims.prod())
+    start = np.searchsorted(skey, np.arange(ncell), side="left")
+    end = np.searchsorted(skey, np.arange(ncell), side="right")
+    most = int((end - start).max())
+    pc = centres[order]
+    pr2 = radii[order] ** 2
+    inside = np.zeros(len(points), dtype=bool)
+    pij = np.floor((points - lo) / cell).astype(np.int64)
+    for off in np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1]), -1).reshape(-1, 3):
+        q = pij + off
+        ok = np.all((q >= 0) & (q < dims), axis=1) & ~inside
+        if not ok.any():
+            continue
+        k = flat(q[ok])
+        s, e = start[k], end[k]
+        pts = points[ok]
+        hit = np.zeros(len(pts), dtype=bool)
+        for m in range(most):
+            j = s + m
+            valid = j < e
+            if not valid.any():
+                break
+            jj = np.where(valid, j, 0)
+            d2 = np.sum((pts - pc[jj]) ** 2, axis=1)
+            hit |= valid & (d2 <= pr2[jj])
+        inside[np.flatnonzero(ok)[hit]] = True
+    return inside
+
+
+def void_ratio_map(path: PathLike, r_edges: Optional[Sequence[float]] = None,
+                   z_edges: Optional[Sequence[float]] = None, points: int = 20000,
+                   seed: int = 1) -> pd.DataFrame:
+    """The void ratio of a prepared sample by region, one row per bin: ``r_lo``, ``r_hi`` (a
+    chamber sample: fractions of the chamber's radius about the z axis; a cube: of its half-side,
+    as shells about its centre), ``z_lo``, ``z_hi`` (fractions of the height from the bottom
+    platen), ``void_ratio``, ``grains`` (centres in the bin) and ``d50`` (the grains' median
+    diameter by mass, m, the same in every row). A sector (``sector`` in the header) is measured
+    in its own angle. ``points`` are drawn per bin from ``seed``: the same call gives the same
+    numbers."""
+    header, g = read_sample(path)
+    if points < 100:
+        raise ValueError(f"points = {points}: expected at least 100 per bin")
+    box = {}
+    for k in ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax"):
+        if f"box_{k}" not in header:
+            raise ValueError(f"{os.fspath(path)}: no box_{k} in the header (not a crushdem sample)")
+        box[k] = float(header[f"box_{k}"])
+    chamber = "chamber_radius" in header
+    R = float(header["chamber_radius"]) if chamber else 0.0
+    sector = float(header.get("sector", "360")) if chamber else 360.0
+    z0, H = box["zmin"], box["zmax"] - box["zmin"]
+    r_edges = np.asarray(r_edges if r_edges is not None else
+                         (CHAMBER_R_EDGES if chamber else CUBE_SHELL_EDGES), dtype=float)
+    z_edges = np.asarray(z_edges if z_edges is not None else HEIGHT_EDGES, dtype=float)
+    for name, e in (("r_edges", r_edges), ("z_edges", z_edges)):
+        if len(e) < 2 or np.any(np.diff(e) <= 0) or e[0] < 0 or e[-1] > 1:
+            raise ValueError(f"{name} = {e.tolist()}: expected increasing fractions in [0, 1]")
+    c = g[["x", "y", "z"]].to_numpy()
+    r = 0.5 * g["diameter"].to_numpy()
+    vol = r ** 3
+    by_size = np.argsort(g["diameter"].to_numpy())
+    d50 = float(g["diameter"].to_numpy()[by_size][np.searchsorted(np.cumsum(vol[by_size]),
+                                                                 0.5 * vol.sum())])
+    mid = np.array([0.5 * (box["xmin"] + box["xmax"]), 0.5 * (box["ymin"] + box["ymax"])])
+    half = 0.5 * np.array([box["xmax"] - box["xmin"], box["ymax"] - box["ymin"]])
+    if chamber:
+        radial = np.hypot(c[:, 0], c[:, 1]) / R
+    else:
+        radial = np.max(np.abs(c[:, :2] - mid) / half, axis=1)
+    height = (c[:, 2] - z0) / H
+    rng = np.random.default_rng(seed)
+    rows = []
+    for z_lo, z_hi in zip(z_edges[:-1], z_edges[1:]):
+        for r_lo, r_hi in zip(r_edges[:-1], r_edges[1:]):
+            zs = z0 + H * rng.uniform(z_lo, z_hi, points)
+            if chamber:
+                # Uniform in the annulus's area, in the sector's angle (x, y > 0 for a quarter;
+                # x > 0 for a half).
+                rad = R * np.sqrt(rng.uniform(r_lo ** 2, r_hi ** 2, points))
+                start = -0.5 * np.pi if sector == 180.0 else 0.0
+                th = start + np.deg2rad(sector) * rng.uniform(0.0, 1.0, points)
+                pts = np.column_stack([rad * np.cos(th), rad * np.sin(th), zs])
+            else:
+                # Uniform in the square shell: draw in the square, keep those in the shell.
+                xy = np.empty((0, 2))
+                while len(xy) < points:
+                    u = rng.uniform(-r_hi, r_hi, (2 * points, 2))
+                    m = np.max(np.abs(u), axis=1)
+                    xy = np.vstack([xy, u[(m >= r_lo) & (m < r_hi)]])
+                pts = np.column_stack([mid + xy[:points] * half, zs])
+            phi = float(_inside_any(pts, c, r).mean())
+            in_bin = (radial >= r_lo) & (radial < r_hi) & (height >= z_lo) & (height < z_hi)
+            rows.append({"r_lo": r_lo, "r_hi": r_hi, "z_lo": z_lo, "z_hi": z_hi,
+                         "void_ratio": (1.0 - phi) / phi if phi > 0 else float("inf"),
+                         "grains": int(in_bin.sum()), "d50": d50})
+    return pd.DataFrame(rows)

@@ -1,0 +1,103 @@
+"""crushdem_sand.packing: a sample.txt read back, and its void ratio by region measured on packings
+whose answer is known: a simple cubic lattice of touching spheres (solid fraction pi / 6 in
+every bin away from the faces) in a cube and in a quarter chamber, and the same chamber with a
+hole bored along its axis, which the map must show where it is and nowhere else."""
+
+import math
+
+import numpy as np
+import pytest
+
+from crushdem_sand.packing import read_sample, void_ratio_map
+
+E_LATTICE = (1.0 - math.pi / 6.0) / (math.pi / 6.0)  # 0.9099
+
+
+def _write(path, header, centres, d):
+    with open(path, "w") as f:
+        for k, v in header.items():
+            f.write(f"# {k}={v}\n")
+        f.write(f"# particles={len(centres)}\n")
+        for i, c in enumerate(centres):
+            f.write(f"{i} {float(c[0])!r} {float(c[1])!r} {float(c[2])!r} {d!r}\n")
+
+
+def _lattice(n, d, lo=(0.0, 0.0, 0.0)):
+    g = (np.arange(n) + 0.5) * d
+    x, y, z = np.meshgrid(g + lo[0], g + lo[1], g + lo[2], indexing="ij")
+    return np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+
+
+def _box(lo, hi):
+    return {f"box_{a}{m}": (lo if m == "min" else hi)[i]
+            for i, a in enumerate("xyz") for m in ("min", "max")}
+
+
+def test_a_sample_file_is_read_with_its_header(tmp_path):
+    p = tmp_path / "sample.txt"
+    _write(p, {"void_ratio": 0.65, **_box((0, 0, 0), (1, 1, 1))}, [(0.1, 0.2, 0.3)], 0.05)
+    header, g = read_sample(p)
+    assert header["void_ratio"] == "0.65"
+    assert list(g.columns) == ["id", "x", "y", "z", "diameter"]
+    assert g.loc[0, "z"] == 0.3 and g.loc[0, "diameter"] == 0.05
+    with open(p, "a") as f:
+        f.write("1 0.5 0.5\n")
+    with pytest.raises(ValueError, match=r"sample.txt:\d+: expected 'id x y z diameter'"):
+        read_sample(p)
+
+
+def test_a_cube_lattice_has_its_void_ratio_in_every_shell(tmp_path):
+    d, n = 1e-3, 20  # every bin edge on a lattice plane (shells of 2, 2, 2, 2, 1, 1 cells)
+    p = tmp_path / "sample.txt"
+    _write(p, _box((0, 0, 0), (n * d,) * 3), _lattice(n, d), d)
+    m = void_ratio_map(p, z_edges=[0.1, 0.5, 0.9], points=20000)
+    assert len(m) == 2 * 6
+    assert m["d50"].iloc[0] == d
+    # Each bin is whole lattice cells: pi / 6 to the sampling error (1.4 % of e here, one
+    # standard error).
+    np.testing.assert_allclose(m["void_ratio"], E_LATTICE, rtol=0.05)
+    assert m["grains"].sum() > 0.7 * n ** 3
+    # The same call, the same numbers.
+    assert void_ratio_map(p, z_edges=[0.1, 0.5, 0.9], points=20000).equals(m)
+
+
+def test_a_hole_along_a_quarter_chambers_axis_is_found_where_it_is(tmp_path):
+    # A quarter chamber of radius R filled with the lattice (the spheres whose centres are inside
+    # the quarter cylinder), and the same with the spheres within 0.2 R of the axis in the middle
+    # fifth of the height removed.
+    d, n = 1e-3, 30
+    R, H = n * d, n * d
+    c = _lattice(n, d)
+    keep = np.hypot(c[:, 0], c[:, 1]) < R
+    c = c[keep]
+    header = {**_box((-R, -R, 0.0), (R, R, H)), "chamber_radius": R, "sector": 90}
+    full, bored = tmp_path / "full.txt", tmp_path / "bored.txt"
+    _write(full, header, c, d)
+    hole = (np.hypot(c[:, 0], c[:, 1]) < 0.2 * R) & (c[:, 2] > 0.4 * H) & (c[:, 2] < 0.6 * H)
+    _write(bored, header, c[~hole], d)
+    kw = dict(r_edges=[0.0, 0.2, 0.5, 0.8], z_edges=[0.1, 0.4, 0.6, 0.9], points=20000)
+    a, b = void_ratio_map(full, **kw), void_ratio_map(bored, **kw)
+    # Away from the curved wall the full quarter is the lattice, the axis included: the points
+    # are drawn in the quarter's own angle (drawn in the whole circle, three quarters would be
+    # empty and e would be about 6.6).
+    np.testing.assert_allclose(a["void_ratio"], E_LATTICE, rtol=0.06)
+    in_hole = (b["r_hi"] == 0.2) & (b["z_lo"] == 0.4)
+    assert b.loc[in_hole, "void_ratio"].item() > 5.0  # the caps of the spheres around it
+    assert b.loc[in_hole, "grains"].item() == 0
+    # Elsewhere the map is the full quarter's: the same points (drawn from the seed), which
+    # only the removed spheres' caps in the bins beside the hole miss.
+    np.testing.assert_allclose(b.loc[~in_hole, "void_ratio"], a.loc[~in_hole, "void_ratio"],
+                               rtol=0.1)
+    assert (b["void_ratio"] == a["void_ratio"]).sum() >= 4
+
+
+def test_bad_input_is_named(tmp_path):
+    p = tmp_path / "sample.txt"
+    _write(p, {"void_ratio": 0.65}, [(0.1, 0.2, 0.3)], 0.05)
+    with pytest.raises(ValueError, match="no box_xmin in the header"):
+        void_ratio_map(p)
+    _write(p, _box((0, 0, 0), (1, 1, 1)), [(0.1, 0.2, 0.3)], 0.05)
+    with pytest.raises(ValueError, match=r"r_edges = \[0.5, 0.2\]: expected increasing"):
+        void_ratio_map(p, r_edges=[0.5, 0.2])
+    with pytest.raises(ValueError, match="points = 10"):
+        void_ratio_map(p, points=10)
