@@ -203,6 +203,18 @@ TEST_F(RunDirectory, AbsurdButValidParametersWarn) {
   std::ofstream(config_) << kTinyRun;
   const Outcome plain = cli({"check", config_});
   EXPECT_FALSE(has(plain.out, "warning")) << plain.out;
+  // A sample 50 d50 across compacted by its walls warns (docs/chamber.md, Compaction); the
+  // same sample compacted affinely, and one 20 d50 across, do not.
+  const std::string wide = "[sample]\nside = 10.5e-3\n";
+  std::ofstream(config_) << wide;
+  const Outcome swept = cli({"check", config_});
+  EXPECT_EQ(swept.rc, 0) << swept.err;
+  EXPECT_TRUE(has(swept.out, "warning: sample.compaction = \"walls\" on a sample 50 d50 across"))
+      << swept.out;
+  std::ofstream(config_) << "[sample]\nside = 10.5e-3\ncompaction = \"affine\"\n";
+  EXPECT_FALSE(has(cli({"check", config_}).out, "warning")) << "affine";
+  std::ofstream(config_) << "[sample]\nside = 4.2e-3\n";
+  EXPECT_FALSE(has(cli({"check", config_}).out, "warning")) << "20 d50 across";
 }
 
 TEST_F(RunDirectory, AFolderWithAConfigTomlIsNotARun) {

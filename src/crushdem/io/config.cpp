@@ -619,6 +619,19 @@ std::vector<std::string> RunConfig::warnings() const {
       out.push_back(std::move(w));
     }
   }
+  if (has_sample && sample.compaction == Compaction::Walls) {
+    // The walls' sweep jams around a loose core in wide samples: measured at 63 d50 across (a
+    // hole about a chamber's axis), slight at 31, none in a cube 23 across (docs/chamber.md,
+    // "Compaction"). 40 is where this warns (CHOICE).
+    const RunConfig run = upscaled(*this);
+    const double across = run.sample.cube_side() / run.sample.grading.diameter_at(0.5);
+    if (across > 40.0) {
+      out.push_back("sample.compaction = \"walls\" on a sample " +
+                    std::to_string(std::lround(across)) +
+                    " d50 across: the walls' sweep can leave a sample this wide with a loose "
+                    "core (docs/chamber.md, Compaction); sample.compaction = \"affine\" does not");
+    }
+  }
   return out;
 }
 
