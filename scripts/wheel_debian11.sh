@@ -94,6 +94,7 @@ for entry in "${pythons[@]}"; do
     echo "CPython $version in $root has no multiprocessing SemLock (is /dev/shm a tmpfs there?)" >&2
     exit 1
   }
+  rm -rf "$root/src/Python-$version"  # installed in /opt: the build tree (about 0.5 GB) goes
 done
 
 if [ ! -f "$root/usr/include/toml++/toml.h" ] || [ ! -f "$root/usr/include/CLI/CLI.hpp" ]; then
