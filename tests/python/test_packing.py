@@ -91,6 +91,19 @@ def test_a_hole_along_a_quarter_chambers_axis_is_found_where_it_is(tmp_path):
     assert (b["void_ratio"] == a["void_ratio"]).sum() >= 4
 
 
+def test_a_half_chamber_is_measured_in_its_own_half(tmp_path):
+    # The half (sector 180) holds the grains at x > 0: its points are drawn there, so its
+    # lattice measures as the lattice (drawn at y > 0 instead, half of them would miss).
+    d, n = 1e-3, 20
+    R, H = n * d, n * d
+    c = _lattice(2 * n, d, lo=(0.0, -R, 0.0))
+    c = c[(np.hypot(c[:, 0], c[:, 1]) < R) & (c[:, 2] < H)]
+    p = tmp_path / "half.txt"
+    _write(p, {**_box((-R, -R, 0.0), (R, R, H)), "chamber_radius": R, "sector": 180}, c, d)
+    m = void_ratio_map(p, r_edges=[0.0, 0.5, 0.8], z_edges=[0.1, 0.5, 0.9])
+    np.testing.assert_allclose(m["void_ratio"], E_LATTICE, rtol=0.06)
+
+
 def test_bad_input_is_named(tmp_path):
     p = tmp_path / "sample.txt"
     _write(p, {"void_ratio": 0.65}, [(0.1, 0.2, 0.3)], 0.05)

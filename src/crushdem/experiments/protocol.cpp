@@ -120,11 +120,12 @@ const ParamTable<SampleConfig>& sample_params() {
           "",
           "how the loose cloud is compacted (CHOICE; docs/chamber.md, A chamber sample): "
           "\"walls\", the servo walls sweep it inwards; \"affine\", every grain moves with the "
-          "walls' homogeneous strain until they carry affine_release x stress, then as walls",
+          "walls' homogeneous strain until they carry affine_release x stress, then as walls. "
+          "A sample more than 40 d50 across compacted by its walls warns",
           nullptr,
           {},
           {},
-          // Written when affine: a config.toml of the walls' compaction is as it was before.
+          // Written when affine: a walls run's config.toml has no such line.
           [](const SampleConfig& c) { return c.compaction != Compaction::Walls; }},
       Row{"affine_release",
           &SampleConfig::affine_release,
@@ -267,6 +268,8 @@ double mean_wall_stress(const Walls& w) {
 }
 
 void follow_walls(Simulation& sim) {
+  // The forces kept from the last step (their damping terms of the old velocities) give the next
+  // half kick, as after any change between steps: a loose cloud carries almost none.
   const Walls& w = sim.walls();
   // Along axis a: v = v_lo[a] + rate[a] (q - lo[a]), the velocity field that carries both walls
   // of the axis (a chamber's radial one about its axis, x = y = 0).

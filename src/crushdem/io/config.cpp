@@ -626,10 +626,11 @@ std::vector<std::string> RunConfig::warnings() const {
     const RunConfig run = upscaled(*this);
     const double across = run.sample.cube_side() / run.sample.grading.diameter_at(0.5);
     if (across > 40.0) {
-      out.push_back("sample.compaction = \"walls\" on a sample " +
-                    std::to_string(std::lround(across)) +
-                    " d50 across: the walls' sweep can leave a sample this wide with a loose "
-                    "core (docs/chamber.md, Compaction); sample.compaction = \"affine\" does not");
+      out.push_back(
+          "sample.compaction = \"walls\" on a sample " + std::to_string(std::lround(across)) +
+          " d50 across: the walls' sweep can leave a sample this wide with a loose "
+          "core (docs/chamber.md, Compaction); sample.compaction = \"affine\" contracts it "
+          "evenly");
     }
   }
   return out;
