@@ -29,6 +29,12 @@ RunConfig config(const std::string& text) {
   return run_config_from_toml(toml::parse(text, "test"), "test", ".");
 }
 
+// `text` with `line` inserted after the first `after` (a key added to a table).
+std::string with_line_after(std::string text, const std::string& after, const std::string& line) {
+  text.replace(text.find(after), after.size(), after + line);
+  return text;
+}
+
 TEST(Chamber, ACylinderIsPreparedInItsChamberAndAConeIsPushedInAndResumedExactly) {
   const testing::TempDir temp("chamber");
   const fs::path& base = temp.path();
@@ -81,9 +87,8 @@ TEST(Chamber, ACylinderIsPreparedInItsChamberAndAConeIsPushedInAndResumedExactly
 TEST(Chamber, AQuarterBetweenSymmetryPlanesIsPreparedAndPenetratedOnItsAxis) {
   // The sample of chamber_400.toml as a quarter (sector = 90): 400 grains in the quadrant
   // x, y > 0 between the frictionless planes x = 0 and y = 0, the cone on the z axis.
-  std::string text = testing::test_data("chamber_400.toml");
-  const std::string at = "shape = \"cylinder\"\n";
-  text.replace(text.find(at), at.size(), at + "sector = 90.0\n");
+  std::string text = with_line_after(testing::test_data("chamber_400.toml"),
+                                     "shape = \"cylinder\"\n", "sector = 90.0\n");
   const RunConfig cfg = config(text);
   const testing::TempDir temp("chamber");
   RunOptions opt;
@@ -290,10 +295,8 @@ TEST(Chamber, AffineCompactionCarriesTheCloudWithItsWallsThenPreparesTheSample) 
   std::string walls_text = testing::test_data("chamber_400.toml");
   walls_text.erase(walls_text.find("[[stage]]"),
                    walls_text.find("[output]") - walls_text.find("[[stage]]"));
-  std::string text = walls_text;
-  const std::string at = "seed = 4\n";
-  text.replace(text.find(at), at.size(), at + "compaction = \"affine\"\n");
-  const RunConfig cfg = config(text);
+  const RunConfig cfg =
+      config(with_line_after(walls_text, "seed = 4\n", "compaction = \"affine\"\n"));
   const testing::TempDir temp("chamber_affine");
   RunOptions opt;
   opt.progress = false;
