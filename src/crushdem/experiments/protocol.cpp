@@ -267,42 +267,49 @@ double mean_wall_stress(const Walls& w) {
   return p;
 }
 
+namespace {
+
+// The walls' homogeneous deformation along one axis: v(q) = v_lo + rate (q - lo), the velocity
+// field that moves with both walls of the axis (a chamber's radial one about its axis, x = y = 0,
+// with lo = v_lo = 0).
+struct AxisMotion {
+  double lo = 0.0, v_lo = 0.0, rate = 0.0;
+};
+
+std::array<AxisMotion, 3> wall_motion(const Walls& w) {
+  std::array<AxisMotion, 3> m{};
+  for (int a = 0; a < 3; ++a) {
+    AxisMotion& ax = m[static_cast<std::size_t>(a)];
+    if (w.chamber() >= 0 && a < 2) {  // the chamber's radius rate over its radius
+      ax.rate = w.state(w.chamber()).velocity / w.chamber_radius();
+    } else {
+      ax.lo = w.position(2 * a);
+      ax.v_lo = w.state(2 * a).velocity;
+      const double L = w.length(a);
+      ax.rate = L > 0 ? (w.state(2 * a + 1).velocity - ax.v_lo) / L : 0.0;
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
 void follow_walls(Simulation& sim) {
   // The forces kept from the last step (their damping terms of the old velocities) give the next
   // half kick, as after any change between steps: a loose cloud carries almost none.
-  const Walls& w = sim.walls();
-  // Along axis a: v = v_lo[a] + rate[a] (q - lo[a]), the velocity field that carries both walls
-  // of the axis (a chamber's radial one about its axis, x = y = 0).
-  std::array<double, 3> lo{}, v_lo{}, rate{};
-  for (int a = 0; a < 3; ++a) {
-    if (w.chamber() >= 0 && a < 2) {
-      rate[static_cast<std::size_t>(a)] = w.state(w.chamber()).velocity / w.chamber_radius();
-    } else {
-      const auto u = static_cast<std::size_t>(a);
-      lo[u] = w.position(2 * a);
-      v_lo[u] = w.state(2 * a).velocity;
-      rate[u] = (w.state(2 * a + 1).velocity - v_lo[u]) / w.length(a);
-    }
-  }
+  const std::array<AxisMotion, 3> m = wall_motion(sim.walls());
   ParticleStore& p = sim.particles();
   for (std::size_t i = 0; i < p.size(); ++i) {
-    p.vx[i] = v_lo[0] + rate[0] * (p.x[i] - lo[0]);
-    p.vy[i] = v_lo[1] + rate[1] * (p.y[i] - lo[1]);
-    p.vz[i] = v_lo[2] + rate[2] * (p.z[i] - lo[2]);
+    p.vx[i] = m[0].v_lo + m[0].rate * (p.x[i] - m[0].lo);
+    p.vy[i] = m[1].v_lo + m[1].rate * (p.y[i] - m[1].lo);
+    p.vz[i] = m[2].v_lo + m[2].rate * (p.z[i] - m[2].lo);
     p.wx[i] = p.wy[i] = p.wz[i] = 0.0;
   }
 }
 
 double inertial_number(const Walls& w, double d50, double density) {
   double rate = 0.0;
-  for (int a = 0; a < 3; ++a) {
-    const double L = w.length(a);
-    if (w.chamber() >= 0 && a < 2) {  // radial: the chamber's radius rate over its radius
-      rate = std::max(rate, std::abs(w.state(w.chamber()).velocity) / (0.5 * L));
-    } else if (L > 0) {
-      rate = std::max(rate, std::abs(w.state(2 * a).velocity - w.state(2 * a + 1).velocity) / L);
-    }
-  }
+  for (const AxisMotion& ax : wall_motion(w)) rate = std::max(rate, std::abs(ax.rate));
   const double p = mean_wall_stress(w);
   if (!(p > 0.0)) return std::numeric_limits<double>::quiet_NaN();
   return rate * d50 * std::sqrt(density / p);
