@@ -7,8 +7,8 @@
 #   bash bench/gpu_deps.sh runs/reproduce_rev          # here, once: build/gpu-deps to carry
 #   OUT=... bash bench/gpu_check.sh                    # there (PARTS to run some parts only)
 #
-# PARTS (default all): build tests bench scaling oedometric triaxial. Each part has a time
-# limit, so a slow one cannot eat the lease; what it wrote up to then is kept in $OUT.
+# PARTS (default all): build tests bench scaling oedometric triaxial chamber pile. Each part has
+# a time limit, so a slow one cannot eat the lease; what it wrote up to then is kept in $OUT.
 #   tests       crushdem_cuda_kernel_test (contact kernels = host bits) and crushdem_device_test
 #               (tests/device_checks.hpp on the GPU, then the GPU's bits against the emulation);
 #   bench       `crushdem-sand bench --backend cuda` on the peer reference packing (11,500 grains,
@@ -16,12 +16,18 @@
 #   scaling     the CPU backend on the REV sample, 1 to 16 threads (rough law);
 #   oedometric  the REV oedometric relaxation of `crushdem-sand reproduce` on the GPU (wall-clock);
 #   triaxial    the REV triaxial relaxation on the GPU for a fixed time: seconds per dynamic
-#               phase from events.csv, and the projected total.
+#               phase from events.csv, and the projected total;
+#   chamber     examples/chamber_cpt.toml (the study-scale CPT, 76,000 grains) on the GPU for
+#               CHAMBER_LIMIT seconds: the preparation's and the push's steps/s, how far it got
+#               and q_c by travel (bench/run_progress.py);
+#   pile        examples/pile_chamber.toml (the study-scale pile, 590,000 grains) for PILE_LIMIT
+#               seconds: the preparation's steps/s at that size.
+# Last, $OUT/results.tar.gz holds every part's logs and small result files (no checkpoints).
 set -u
 cd "$(dirname "$0")/.."
 OUT=${OUT:-gpu_check_out}
 DEPS=${DEPS:-build/gpu-deps}
-PARTS=${PARTS:-build tests bench scaling oedometric triaxial}
+PARTS=${PARTS:-build tests bench scaling oedometric triaxial chamber pile}
 # BACKEND=emulated BUILD=build/cuda PARTS="bench oedometric" tries the script's steps on a
 # machine without a GPU (with short runs it stops early, which the table says).
 BACKEND=${BACKEND:-cuda}
@@ -147,5 +153,21 @@ print(f"{'  steps done, grains, particle-steps/s':58s} {step}, {n:.0f}, {rate:.3
 print(f"{'  seconds per 150,000-cycle dynamic phase at that size':58s} {150000 * n / rate:.1f}")
 EOF
 fi
+if want chamber; then
+  read -r rc secs <<< "$(gpu_run chamber_cpt "${CHAMBER_CONFIG:-examples/chamber_cpt.toml}" "${CHAMBER_LIMIT:-300}")"
+  row "study-scale chamber CPT on the GPU: ran [s]" "$secs (rc $rc)"
+  python3 bench/run_progress.py "$OUT/chamber_cpt" chamber | tee -a "$SUMMARY"
+fi
+
+if want pile; then
+  read -r rc secs <<< "$(gpu_run pile_chamber "${PILE_CONFIG:-examples/pile_chamber.toml}" "${PILE_LIMIT:-90}")"
+  row "study-scale pile on the GPU: ran [s]" "$secs (rc $rc)"
+  python3 bench/run_progress.py "$OUT/pile_chamber" pile | tee -a "$SUMMARY"
+fi
+
+# The logs and the small result files in one archive (the device tool brings back few files).
+(cd "$OUT" && find . -type f \( -name '*.log' -o -name '*.csv' -o -name '*.json' -o -name '*.txt' \
+   -o -name '*.toml' \) ! -name 'packing*.txt' ! -path './pile_chamber/sample.txt' -print0 | tar -czf results.tar.gz --null -T -) ||
+  echo "gpu_check: results.tar.gz not written" >&2
 echo "== figures"
 cat "$SUMMARY"
