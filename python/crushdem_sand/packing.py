@@ -179,3 +179,142 @@ def void_ratio_map(path: PathLike, r_edges: Optional[Sequence[float]] = None,
                          "void_ratio": (1.0 - phi) / phi if phi > 0 else float("inf"),
                          "grains": int(in_bin.sum()), "d50": d50})
     return pd.DataFrame(rows)
+
+
+#: The bins of :func:`void_ratio_profile`, in median grain diameters from the boundary.
+PROFILE_EDGES = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
+
+#: What :func:`void_ratio_profile` measures the distance from.
+PROFILE_BOUNDARIES = ("axis", "planes", "chamber", "platens")
+
+
+def void_ratio_profile(path: PathLike, boundary: str,
+                       edges: Sequence[float] = PROFILE_EDGES, points: int = 20000,
+                       seed: int = 1, r_range: Tuple[float, float] = (0.25, 0.9),
+                       z_range: Tuple[float, float] = (0.1, 0.9)) -> pd.DataFrame:
+    """The void ratio of a chamber sample against the distance from one of its boundaries, in
+    median grain diameters (``edges``), one row per bin: ``distance_lo``, ``distance_hi`` (in
+    d50), ``void_ratio``, ``grains`` (centres in the bin) and ``d50`` (m). A wall orders the
+    grains beside it and loosens the packing within a few diameters; this measures by how much
+    and how far, for each kind of boundary of a chamber sample:
+
+    - ``"axis"``: the distance from the chamber's axis (where a sector's symmetry planes meet,
+      and where a penetrometer goes), at heights ``z_range``;
+    - ``"planes"``: the distance from the nearer symmetry plane of a sector (90 or 180 degrees),
+      at radii ``r_range`` and heights ``z_range``;
+    - ``"chamber"``: the distance from the chamber's cylinder, at heights ``z_range``;
+    - ``"platens"``: the distance from the nearer platen, at radii ``r_range``.
+
+    ``r_range`` and ``z_range`` are fractions of the chamber's radius and of the platens'
+    distance; their defaults keep each profile clear of the other boundaries. Each bin's solid
+    fraction is the share of ``points`` drawn uniformly in it that lie in a grain (as
+    :func:`void_ratio_map`; the same call gives the same numbers)."""
+    header, g = read_sample(path)
+    name = os.fspath(path)
+    if boundary not in PROFILE_BOUNDARIES:
+        raise ValueError(f"boundary = {boundary!r}: expected one of {', '.join(PROFILE_BOUNDARIES)}")
+    if "chamber_radius" not in header:
+        raise ValueError(f"{name}: not a chamber sample (no chamber_radius in its header)")
+    if points < 100:
+        raise ValueError(f"points = {points}: expected at least 100 per bin")
+    edges = np.asarray(edges, dtype=float)
+    if len(edges) < 2 or np.any(np.diff(edges) <= 0) or edges[0] < 0:
+        raise ValueError(f"edges = {edges.tolist()}: expected increasing distances >= 0 (d50)")
+    for key, (lo, hi) in (("r_range", r_range), ("z_range", z_range)):
+        if not 0.0 <= lo < hi <= 1.0:
+            raise ValueError(f"{key} = {(lo, hi)}: expected fractions 0 <= lo < hi <= 1")
+    sector = float(header.get("sector", "360"))
+    if boundary == "planes" and sector not in (90.0, 180.0):
+        raise ValueError(f"{name}: boundary 'planes' needs a sector of 90 or 180 degrees "
+                         f"(this sample's sector is {sector:g})")
+    R = float(header["chamber_radius"])
+    z0 = float(header["box_zmin"])
+    H = float(header["box_zmax"]) - z0
+    c = g[["x", "y", "z"]].to_numpy()
+    radius = 0.5 * g["diameter"].to_numpy()
+    vol = radius ** 3
+    by_size = np.argsort(radius)
+    d50 = 2.0 * float(radius[by_size][np.searchsorted(np.cumsum(vol[by_size]), 0.5 * vol.sum())])
+    # A sector's angle and its planes' inward normals (a quarter: x, y > 0; a half: x > 0).
+    start = -0.5 * np.pi if sector == 180.0 else 0.0
+    normals = [np.array([1.0, 0.0])] if sector == 180.0 else [np.array([0.0, 1.0]),
+                                                              np.array([1.0, 0.0])]
+
+    def plane_distance(xy: np.ndarray) -> np.ndarray:
+        return np.min(np.stack([xy @ n for n in normals]), axis=0)
+
+    def distance(p: np.ndarray) -> np.ndarray:
+        if boundary == "axis":
+            return np.hypot(p[:, 0], p[:, 1])
+        if boundary == "chamber":
+            return R - np.hypot(p[:, 0], p[:, 1])
+        if boundary == "platens":
+            return np.minimum(p[:, 2] - z0, z0 + H - p[:, 2])
+        return plane_distance(p[:, :2])
+
+    def in_range(p: np.ndarray) -> np.ndarray:
+        rad, hgt = np.hypot(p[:, 0], p[:, 1]) / R, (p[:, 2] - z0) / H
+        ok_z = (hgt >= z_range[0]) & (hgt < z_range[1])
+        ok_r = (rad >= r_range[0]) & (rad < r_range[1])
+        if boundary in ("axis", "chamber"):
+            return ok_z & (rad < 1.0)
+        if boundary == "platens":
+            return ok_r & (hgt >= 0.0) & (hgt < 1.0)
+        return ok_r & ok_z
+
+    def around(rad: np.ndarray, rng: np.random.Generator, z: np.ndarray) -> np.ndarray:
+        th = start + np.deg2rad(sector) * rng.uniform(0.0, 1.0, len(rad))
+        return np.column_stack([rad * np.cos(th), rad * np.sin(th), z])
+
+    def draw(lo: float, hi: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        """n points uniform in the bin [lo, hi) (m) of the region: drawn where the bin is, then
+        kept where the distance and the ranges say (uniform in a superset, then rejected, stays
+        uniform)."""
+        def zs(k: int) -> np.ndarray:
+            return z0 + H * rng.uniform(z_range[0], z_range[1], k)
+
+        if boundary == "axis":
+            return around(np.sqrt(rng.uniform(lo ** 2, hi ** 2, n)), rng, zs(n))
+        if boundary == "chamber":
+            a, b = max(R - hi, 0.0), R - lo
+            return around(np.sqrt(rng.uniform(a ** 2, b ** 2, n)), rng, zs(n))
+        if boundary == "platens":
+            rad = R * np.sqrt(rng.uniform(r_range[0] ** 2, r_range[1] ** 2, n))
+            s = rng.uniform(lo, hi, n)
+            z = np.where(rng.uniform(0.0, 1.0, n) < 0.5, z0 + s, z0 + H - s)
+            return around(rad, rng, z)
+        # A strip along a plane chosen at random: along it from r_range[0] R to r_range[1] R,
+        # at s from it; the strips of the two planes of a quarter are mirror images.
+        k = rng.integers(0, len(normals), n)
+        nrm = np.stack(normals)[k]
+        along = np.column_stack([nrm[:, 1], nrm[:, 0]])  # the plane's radial direction
+        t = R * rng.uniform(r_range[0], r_range[1], n)
+        if sector == 180.0:  # the half's plane runs from y = -R to R
+            t *= np.where(rng.uniform(0.0, 1.0, n) < 0.5, -1.0, 1.0)
+        s = rng.uniform(lo, hi, n)
+        xy = along * t[:, None] + nrm * s[:, None]
+        return np.column_stack([xy, zs(n)])
+
+    cells = _CellList(c, radius)
+    rng = np.random.default_rng(seed)
+    d_grain, ok_grain = distance(c), in_range(c)
+    rows = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        a, b = lo * d50, hi * d50
+        kept = np.empty((0, 3))
+        for _ in range(200):
+            p = draw(a, b, 2 * points, rng)
+            dist = distance(p)
+            p = p[(dist >= a) & (dist < b) & in_range(p)]
+            kept = np.vstack([kept, p])
+            if len(kept) >= points:
+                break
+        if len(kept) < points:
+            raise ValueError(f"{name}: the bin {lo:g}-{hi:g} d50 from the {boundary} lies "
+                             "outside the sample's region (r_range, z_range)")
+        phi = float(cells.inside(kept[:points]).mean())
+        rows.append({"distance_lo": lo, "distance_hi": hi,
+                     "void_ratio": (1.0 - phi) / phi if phi > 0 else float("inf"),
+                     "grains": int(((d_grain >= a) & (d_grain < b) & ok_grain).sum()),
+                     "d50": d50})
+    return pd.DataFrame(rows)

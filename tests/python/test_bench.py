@@ -2,6 +2,7 @@
 prepared sample (six wall positions from '# box_xmin=' ...) both load, and the figure is the
 last line of the output."""
 
+import os
 import subprocess
 import sys
 
@@ -114,3 +115,73 @@ def test_bench_keeps_the_settled_state_in_a_file(tmp_path):
                           str(tmp_path / "p.txt"), "--steps", "5", "--settled-state", str(state)],
                          capture_output=True, text=True)
     assert res.returncode != 0 and "needs --settle" in res.stderr
+
+
+CHAMBER = """[contact]
+rotation = "blocked"
+[sample]
+shape = "cylinder"
+sector = 90
+count = 200
+void_ratio = 0.8
+stress = 100e3
+seed = 4
+[output]
+progress_seconds = 0
+"""
+
+
+def _values(line):
+    return dict(kv.split("=") for kv in line.split()[1:] if "=" in kv)
+
+
+def test_bench_times_a_runs_chamber_sample_with_its_chamber(tmp_path):
+    (tmp_path / "chamber.toml").write_text(CHAMBER)
+    run = tmp_path / "run"
+    res = subprocess.run([sys.executable, "-m", "crushdem_sand", "run",
+                          str(tmp_path / "chamber.toml"), "--out", str(run), "--threads", "1"],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+
+    def bench(*args):
+        r = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", *args, "--steps", "200",
+                            "--warm", "0", "--threads", "1"],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        return r.stdout.strip().splitlines()
+
+    lines = bench("--run", str(run))
+    # The chamber and the quarter's two planes hold the grains; the run's own law and step: the
+    # prepared sample stays at its 100 kPa (the Love-Weber mean stress) with the walls fixed.
+    assert _line(lines, "bodies").startswith("bodies=3 ")
+    assert _line(lines, "bodies").endswith("sector_deg=90")
+    assert "law=rough" in lines[0]
+    p_love = float(_line(lines, "p_wall_Pa").split()[1].split("=")[1])
+    assert abs(p_love / 1e5 - 1.0) < 0.1
+    timed = {k: float(v) for k, v in _values(next(ln for ln in lines
+                                                  if ln.startswith("timed_seconds "))).items()}
+    assert timed["wall_forces"] > 0 and timed["contact_forces"] > 0
+    # The emulated device steps the same chamber: the same stress to the order of the sums.
+    device = bench("--run", str(run), "--backend", "emulated")
+    p_device = float(_line(device, "p_wall_Pa").split()[1].split("=")[1])
+    assert abs(p_device / p_love - 1.0) < 1e-6
+    # The sample file alone, with the peers' constants, is confined by the same bodies.
+    assert _line(bench("--packing", str(run / "sample.txt")), "bodies").startswith("bodies=3 ")
+
+
+def test_bench_refuses_a_run_it_cannot_time(tmp_path):
+    def refused(*args):
+        r = subprocess.run([sys.executable, "-m", "crushdem_sand", "bench", *args, "--steps", "5"],
+                           capture_output=True, text=True, timeout=60,
+                           env={k: v for k, v in os.environ.items() if k != "PACKING"})
+        assert r.returncode != 0
+        return r.stderr
+
+    assert "--run" in refused("--run", str(tmp_path)) and "sample.txt" in refused(
+        "--run", str(tmp_path))
+    (tmp_path / "config.toml").write_text(CHAMBER)
+    (tmp_path / "sample.txt").write_text("")
+    assert "--law" in refused("--run", str(tmp_path), "--law", "hertz")
+    assert "--settle" in refused("--run", str(tmp_path), "--settle", "10")
+    assert "--packing" in refused()
+    assert "excludes" in refused("--run", str(tmp_path), "--packing", "x.txt")

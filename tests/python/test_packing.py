@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from crushdem_sand.packing import read_sample, void_ratio_map
+from crushdem_sand.packing import read_sample, void_ratio_map, void_ratio_profile
 
 E_LATTICE = (1.0 - math.pi / 6.0) / (math.pi / 6.0)  # 0.9099
 
@@ -114,3 +114,80 @@ def test_bad_input_is_named(tmp_path):
         void_ratio_map(p, r_edges=[0.5, 0.2])
     with pytest.raises(ValueError, match="points = 10"):
         void_ratio_map(p, points=10)
+
+
+def _quarter_lattice(tmp_path, name, drop=None, n=30, d=1e-3, sector=90):
+    """A quarter (or half) chamber of radius n d filled with the simple cubic lattice; `drop`
+    removes the grains whose centres it selects."""
+    R, H = n * d, n * d
+    c = _lattice(n, d)
+    if sector == 180:  # the mirror image in y too
+        c = np.vstack([c, c * np.array([1.0, -1.0, 1.0])])
+    c = c[np.hypot(c[:, 0], c[:, 1]) < R]
+    if drop is not None:
+        c = c[~drop(c)]
+    p = tmp_path / name
+    _write(p, {**_box((-R, -R, 0.0), (R, R, H)), "chamber_radius": R, "sector": sector}, c, d)
+    return p
+
+
+def test_a_lattice_is_as_dense_beside_its_planes_and_platens_as_inside(tmp_path):
+    # Every bin one or more whole lattice layers from the boundary: pi / 6 (to the sampling error
+    # and the part cells the bins' other faces cut).
+    p = _quarter_lattice(tmp_path, "quarter.txt")
+    for boundary in ("planes", "platens"):
+        m = void_ratio_profile(p, boundary, edges=[0, 1, 2, 3], points=20000)
+        assert list(m.columns) == ["distance_lo", "distance_hi", "void_ratio", "grains", "d50"]
+        np.testing.assert_allclose(m["void_ratio"], E_LATTICE, rtol=0.06, err_msg=boundary)
+        assert (m["grains"] > 0).all()
+    # A half chamber's one plane, both sides of its axis.
+    half = _quarter_lattice(tmp_path, "half.txt", sector=180)
+    m = void_ratio_profile(half, "planes", edges=[0, 1, 2], points=20000)
+    np.testing.assert_allclose(m["void_ratio"], E_LATTICE, rtol=0.06)
+    assert void_ratio_profile(p, "planes", edges=[0, 1, 2, 3], points=20000).equals(
+        void_ratio_profile(p, "planes", edges=[0, 1, 2, 3], points=20000))
+
+
+def test_a_layer_missing_along_one_plane_loosens_its_bin_only(tmp_path):
+    d = 1e-3
+    # The layer of grains touching the plane y = 0 removed: the first bin's points on that plane's
+    # strip (half of them) find no grain, those on the other plane's strip the lattice.
+    p = _quarter_lattice(tmp_path, "no_layer.txt", drop=lambda c: c[:, 1] < d)
+    m = void_ratio_profile(p, "planes", edges=[0, 1, 2, 3], points=20000)
+    phi = math.pi / 12.0
+    assert m["void_ratio"].iloc[0] == pytest.approx((1 - phi) / phi, rel=0.08)
+    np.testing.assert_allclose(m["void_ratio"].iloc[1:], E_LATTICE, rtol=0.06)
+
+
+def test_an_empty_core_shows_in_the_axis_profile_and_ends_where_the_grains_begin(tmp_path):
+    d = 1e-3
+    p = _quarter_lattice(tmp_path, "core.txt", drop=lambda c: np.hypot(c[:, 0], c[:, 1]) < 3 * d)
+    m = void_ratio_profile(p, "axis", edges=[0, 1, 2, 6, 10], points=20000)
+    # No grain reaches within 2.5 d of the axis.
+    assert np.isinf(m["void_ratio"].iloc[0]) and np.isinf(m["void_ratio"].iloc[1])
+    assert m["grains"].iloc[0] == 0 and m["grains"].iloc[1] == 0
+    assert m["void_ratio"].iloc[3] == pytest.approx(E_LATTICE, rel=0.08)
+    c = void_ratio_profile(p, "chamber", edges=[0, 2, 4], points=5000)
+    assert np.isfinite(c["void_ratio"]).all()
+
+
+def test_a_profile_refuses_what_it_cannot_measure(tmp_path):
+    d, n = 1e-3, 10
+    cube = tmp_path / "cube.txt"
+    _write(cube, _box((0, 0, 0), (n * d,) * 3), _lattice(n, d), d)
+    with pytest.raises(ValueError, match="not a chamber sample"):
+        void_ratio_profile(cube, "axis")
+    p = _quarter_lattice(tmp_path, "quarter.txt", n=10)
+    with pytest.raises(ValueError, match="boundary = 'wall'"):
+        void_ratio_profile(p, "wall")
+    with pytest.raises(ValueError, match=r"edges = \[1.0, 0.5\]"):
+        void_ratio_profile(p, "axis", edges=[1, 0.5])
+    with pytest.raises(ValueError, match="r_range"):
+        void_ratio_profile(p, "planes", r_range=(0.5, 0.2))
+    full = tmp_path / "full.txt"
+    _write(full, {**_box((-1, -1, 0), (1, 1, 1)), "chamber_radius": 0.01, "sector": 360},
+           _lattice(4, d), d)
+    with pytest.raises(ValueError, match="sector of 90 or 180"):
+        void_ratio_profile(full, "planes")
+    with pytest.raises(ValueError, match="outside the sample's region"):
+        void_ratio_profile(p, "axis", edges=[20, 30], points=200)

@@ -1,6 +1,7 @@
 // `crushdem-sand bench`: the peer reference problem (bench/README.md).
 //
-// Loads the reference packing (11,500 spheres in a box of 6 walls at 5 MPa), runs WARM untimed
+// Loads the reference packing (11,500 spheres in a box of 6 walls at 5 MPa) or a prepared sample
+// (a chamber sample with its chamber and symmetry planes, fixed), runs WARM untimed
 // then STEPS timed steps with the same contact law and constants as the peers (Hertz-Mindlin,
 // Coulomb, Tsuji viscous damping from the restitution REST, walls with the same friction), and
 // prints particle_steps_per_s=<N*STEPS/seconds> as the last line. Values come from the command
@@ -15,6 +16,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
@@ -23,8 +25,11 @@
 #include "crushdem/backend/stepper.hpp"
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/core/part_clock.hpp"
 #include "crushdem/core/state_io.hpp"
+#include "crushdem/experiments/protocol.hpp"
 #include "crushdem/integrate/simulation.hpp"
+#include "crushdem/io/config.hpp"
 #include "crushdem/io/output.hpp"
 #include "crushdem/io/packing.hpp"
 #include "crushdem/run/runner.hpp"
@@ -46,6 +51,22 @@ double env_number(const char* name, double fallback) {
                       ": expected a number");
   }
   return x;
+}
+
+/// The peer problem's constants (bench/peers/common/lib.sh), from the environment variables its
+/// harness sets, else their defaults there.
+void set_peer_constants(SimulationConfig& cfg, const std::string& law) {
+  cfg.material.density = env_number("RHO", 2650.0);
+  cfg.material.shear_modulus = env_number("G_SHEAR", 32e9);
+  cfg.material.poisson_ratio = env_number("NU", 0.19);
+  cfg.material.friction = env_number("MU", 0.275);
+  cfg.contact.law = parse_normal_law(law, "--law");
+  cfg.contact.wall_friction = cfg.material.friction;
+  cfg.contact.restitution = env_number("REST", 0.5);
+  cfg.contact.rotation = Rotation::Free;  // the peers' spheres turn freely
+  cfg.damping.local_alpha = 0.0;          // the peers use viscous contact damping only
+  cfg.timestep.dt = env_number("DT", 1.494169e-8);
+  cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
 }
 
 long peak_rss_kib() {
@@ -77,9 +98,29 @@ std::string settled_state_header(const std::string& law, long settle,
 }  // namespace
 
 int bench_main(const BenchArgs& a) {
-  const std::string& packing_path = a.packing;
+  // --run DIR: the run's prepared sample with the run's own configuration.
+  const bool from_run = !a.run.empty();
+  if (!from_run && a.packing.empty()) {
+    throw ConfigError("give --packing FILE (or the PACKING variable) or --run DIR");
+  }
+  if (from_run && a.law_given) {
+    throw ConfigError(
+        bad_value("--law", a.law, "no --law with --run (the run's config.toml gives the law)"));
+  }
+  if (from_run && a.settle > 0) {
+    throw ConfigError(bad_value("--settle", std::to_string(a.settle),
+                                "0 with --run (the sample is timed as the run prepared it)"));
+  }
+  const std::filesystem::path run_dir(a.run);
+  if (from_run && !(std::filesystem::is_regular_file(run_dir / "config.toml") &&
+                    std::filesystem::is_regular_file(run_dir / "sample.txt"))) {
+    throw ConfigError(bad_value("--run", "\"" + a.run + "\"",
+                                "a run directory whose preparation has finished (config.toml and "
+                                "sample.txt)"));
+  }
+  const std::string packing_path = from_run ? (run_dir / "sample.txt").string() : a.packing;
   const long steps = a.steps, warm = a.warm, settle = a.settle, prune = a.prune;
-  const std::string &law = a.law, &state_out = a.state_out, &backend = a.backend;
+  const std::string &state_out = a.state_out, &backend = a.backend;
   const std::string& settled_state = a.settled_state;
   if (prune != 0 && prune != 1) {
     throw ConfigError(bad_value("--prune", std::to_string(prune), "0 (walk the full list) or 1"));
@@ -116,20 +157,28 @@ int bench_main(const BenchArgs& a) {
   }
 
   SimulationConfig cfg;
-  cfg.material.density = env_number("RHO", 2650.0);
-  cfg.material.shear_modulus = env_number("G_SHEAR", 32e9);
-  cfg.material.poisson_ratio = env_number("NU", 0.19);
-  cfg.material.friction = env_number("MU", 0.275);
-  cfg.contact.law = parse_normal_law(law, "--law");
-  cfg.contact.wall_friction = cfg.material.friction;
-  cfg.contact.restitution = env_number("REST", 0.5);
-  cfg.contact.rotation = Rotation::Free;  // the peers' spheres turn freely
-  cfg.damping.local_alpha = 0.0;          // the peers use viscous contact damping only
-  cfg.timestep.dt = env_number("DT", 1.494169e-8);
-  cfg.neighbor.skin = env_number("SKIN", 3.75e-5);
+  if (from_run) {
+    cfg = upscaled(load_saved_run_config((run_dir / "config.toml").string())).simulation;
+  } else {
+    set_peer_constants(cfg, a.law);
+  }
   cfg.neighbor.prune = prune != 0;
   for (int k = 0; k < kNumWalls; ++k) {
+    cfg.walls[static_cast<std::size_t>(k)] = WallConfig{};  // fixed
     cfg.walls[static_cast<std::size_t>(k)].position = wall_position[static_cast<std::size_t>(k)];
+  }
+  const std::string law = to_string(cfg.contact.law);
+  // A chamber sample (as `crushdem-sand run` writes one): its chamber and symmetry planes, fixed
+  // where the file has them, so that its grains stay confined and the bodies' share is timed.
+  const Packing::Chamber chamber = pk.chamber(packing_path, from_run ? "--run" : "--packing");
+  if (chamber.radius > 0.0) {
+    LooseCloud size;
+    size.side = 2.0 * chamber.radius;
+    size.height = wall_position[5] - wall_position[4];
+    size.sector = chamber.sector / 360.0;
+    for (const BodyConfig& b : chamber_sample_bodies(size, wall_position[4])) {
+      cfg.bodies.push_back(b);
+    }
   }
   Simulation sim(cfg);
   add_packing_particles(sim, pk);
@@ -191,9 +240,11 @@ int bench_main(const BenchArgs& a) {
   sim.compute_forces();
   const std::size_t builds0 = sim.neighbors().builds();
   const std::size_t prunes0 = sim.pruned_neighbors().builds();
+  const auto parts0 = sim.part_clock().seconds();
   const auto t0 = std::chrono::steady_clock::now();
   advance(steps);  // returns when the device has finished
   const auto t1 = std::chrono::steady_clock::now();
+  const auto parts1 = sim.part_clock().seconds();
   stepper->sync(sim);
   const double secs = std::chrono::duration<double>(t1 - t0).count();
 
@@ -202,8 +253,7 @@ int bench_main(const BenchArgs& a) {
   for (int k = 0; k < kNumWalls; ++k) p_wall += walls.stress(k) / kNumWalls;
   const auto s = sim.love_weber_stress();
   std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e backend=%s\n", N,
-              steps, warm, current_threads(), law.c_str(), sim.dt(), cfg.neighbor.skin,
-              backend.c_str());
+              steps, warm, current_threads(), law.c_str(), sim.dt(), sim.skin(), backend.c_str());
   std::printf("neighbor_pairs=%zu contacts=%zu neigh_builds_timed=%zu\n",
               sim.neighbors().num_pairs(), sim.num_contacts(), sim.neighbors().builds() - builds0);
   std::printf("pruned_pairs=%zu inner_skin_m=%.3e prune_builds_timed=%zu\n",
@@ -211,6 +261,15 @@ int bench_main(const BenchArgs& a) {
               sim.pruned_neighbors().builds() - prunes0);
   std::printf("p_wall_Pa=%.6e p_love_Pa=%.6e ke_J=%.6e\n", p_wall, (s[0] + s[4] + s[8]) / 3.0,
               sim.kinetic_energy());
+  // The timed steps' seconds by part (a device's whole step is contact_forces) and the bodies.
+  std::printf("bodies=%zu chamber_radius_m=%.6e sector_deg=%g\n", cfg.bodies.size(), chamber.radius,
+              chamber.sector);
+  std::printf("timed_seconds");
+  for (std::size_t k = 0; k < PartClock::kParts; ++k) {
+    std::printf(" %.*s=%.4f", static_cast<int>(kPartNames[k].size()), kPartNames[k].data(),
+                parts1[k] - parts0[k]);
+  }
+  std::printf("\n");
   std::printf(
       "engine_bytes_per_particle=%.0f device_bytes_per_particle=%.0f peak_rss_kib=%ld "
       "wall_s=%.4f\n",

@@ -93,14 +93,21 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
   BenchArgs bench;
   CLI::App* c_bench = app.add_subcommand(
       "bench",
-      "time the peer reference problem (11,500 spheres at 5 MPa; bench/README.md) and "
-      "print particle_steps_per_s last; options fall back on the peer harness's "
-      "environment variables");
+      "time the peer reference problem (11,500 spheres at 5 MPa; bench/README.md), or a "
+      "run's prepared sample, and print particle_steps_per_s last; options fall back on the "
+      "peer harness's environment variables");
+  CLI::Option* o_packing =
+      c_bench
+          ->add_option("--packing", bench.packing,
+                       "the packing file (bench/README.md: the reference one) with the peers' "
+                       "constants")
+          ->envname("PACKING");
   c_bench
-      ->add_option("--packing", bench.packing,
-                   "the packing file (bench/README.md: the reference one)")
-      ->envname("PACKING")
-      ->required();
+      ->add_option("--run", bench.run,
+                   "a run directory: its prepared sample (sample.txt) with the run's own "
+                   "configuration (config.toml: law, grains, bodies; a chamber sample's chamber "
+                   "and symmetry planes), its walls and bodies fixed")
+      ->excludes(o_packing);
   c_bench->add_option("--steps", bench.steps, "timed steps")
       ->envname("STEPS")
       ->check(CLI::PositiveNumber);
@@ -165,6 +172,7 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
     if (c_run->parsed()) return run_main(run);
     if (c_resume->parsed()) return resume_main(resume);
     if (c_check->parsed()) return check_main(check_config);
+    bench.law_given = c_bench->count("--law") > 0;
     return bench_main(bench);
   } catch (const ConfigError& e) {
     std::fprintf(stderr, "%s %s: error: %s\n", kCommand, cmd.c_str(), e.what());

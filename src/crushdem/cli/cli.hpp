@@ -38,7 +38,9 @@ struct ResumeArgs {
   bool quiet = false;
 };
 struct BenchArgs {
-  std::string packing;  // required (--packing or PACKING)
+  std::string packing;  // --packing or PACKING, or
+  std::string run;      // --run: a run directory's sample with the run's configuration
+  bool law_given = false;
   long steps = 10000, warm = 500, threads = 0, settle = 0, prune = 1;
   std::string law = "hertz", state_out, backend = "cpu", settled_state;
 };

@@ -258,6 +258,13 @@ std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud) {
   return planes;
 }
 
+std::vector<BodyConfig> chamber_sample_bodies(const LooseCloud& size, double z_bottom) {
+  std::vector<BodyConfig> bodies{chamber_body(size)};
+  bodies.front().origin.z += z_bottom;
+  for (const BodyConfig& plane : symmetry_planes(size)) bodies.push_back(plane);
+  return bodies;
+}
+
 // ---------------------------------------------------------------------------------------------
 
 double mean_wall_stress(const Walls& w) {

@@ -141,6 +141,10 @@ inline constexpr std::array<const char*, 3> kSampleBodyNames = {"chamber", "symm
 /// x > 0), and y = 0 too for a quarter ("symmetry_y"); none for a whole cylinder.
 std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud);
 
+/// A chamber sample's bodies: its chamber (chamber_body, raised by `z_bottom`, the bottom
+/// platen's height when the sample comes from a file) and its symmetry planes.
+std::vector<BodyConfig> chamber_sample_bodies(const LooseCloud& size, double z_bottom);
+
 class PreparationController final : public Controller {
  public:
   PreparationController(const SampleConfig& cfg, double material_friction);

@@ -302,27 +302,9 @@ RunConfig run_config_from_toml(const toml::Table& root, const std::string& sourc
     if (pk.header.count(kUpscalingHeader)) {
       c.file_upscaling_factor = pk.header_number(kUpscalingHeader, c.particles.file);
     }
-    if (pk.header.count("chamber_radius")) {
-      c.file_chamber_radius = pk.header_number("chamber_radius", c.particles.file);
-      if (pk.header.count("sector")) {
-        c.file_sector = pk.header_number("sector", c.particles.file);
-      } else if (!pk.rows.empty()) {
-        // A half or a quarter written before its sample file carried a sector would be read as a
-        // full chamber, and its grains would spread into the empty part: refused.
-        bool x_pos = true, y_pos = true;
-        for (const PackingRow& row : pk.rows) {
-          x_pos = x_pos && row.position.x > 0.0;
-          y_pos = y_pos && row.position.y > 0.0;
-        }
-        if (x_pos) {
-          throw ConfigError(
-              bad_value("particles.file", "\"" + c.particles.file + "\"",
-                        "a chamber sample file with a '# sector=' line: every grain lies at x > 0 "
-                        "(a half or a quarter of a chamber); add '# sector=" +
-                            std::string(y_pos ? "90" : "180") + "' to its header"));
-        }
-      }
-    }
+    const Packing::Chamber chamber = pk.chamber(c.particles.file, "particles.file");
+    c.file_chamber_radius = chamber.radius;
+    c.file_sector = chamber.sector;
   }
   {
     Section s = r.sub("run");

@@ -34,6 +34,28 @@ std::array<double, kNumWalls> Packing::box(const std::string& path) const {
   return b;
 }
 
+Packing::Chamber Packing::chamber(const std::string& path, const std::string& key) const {
+  Chamber c;
+  if (!header.count("chamber_radius")) return c;
+  c.radius = header_number("chamber_radius", path);
+  if (header.count("sector")) {
+    c.sector = header_number("sector", path);
+  } else if (!rows.empty()) {
+    bool x_pos = true, y_pos = true;
+    for (const PackingRow& row : rows) {
+      x_pos = x_pos && row.position.x > 0.0;
+      y_pos = y_pos && row.position.y > 0.0;
+    }
+    if (x_pos) {
+      throw ConfigError(bad_value(key, "\"" + path + "\"",
+                                  "a chamber sample file with a '# sector=' line: every grain lies "
+                                  "at x > 0 (a half or a quarter of a chamber); add '# sector=" +
+                                      std::string(y_pos ? "90" : "180") + "' to its header"));
+    }
+  }
+  return c;
+}
+
 Packing read_packing(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw ConfigError("particle file '" + path + "' cannot be opened");

@@ -33,6 +33,15 @@ struct Packing {
   /// The header key of the number of grains (written by crushdem; checked when present, so a
   /// file cut at a line end is refused).
   static constexpr const char* kCountHeader = "particles";
+  /// The chamber a chamber sample was prepared in ('# chamber_radius=', '# sector='): radius 0
+  /// for any other file. A file whose grains all lie at x > 0 but that records no sector (a half
+  /// or a quarter written before sample files carried it) is refused with a ConfigError naming
+  /// `key` and the file: read as a whole chamber, its grains would spread into the empty part.
+  struct Chamber {
+    double radius = 0.0;    // [m]
+    double sector = 360.0;  // [deg]
+  };
+  Chamber chamber(const std::string& path, const std::string& key) const;
 };
 
 /// Reads a packing file; throws ConfigError naming the file (and line) on any problem: a bad

@@ -256,10 +256,11 @@ class Run {
       size.sector = cfg_.file_sector / 360.0;
     }
     if (size.side > 0.0) {
-      BodyConfig chamber = chamber_body(size);
-      if (!cylinder) chamber.origin.z += sim_cfg.walls[4].position;  // about the file's box
-      sim_cfg.bodies.push_back(chamber);
-      for (const BodyConfig& plane : symmetry_planes(size)) sim_cfg.bodies.push_back(plane);
+      // A file's chamber stands about the file's box.
+      for (const BodyConfig& b :
+           chamber_sample_bodies(size, cylinder ? 0.0 : sim_cfg.walls[4].position)) {
+        sim_cfg.bodies.push_back(b);
+      }
     }
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
