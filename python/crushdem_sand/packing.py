@@ -212,7 +212,8 @@ def void_ratio_profile(path: PathLike, boundary: str,
     header, g = read_sample(path)
     name = os.fspath(path)
     if boundary not in PROFILE_BOUNDARIES:
-        raise ValueError(f"boundary = {boundary!r}: expected one of {', '.join(PROFILE_BOUNDARIES)}")
+        raise ValueError(f"boundary = {boundary!r}: expected one of "
+                         f"{', '.join(PROFILE_BOUNDARIES)}")
     if "chamber_radius" not in header:
         raise ValueError(f"{name}: not a chamber sample (no chamber_radius in its header)")
     if points < 100:
