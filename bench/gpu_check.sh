@@ -153,17 +153,17 @@ print(f"{'  steps done, grains, particle-steps/s':58s} {step}, {n:.0f}, {rate:.3
 print(f"{'  seconds per 150,000-cycle dynamic phase at that size':58s} {150000 * n / rate:.1f}")
 EOF
 fi
-if want chamber; then
-  read -r rc secs <<< "$(gpu_run chamber_cpt "${CHAMBER_CONFIG:-examples/chamber_cpt.toml}" "${CHAMBER_LIMIT:-300}")"
-  row "study-scale chamber CPT on the GPU: ran [s]" "$secs (rc $rc)"
-  python3 bench/run_progress.py "$OUT/chamber_cpt" chamber | tee -a "$SUMMARY"
-fi
-
-if want pile; then
-  read -r rc secs <<< "$(gpu_run pile_chamber "${PILE_CONFIG:-examples/pile_chamber.toml}" "${PILE_LIMIT:-90}")"
-  row "study-scale pile on the GPU: ran [s]" "$secs (rc $rc)"
-  python3 bench/run_progress.py "$OUT/pile_chamber" pile | tee -a "$SUMMARY"
-fi
+# A study-scale example on the GPU under a time limit: how far it got and how fast.
+progress_run() {
+  local name=$1 config=$2 limit=$3 label=$4 rc secs
+  read -r rc secs <<< "$(gpu_run "$name" "$config" "$limit")"
+  row "$label on the GPU: ran [s]" "$secs (rc $rc)"
+  python3 bench/run_progress.py "$OUT/$name" "${name%%_*}" | tee -a "$SUMMARY"
+}
+want chamber && progress_run chamber_cpt "${CHAMBER_CONFIG:-examples/chamber_cpt.toml}" \
+  "${CHAMBER_LIMIT:-300}" "study-scale chamber CPT"
+want pile && progress_run pile_chamber "${PILE_CONFIG:-examples/pile_chamber.toml}" \
+  "${PILE_LIMIT:-90}" "study-scale pile"
 
 # The logs and the small result files in one archive (the device tool brings back few files).
 (cd "$OUT" && find . -type f \( -name '*.log' -o -name '*.csv' -o -name '*.json' -o -name '*.txt' \

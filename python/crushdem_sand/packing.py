@@ -111,6 +111,22 @@ class _CellList:
         return inside
 
 
+def _mass_d50(diameter: np.ndarray) -> float:
+    """The median diameter by mass (volume) of a sample's grains."""
+    vol = (0.5 * diameter) ** 3
+    by_size = np.argsort(diameter)
+    return float(diameter[by_size][np.searchsorted(np.cumsum(vol[by_size]), 0.5 * vol.sum())])
+
+
+def _sector_points(rad: np.ndarray, z: np.ndarray, sector: float,
+                   rng: np.random.Generator) -> np.ndarray:
+    """Points at radii `rad` and heights `z`, at angles uniform in the sector's own (x, y > 0 for
+    a quarter; x > 0 for a half)."""
+    start = -0.5 * np.pi if sector == 180.0 else 0.0
+    th = start + np.deg2rad(sector) * rng.uniform(0.0, 1.0, len(rad))
+    return np.column_stack([rad * np.cos(th), rad * np.sin(th), z])
+
+
 def void_ratio_map(path: PathLike, r_edges: Optional[Sequence[float]] = None,
                    z_edges: Optional[Sequence[float]] = None, points: int = 20000,
                    seed: int = 1) -> pd.DataFrame:
@@ -141,10 +157,7 @@ def void_ratio_map(path: PathLike, r_edges: Optional[Sequence[float]] = None,
             raise ValueError(f"{name} = {e.tolist()}: expected increasing fractions in [0, 1]")
     c = g[["x", "y", "z"]].to_numpy()
     r = 0.5 * g["diameter"].to_numpy()
-    vol = r ** 3
-    by_size = np.argsort(g["diameter"].to_numpy())
-    d50 = float(g["diameter"].to_numpy()[by_size][np.searchsorted(np.cumsum(vol[by_size]),
-                                                                 0.5 * vol.sum())])
+    d50 = _mass_d50(g["diameter"].to_numpy())
     mid = np.array([0.5 * (box["xmin"] + box["xmax"]), 0.5 * (box["ymin"] + box["ymax"])])
     half = 0.5 * np.array([box["xmax"] - box["xmin"], box["ymax"] - box["ymin"]])
     if chamber:
@@ -162,9 +175,7 @@ def void_ratio_map(path: PathLike, r_edges: Optional[Sequence[float]] = None,
                 # Uniform in the annulus's area, in the sector's angle (x, y > 0 for a quarter;
                 # x > 0 for a half).
                 rad = R * np.sqrt(rng.uniform(r_lo ** 2, r_hi ** 2, points))
-                start = -0.5 * np.pi if sector == 180.0 else 0.0
-                th = start + np.deg2rad(sector) * rng.uniform(0.0, 1.0, points)
-                pts = np.column_stack([rad * np.cos(th), rad * np.sin(th), zs])
+                pts = _sector_points(rad, zs, sector, rng)
             else:
                 # Uniform in the square shell: draw in the square, keep those in the shell.
                 xy = np.empty((0, 2))
@@ -233,11 +244,8 @@ def void_ratio_profile(path: PathLike, boundary: str,
     H = float(header["box_zmax"]) - z0
     c = g[["x", "y", "z"]].to_numpy()
     radius = 0.5 * g["diameter"].to_numpy()
-    vol = radius ** 3
-    by_size = np.argsort(radius)
-    d50 = 2.0 * float(radius[by_size][np.searchsorted(np.cumsum(vol[by_size]), 0.5 * vol.sum())])
-    # A sector's angle and its planes' inward normals (a quarter: x, y > 0; a half: x > 0).
-    start = -0.5 * np.pi if sector == 180.0 else 0.0
+    d50 = _mass_d50(g["diameter"].to_numpy())
+    # A sector's planes' inward normals (a quarter: x, y > 0; a half: x > 0).
     normals = [np.array([1.0, 0.0])] if sector == 180.0 else [np.array([0.0, 1.0]),
                                                               np.array([1.0, 0.0])]
 
@@ -263,10 +271,6 @@ def void_ratio_profile(path: PathLike, boundary: str,
             return ok_r & (hgt >= 0.0) & (hgt < 1.0)
         return ok_r & ok_z
 
-    def around(rad: np.ndarray, rng: np.random.Generator, z: np.ndarray) -> np.ndarray:
-        th = start + np.deg2rad(sector) * rng.uniform(0.0, 1.0, len(rad))
-        return np.column_stack([rad * np.cos(th), rad * np.sin(th), z])
-
     def draw(lo: float, hi: float, n: int, rng: np.random.Generator) -> np.ndarray:
         """n points uniform in the bin [lo, hi) (m) of the region: drawn where the bin is, then
         kept where the distance and the ranges say (uniform in a superset, then rejected, stays
@@ -275,15 +279,15 @@ def void_ratio_profile(path: PathLike, boundary: str,
             return z0 + H * rng.uniform(z_range[0], z_range[1], k)
 
         if boundary == "axis":
-            return around(np.sqrt(rng.uniform(lo ** 2, hi ** 2, n)), rng, zs(n))
+            return _sector_points(np.sqrt(rng.uniform(lo ** 2, hi ** 2, n)), zs(n), sector, rng)
         if boundary == "chamber":
             a, b = max(R - hi, 0.0), R - lo
-            return around(np.sqrt(rng.uniform(a ** 2, b ** 2, n)), rng, zs(n))
+            return _sector_points(np.sqrt(rng.uniform(a ** 2, b ** 2, n)), zs(n), sector, rng)
         if boundary == "platens":
             rad = R * np.sqrt(rng.uniform(r_range[0] ** 2, r_range[1] ** 2, n))
             s = rng.uniform(lo, hi, n)
             z = np.where(rng.uniform(0.0, 1.0, n) < 0.5, z0 + s, z0 + H - s)
-            return around(rad, rng, z)
+            return _sector_points(rad, z, sector, rng)
         # A strip along a plane chosen at random: along it from r_range[0] R to r_range[1] R,
         # at s from it; the strips of the two planes of a quarter are mirror images.
         k = rng.integers(0, len(normals), n)

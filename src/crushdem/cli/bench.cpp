@@ -172,11 +172,8 @@ int bench_main(const BenchArgs& a) {
   // where the file has them, so that its grains stay confined and the bodies' share is timed.
   const Packing::Chamber chamber = pk.chamber(packing_path, from_run ? "--run" : "--packing");
   if (chamber.radius > 0.0) {
-    LooseCloud size;
-    size.side = 2.0 * chamber.radius;
-    size.height = wall_position[5] - wall_position[4];
-    size.sector = chamber.sector / 360.0;
-    for (const BodyConfig& b : chamber_sample_bodies(size, wall_position[4])) {
+    for (const BodyConfig& b :
+         file_chamber_bodies(chamber.radius, chamber.sector, wall_position[4], wall_position[5])) {
       cfg.bodies.push_back(b);
     }
   }

@@ -265,6 +265,15 @@ std::vector<BodyConfig> chamber_sample_bodies(const LooseCloud& size, double z_b
   return bodies;
 }
 
+std::vector<BodyConfig> file_chamber_bodies(double radius, double sector_degrees, double z_bottom,
+                                            double z_top) {
+  LooseCloud size;
+  size.side = 2.0 * radius;
+  size.height = z_top - z_bottom;
+  size.sector = sector_degrees / 360.0;
+  return chamber_sample_bodies(size, z_bottom);
+}
+
 // ---------------------------------------------------------------------------------------------
 
 double mean_wall_stress(const Walls& w) {

@@ -144,6 +144,10 @@ std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud);
 /// A chamber sample's bodies: its chamber (chamber_body, raised by `z_bottom`, the bottom
 /// platen's height when the sample comes from a file) and its symmetry planes.
 std::vector<BodyConfig> chamber_sample_bodies(const LooseCloud& size, double z_bottom);
+/// The same for a chamber sample read from a file: its chamber of `radius` and `sector_degrees`
+/// between the platens at z_bottom and z_top (the file's box).
+std::vector<BodyConfig> file_chamber_bodies(double radius, double sector_degrees, double z_bottom,
+                                            double z_top);
 
 class PreparationController final : public Controller {
  public:

@@ -246,22 +246,17 @@ class Run {
                                                                               : cloud_.height;
       }
     }
-    LooseCloud size;  // the chamber's shape (its place, when resumed, is in the state)
+    // The chamber's bodies (its place, when resumed, is in the state); a file's stands about the
+    // file's box, at the radius it was prepared to.
+    std::vector<BodyConfig> chamber;
     if (cylinder) {
-      size = resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_;
+      chamber =
+          chamber_sample_bodies(resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_, 0.0);
     } else if (cfg_.file_chamber_radius > 0.0) {
-      // A chamber sample from its file: the chamber at the radius it was prepared to.
-      size.side = 2.0 * cfg_.file_chamber_radius;
-      size.height = sim_cfg.walls[5].position - sim_cfg.walls[4].position;
-      size.sector = cfg_.file_sector / 360.0;
+      chamber = file_chamber_bodies(cfg_.file_chamber_radius, cfg_.file_sector,
+                                    sim_cfg.walls[4].position, sim_cfg.walls[5].position);
     }
-    if (size.side > 0.0) {
-      // A file's chamber stands about the file's box.
-      for (const BodyConfig& b :
-           chamber_sample_bodies(size, cylinder ? 0.0 : sim_cfg.walls[4].position)) {
-        sim_cfg.bodies.push_back(b);
-      }
-    }
+    for (const BodyConfig& b : chamber) sim_cfg.bodies.push_back(b);
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
     driver_->manifest = &manifest_;
