@@ -6,6 +6,8 @@ A sweep file names a base configuration and the values to vary::
     from = "runs/loaded:relaxation"     # optional: every variant branches from this run's
                                         # state at the start of that stage
                                         # (crushdem-sand run --from)
+    stages = ["install", "unload"]      # optional: only these of the base's stages (by name
+                                        # or index, run in the base's order)
     [vary]                              # combined as a product
     "contact.rolling_friction" = [0.1, 0.3]
     "crushing.seed" = [1, 2, 3]
@@ -52,7 +54,8 @@ import numpy as np
 from ._cli import CommandParser
 from ._optional import available, message, require
 from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
-from .rundir import read_events, read_penetration, read_summary, read_timing
+from .rundir import (read_events, read_penetration, read_shaft_profile, read_summary,
+                     read_timing)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -99,7 +102,9 @@ def read_sweep(path: str) -> Dict[str, Any]:
     "keys", "from"}; every problem named by file and key. A named variant's element of its
     factor carries its name under NAME_KEY."""
     doc, base, base_path = read_file_and_base(path, "sweep",
-                                              ("base", "from", "vary", "zip", "variant"))
+                                              ("base", "from", "stages", "vary", "zip", "variant"))
+    if "stages" in doc:
+        base["stage"] = _kept_stages(path, base, doc["stages"])
     branch = doc.get("from")
     if branch is not None:
         if not isinstance(branch, str):
@@ -137,6 +142,31 @@ def read_sweep(path: str) -> Dict[str, Any]:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
             "factors": factors, "keys": keys, "from": branch}
+
+
+def _kept_stages(path: str, base: Dict[str, Any], kept: Any) -> List[Dict[str, Any]]:
+    """The base's stages that ``stages = [...]`` keeps (names or indices), in the base's order."""
+    stages = base.get("stage")
+    if not isinstance(stages, list) or not stages:
+        raise ValueError(f"{path}: stages = [...] needs a base configuration with [[stage]] tables")
+    if not isinstance(kept, list) or not kept or not all(
+            isinstance(k, (str, int)) and not isinstance(k, bool) for k in kept):
+        raise ValueError(f"{path}: stages must be a list of stage names or indices, got {kept!r}")
+    names = [str(st.get("name", i)) if isinstance(st, dict) else str(i)
+             for i, st in enumerate(stages)]
+    keep = set()
+    for k in kept:
+        if isinstance(k, int):
+            if not 0 <= k < len(stages):
+                raise ValueError(f"{path}: stages: no stage {k} (the base has {len(stages)})")
+            keep.add(k)
+        elif k in names:
+            keep.add(names.index(k))
+        else:
+            raise ValueError(f"{path}: stages: no stage '{k}' (stages: {', '.join(names)})")
+    if len(keep) != len(kept):
+        raise ValueError(f"{path}: stages names a stage twice ({kept!r})")
+    return [st for i, st in enumerate(stages) if i in keep]
 
 
 # The name of a [[variant]] inside its factor's element (not a configuration key: no dot).
@@ -288,11 +318,27 @@ def run_variant(config_path: str, run_dir: str, threads: int,
 # --- the results -------------------------------------------------------------------------------
 
 
+def _shaft_sigma_r_end(profile: Optional[Dict[str, Any]], stage: int) -> Optional[float]:
+    """The mean radial stress [Pa] over the shaft's bins that touch grains, at stage ``stage``'s
+    last record of shaft_profile.csv; None without such a record or bin."""
+    if profile is None or not {"stage", "time_s", "sigma_r_Pa", "contacts"} <= set(profile):
+        return None
+    rows = profile["stage"] == stage
+    if not rows.any():
+        return None
+    last = rows & (profile["time_s"] == profile["time_s"][rows].max())
+    touching = last & (profile["contacts"] > 0)
+    return float(np.mean(profile["sigma_r_Pa"][touching])) if touching.any() else None
+
+
 def summary_figures(run_dir: str) -> Dict[str, float]:
     """The summary figures of a finished run: per stage (named by the stage's name) q_max, the
     peak friction angle, K0, and for age stages sigma_v and q at 1 h and 1 day over their value
     at 4 s of ageing and the axial strain at 1 day; for a penetrate stage the cone resistance at
-    its end (q_c averaged over the records of the last 10 % of its travel) and the largest; for
+    its end (q_c averaged over the records of the last 10 % of its travel), the largest, the mean
+    over the last half of the travel, the tip's and the shaft's loads at the end (last 10 %) and
+    the shaft's radial stress at the end (sigma_r_shaft_end_kPa: the mean over the shaft's bins
+    that touch grains, at the stage's last record of shaft_profile.csv); for
     a load test the capacity with the shaft and base loads at it (a pile sweep's result);
     breakages, B_r, the final void ratio, coordination number, stresses and volumetric strain,
     grains and steps."""
@@ -301,7 +347,7 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
     if not s:
         return out
     ev = read_events(run_dir)
-    pen = None
+    pen = profile = None
     for k, st in enumerate(s.get("stages") or []):
         name = st.get("name") or f"stage{k}"
         kind = st.get("type")
@@ -316,6 +362,15 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
                 end = travel >= 0.9 * travel.max()
                 out[f"{name}.q_c_end_MPa"] = float(np.mean(q_c[end])) / 1e6
                 out[f"{name}.q_c_max_MPa"] = float(np.max(q_c)) / 1e6
+                half = travel >= 0.5 * travel.max()
+                out[f"{name}.q_c_mean_MPa"] = float(np.mean(q_c[half])) / 1e6
+                for load in ("tip_load_N", "shaft_load_N"):
+                    if load in pen:
+                        out[f"{name}.{load[:-2]}_end_N"] = float(np.mean(pen[load][rows][end]))
+                profile = read_shaft_profile(run_dir) if profile is None else profile
+                sigma_r = _shaft_sigma_r_end(profile, k)
+                if sigma_r is not None:
+                    out[f"{name}.sigma_r_shaft_end_kPa"] = sigma_r / 1e3
         if kind == "triaxial":
             out[f"{name}.q_max_MPa"] = as_float(st.get("q_max_Pa")) / 1e6
             out[f"{name}.friction_angle_peak_deg"] = as_float(st.get("friction_angle_peak_deg"))

@@ -158,6 +158,10 @@ def test_bench_times_a_runs_chamber_sample_with_its_chamber(tmp_path):
     assert "law=rough" in lines[0]
     p_love = float(_line(lines, "p_wall_Pa").split()[1].split("=")[1])
     assert abs(p_love / 1e5 - 1.0) < 0.1
+    # The boundary's mean stress is the chamber's and the platens' (the x and y box walls,
+    # untouched in a chamber, would pull a six-wall mean to a third of it).
+    p_wall = float(_line(lines, "p_wall_Pa").split()[0].split("=")[1])
+    assert abs(p_wall / 1e5 - 1.0) < 0.1
     timed = {k: float(v) for k, v in _values(next(ln for ln in lines
                                                   if ln.startswith("timed_seconds "))).items()}
     assert timed["wall_forces"] > 0 and timed["contact_forces"] > 0

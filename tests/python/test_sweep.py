@@ -268,3 +268,27 @@ def test_named_variants_set_their_own_keys(tmp_path):
                          ('[[variant]]\nname = "a"\nlaw = "rough"\n', "not a dotted key")):
         with pytest.raises(ValueError, match=message):
             sweep.read_sweep(_write_sweep(tmp_path, {"output.interval": [1000]}, extra=bad))
+
+
+def test_stages_keeps_some_of_the_base_stages(tmp_path):
+    """stages = [...]: the variants run only the named (or numbered) stages of the base, in the
+    base's order; a stage that is not there, a repeat or a non-list is refused by name."""
+    base = _long_base(tmp_path, 100)
+    listed = sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"material.friction": [0.2]}, base=base, extra='stages = ["hold"]')))
+    assert [st["name"] for st in listed[0]["config"]["stage"]] == ["hold"]
+    kept = sweep.read_sweep(_write_sweep(tmp_path, {"stage.hold.steps": [5]}, base=base,
+                                         extra='stages = [1, "isotropic"]'))
+    assert [st["name"] for st in sweep.variants(kept)[0]["config"]["stage"]] == [
+        "isotropic", "hold"]
+    for bad, message in (('stages = ["shear"]', "no stage 'shear'"),
+                         ('stages = [2]', "no stage 2"),
+                         ('stages = ["hold", 1]', "twice"),
+                         ('stages = "hold"', "a list of stage names")):
+        with pytest.raises(ValueError, match=message):
+            sweep.read_sweep(_write_sweep(tmp_path, {"material.friction": [0.2]}, base=base,
+                                          extra=bad))
+    # A varied key of a stage that is left out is refused.
+    with pytest.raises(ValueError, match="no stage 'isotropic'"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.isotropic.stress": [1e6]}, base=base,
+                                      extra='stages = ["hold"]'))
