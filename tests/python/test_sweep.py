@@ -4,6 +4,7 @@ made one by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again c
 same results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
 and a worker started here."""
 
+import glob
 import json
 import os
 import shutil
@@ -292,3 +293,11 @@ def test_stages_keeps_some_of_the_base_stages(tmp_path):
     with pytest.raises(ValueError, match="no stage 'isotropic'"):
         sweep.read_sweep(_write_sweep(tmp_path, {"stage.isotropic.stress": [1e6]}, base=base,
                                       extra='stages = ["hold"]'))
+
+
+@pytest.mark.parametrize("path", sorted(glob.glob(os.path.join(
+    os.path.dirname(os.path.dirname(DATA)), "examples", "sweeps", "*.toml"))))
+def test_the_example_sweeps_read(path):
+    """Each sweep of examples/sweeps names its base, stages and keys correctly."""
+    listed = sweep.variants(sweep.read_sweep(path))
+    assert listed and len({v["name"] for v in listed}) == len(listed)
