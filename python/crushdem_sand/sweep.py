@@ -548,10 +548,12 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
                                    processes=True, dashboard_address=None)
             client = Client(cluster)
         try:
-            futures = {client.submit(run_variant, cfg, run_dir, threads_per_run, branch,
-                                     backend, key=name, pure=False): name
-                       for name, cfg, run_dir in todo}
-            _follow(client, futures, errors, progress, log)
+            def submit(task):
+                name, cfg, run_dir = task
+                return client.submit(run_variant, cfg, run_dir, threads_per_run, branch, backend,
+                                     key=name, pure=False), name
+
+            _follow(client, list(todo), submit, errors, progress, log)
         finally:
             client.close()
     except (_Stop, KeyboardInterrupt):
@@ -564,20 +566,41 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
         signal.signal(signal.SIGTERM, previous)
 
 
-def _follow(client, futures, errors, progress, log) -> None:
-    """Waits for every task, with a progress display (done, running, failed, ETA)."""
+def _slots(client) -> int:
+    """How many runs the cluster takes at once: its workers' threads (at least one)."""
+    return max(1, sum(client.nthreads().values()))
+
+
+def _follow(client, tasks, submit, errors, progress, log) -> None:
+    """Runs ``tasks`` (each made a future by ``submit(task) -> (future, name)``) with as many in
+    flight as the cluster has worker threads, the next submitted as one ends, and waits for every
+    one, with a progress display (done, running, failed, ETA). Submitting all at once would let
+    the scheduler queue several long runs on one worker while another stands idle (tasks of
+    unknown length are not stolen back reliably)."""
     from distributed import as_completed
+
+    total = len(tasks)
+    queue = list(tasks)
+    names = {}
+    seq = as_completed()
+
+    def top_up():
+        while queue and len(names) < _slots(client):
+            fut, name = submit(queue.pop(0))
+            names[fut] = name
+            seq.add(fut)
 
     show_bar = sys.stderr.isatty() if progress is None else progress
     bar = None
     if show_bar:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=len(futures), unit="variant", desc="sweep")
+        bar = tqdm(total=total, unit="variant", desc="sweep")
     done = failed = 0
     t0 = time.perf_counter()
-    for fut in as_completed(list(futures)):
-        name = futures[fut]
+    top_up()
+    for fut in seq:
+        name = names.pop(fut)
         try:
             fut.result()
             done += 1
@@ -586,8 +609,9 @@ def _follow(client, futures, errors, progress, log) -> None:
             errors[name] = str(e)
             failed += 1
             what = f"FAILED ({str(e).splitlines()[-1] if str(e) else type(e).__name__})"
-        left = len(futures) - done - failed
-        running = sum(len(v) for v in client.processing().values()) if left else 0
+        top_up()
+        left = total - done - failed
+        running = len(names)
         elapsed = time.perf_counter() - t0
         eta = elapsed / (done + failed) * left
         if bar is not None:

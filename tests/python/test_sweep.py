@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -301,3 +302,40 @@ def test_the_example_sweeps_read(path):
     """Each sweep of examples/sweeps names its base, stages and keys correctly."""
     listed = sweep.variants(sweep.read_sweep(path))
     assert listed and len({v["name"] for v in listed}) == len(listed)
+
+
+_SLOTS_LOCK = threading.Lock()
+_SLOTS = {"now": 0, "most": 0}
+
+
+def _slot_task(i):
+    """A run of 0.2 s that counts how many run at once (threads of one process share _SLOTS)."""
+    with _SLOTS_LOCK:
+        _SLOTS["now"] += 1
+        _SLOTS["most"] = max(_SLOTS["most"], _SLOTS["now"])
+    time.sleep(0.2)
+    with _SLOTS_LOCK:
+        _SLOTS["now"] -= 1
+    if i == 3:
+        raise RuntimeError("run 3 blew up")
+    return i
+
+
+def test_runs_are_handed_out_as_slots_free_up():
+    """_follow keeps as many runs in flight as the cluster has worker threads and submits the
+    next as one ends, so no run waits behind another on a busy worker while one is idle; a
+    failing run is recorded and the rest go on."""
+    from distributed import Client
+
+    class TwoSlots:
+        def nthreads(self):
+            return {"a": 1, "b": 1}
+
+    errors, lines = {}, []
+    with Client(processes=False, n_workers=1, threads_per_worker=4,
+                dashboard_address=None) as client:
+        sweep._follow(TwoSlots(), list(range(6)),
+                      lambda i: (client.submit(_slot_task, i, key=f"t{i}", pure=False), f"t{i}"),
+                      errors, False, lines.append)
+    assert _SLOTS["most"] == 2
+    assert len(lines) == 6 and list(errors) == ["t3"] and "blew up" in errors["t3"]
