@@ -557,6 +557,8 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
         finally:
             client.close()
     except (_Stop, KeyboardInterrupt):
+        if cluster is not None:
+            _stop_local_runs()
         log("stopped: the runs in progress save their checkpoints; run the same command again "
             "to go on")
         raise
@@ -564,6 +566,32 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
         if cluster is not None:
             cluster.close()
         signal.signal(signal.SIGTERM, previous)
+
+
+# How long a stopped sweep waits for its local runs to save their checkpoints and stop.
+STOP_WAIT_S = 300.0
+
+
+def _stop_local_runs(wait_s: float = STOP_WAIT_S) -> None:
+    """SIGTERM to the runs that this process's local workers started (each saves its checkpoint
+    and stops), and waits for them, before the cluster is closed: closing it kills a busy
+    worker after a few seconds, and its run with it, before the run's checkpoint."""
+    import psutil  # a dependency of distributed
+
+    runs = []
+    for child in psutil.Process().children(recursive=True):
+        try:
+            cmd = child.cmdline()
+        except psutil.Error:
+            continue
+        if cmd[1:3] == ["-m", "crushdem_sand"] and cmd[3:4] in (["run"], ["resume"]):
+            runs.append(child)
+    for run in runs:
+        try:
+            run.send_signal(signal.SIGTERM)
+        except psutil.Error:
+            pass
+    psutil.wait_procs(runs, timeout=wait_s)
 
 
 def _slots(client) -> int:

@@ -171,7 +171,8 @@ def _wait_for_runs(proc, n=1, timeout=60.0):
 
 @pytest.mark.parametrize("stop", ["sigterm", "sigkill_worker"])
 def test_a_stopped_sweep_run_again_completes_with_the_same_results(tmp_path, stop):
-    base = _long_base(tmp_path, hold_steps=150000)
+    # Runs long enough to be going when the sweep stops, and still going seconds later.
+    base = _long_base(tmp_path, hold_steps=400000)
     vary = {"stage.isotropic.stress": [5e5, 1e6, 2e6, 4e6]}
     path = _write_sweep(tmp_path, vary, base=base)
     reference = sweep.sweep(path, str(tmp_path / "whole"), workers=2, progress=False,
@@ -187,6 +188,13 @@ def test_a_stopped_sweep_run_again_completes_with_the_same_results(tmp_path, sto
         done = [d for d in os.listdir(os.path.join(out, "runs"))
                 if os.path.isfile(os.path.join(out, "runs", d, "summary.json"))]
         assert len(done) < 4  # it really stopped mid-way
+        # Each run that was going saved its checkpoint at the stop (the cluster's close would
+        # kill a busy worker, and its run, before that).
+        going = [d for d in os.listdir(os.path.join(out, "runs")) if d not in done]
+        assert going
+        for d in going:
+            log = open(os.path.join(out, "runs", d, "run.log")).read()
+            assert "stopped by signal 15" in log, (d, log[-500:])
     else:
         worker, _run = runs[0]
         os.kill(worker, signal.SIGKILL)  # the run gets SIGTERM, saves its checkpoint, stops
@@ -339,3 +347,28 @@ def test_runs_are_handed_out_as_slots_free_up():
                       errors, False, lines.append)
     assert _SLOTS["most"] == 2
     assert len(lines) == 6 and list(errors) == ["t3"] and "blew up" in errors["t3"]
+
+
+def test_a_stopped_sweep_lets_its_runs_save_their_checkpoints(tmp_path):
+    """SIGTERM to a sweep started apart from its terminal (its output in a file, as with nohup):
+    each run it started gets one SIGTERM, saves its checkpoint and stops before the workers
+    close. Closing them first signalled a busy run twice, which ends it at once without its
+    checkpoint (strace: two SIGTERMs from its worker; the run then starts again from its last
+    periodic checkpoint): this failed in two of three tries before the sweep stopped its runs
+    itself."""
+    pile = os.path.join(os.path.dirname(os.path.dirname(DATA)), "examples", "pile_small.toml")
+    path = tmp_path / "s.toml"
+    path.write_text(f'base = "{pile}"\nstages = ["install"]\n[vary]\n"sample.seed" = [7]\n')
+    out = str(tmp_path / "out")
+    with open(tmp_path / "sweep.log", "w") as logfile:
+        proc = subprocess.Popen([sys.executable, "-m", "crushdem_sand", "sweep", str(path),
+                                 "--out", out, "--workers", "1"], stdout=logfile,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+    _wait_for_runs(proc, 1)
+    time.sleep(5.0)  # preparing its sample (about 30 s)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(timeout=120)
+    run = os.path.join(out, "runs", "sample.seed=7")
+    log = open(os.path.join(run, "run.log")).read()
+    assert "stopped by signal 15" in log, log[-800:]
+    assert os.path.isfile(os.path.join(run, "checkpoint.bin"))
