@@ -11,7 +11,8 @@ the inertial number is I = (v / D) d50 / sqrt(p / rho): D the pushed body's diam
 ``radius`` x 2), d50 the mass median of the sample's grading (times the upscaling factor), p the
 stage's ``lateral_stress`` and rho ``material.density`` (MiDi 2004, with v / D the shear rate
 about the tip). Writes DIR/pile_rate.csv (per velocity: I, the runs, and the mean and standard
-error over them of each figure and of the breakages) and DIR/pile_rate.png (the mean and the
+error over them of each figure and of the breakages, and q_c's ratio to the same sample's at
+the slowest velocity) and DIR/pile_rate.png (the mean and the
 largest q_c, the shaft's load and its radial stress against I).
 """
 
@@ -35,8 +36,12 @@ def inertial_number(config_path: str, stage: str, velocity: float) -> float:
     """I = (v / D) d50 / sqrt(p / rho) of the run whose configuration is ``config_path``."""
     with open(config_path, "rb") as f:
         cfg = tomllib.load(f)
-    st = next(s for s in cfg["stage"] if s.get("name") == stage)
-    body = next(b for b in cfg["body"] if b.get("name") == st["body"])
+    st = next((s for s in cfg.get("stage", []) if s.get("name") == stage), None)
+    if st is None:
+        raise ValueError(f"{config_path}: no stage named '{stage}' (--stage)")
+    body = next((b for b in cfg.get("body", []) if b.get("name") == st.get("body")), None)
+    if body is None:
+        raise ValueError(f"{config_path}: stage '{stage}' pushes no [[body]] of this file")
     grading = cfg["sample"]["grading"]
     d50 = float(np.interp(0.5, grading["passing"], grading["diameter"]))
     d50 *= float(cfg.get("upscaling", {}).get("factor", 1.0))
@@ -46,12 +51,23 @@ def inertial_number(config_path: str, stage: str, velocity: float) -> float:
 
 
 def by_velocity(rows: List[Dict[str, float]], stage: str) -> List[Dict[str, float]]:
-    """One row per velocity (increasing): its inertial number, the number of runs and the mean
-    and standard error of each figure (nan where fewer than two runs have it)."""
+    """One row per velocity (increasing): its inertial number, the number of runs, the mean and
+    standard error of each figure (nan where fewer than two runs have it) and, where the runs
+    carry a ``sample.seed``, the mean and standard deviation over the samples of q_c's ratio to
+    the same sample's at the slowest velocity (the samples' own scatter paired out)."""
     out = []
+    slowest = min(r["velocity"] for r in rows)
+    q_col = f"{stage}.q_c_mean_MPa"
+    reference = {r.get("sample.seed"): r.get(q_col) for r in rows if r["velocity"] == slowest}
     for v in sorted({r["velocity"] for r in rows}):
         runs = [r for r in rows if r["velocity"] == v]
         row = {"velocity_m_s": v, "inertial_number": runs[0]["I"], "runs": len(runs)}
+        ratios = np.array([r[q_col] / reference[r["sample.seed"]] for r in runs
+                           if "sample.seed" in r and q_col in r
+                           and reference.get(r["sample.seed"])])
+        row["q_c_mean_ratio_mean"] = float(ratios.mean()) if len(ratios) else float("nan")
+        row["q_c_mean_ratio_sd"] = (float(ratios.std(ddof=1)) if len(ratios) > 1
+                                    else float("nan"))
         for key, _ in FIGURES + (("breakages", ""),):
             col = f"{stage}.{key}" if key != "breakages" else key
             vals = np.array([r[col] for r in runs if col in r and np.isfinite(r[col])])
@@ -82,7 +98,11 @@ def main(argv=None) -> int:
         config = os.path.join(a.sweep_dir, "configs", f"{r['variant']}.toml")
         rec = {k: float(v) for k, v in r.items() if isinstance(v, (int, float))}
         rec["velocity"] = float(r[vcol])
-        rec["I"] = inertial_number(config, a.stage, rec["velocity"])
+        try:
+            rec["I"] = inertial_number(config, a.stage, rec["velocity"])
+        except (OSError, ValueError, KeyError) as e:
+            print(f"{a.sweep_dir}: {e}", file=sys.stderr)
+            return 2
         rows.append(rec)
     if not rows:
         print(f"{a.sweep_dir}: no finished run", file=sys.stderr)
@@ -116,7 +136,8 @@ def main(argv=None) -> int:
     fig.tight_layout()
     fig.savefig(os.path.join(out, "pile_rate.png"), dpi=110)
     for t in table:
-        print(f"v = {t['velocity_m_s']:g} m/s  I = {t['inertial_number']:.2e}  runs {t['runs']}  " +
+        print(f"v = {t['velocity_m_s']:g} m/s  I = {t['inertial_number']:.2e}  runs {t['runs']}  "
+              f"q_c ratio {t['q_c_mean_ratio_mean']:.3f} +- {t['q_c_mean_ratio_sd']:.3f}  " +
               "  ".join(f"{k} {t[f'{k}_mean']:.4g} +- {t[f'{k}_se']:.2g}"
                         for k, _ in FIGURES + (("breakages", ""),)))
     return 0

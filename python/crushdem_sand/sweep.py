@@ -7,7 +7,8 @@ A sweep file names a base configuration and the values to vary::
                                         # state at the start of that stage
                                         # (crushdem-sand run --from)
     stages = ["install", "unload"]      # optional: only these of the base's stages (by name
-                                        # or index, run in the base's order)
+                                        # or index, run in the base's order; with from, the
+                                        # first ones); stage.INDEX below counts the kept ones
     [vary]                              # combined as a product
     "contact.rolling_friction" = [0.1, 0.3]
     "crushing.seed" = [1, 2, 3]
@@ -104,7 +105,14 @@ def read_sweep(path: str) -> Dict[str, Any]:
     doc, base, base_path = read_file_and_base(path, "sweep",
                                               ("base", "from", "stages", "vary", "zip", "variant"))
     if "stages" in doc:
-        base["stage"] = _kept_stages(path, base, doc["stages"])
+        kept = _kept_stages(path, base, doc["stages"])
+        # A branch's stages before its start must be the original run's, position by position:
+        # with `from`, only stages after the kept ones may be left out.
+        if "from" in doc and kept != base["stage"][:len(kept)]:
+            raise ValueError(f"{path}: with from = \"DIR:STAGE\", stages must keep the base's "
+                             f"first stages in order and leave out only later ones (got "
+                             f"{doc['stages']!r})")
+        base["stage"] = kept
     branch = doc.get("from")
     if branch is not None:
         if not isinstance(branch, str):
@@ -542,6 +550,11 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
     try:
         if scheduler:
             client = Client(scheduler)
+            # Runs go out as the cluster's threads free up (_follow): wait for a first worker,
+            # or a cluster still starting would be handed one run at a time.
+            if not client.nthreads():
+                log(f"waiting for a worker at {scheduler}")
+            client.wait_for_workers(1)
         else:
             n = workers or max(1, (os.cpu_count() or 1) // threads_per_run)
             cluster = LocalCluster(n_workers=min(n, len(todo)), threads_per_worker=1,
@@ -558,7 +571,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
             client.close()
     except (_Stop, KeyboardInterrupt):
         if cluster is not None:
-            _stop_local_runs()
+            _stop_local_runs(log)
         log("stopped: the runs in progress save their checkpoints; run the same command again "
             "to go on")
         raise
@@ -572,7 +585,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
 STOP_WAIT_S = 300.0
 
 
-def _stop_local_runs(wait_s: float = STOP_WAIT_S) -> None:
+def _stop_local_runs(log: Callable[[str], None], wait_s: float = STOP_WAIT_S) -> None:
     """SIGTERM to the runs that this process's local workers started (each saves its checkpoint
     and stops), and waits for them, before the cluster is closed: closing it kills a busy
     worker after a few seconds, and its run with it, before the run's checkpoint."""
@@ -586,6 +599,8 @@ def _stop_local_runs(wait_s: float = STOP_WAIT_S) -> None:
             continue
         if cmd[1:3] == ["-m", "crushdem_sand"] and cmd[3:4] in (["run"], ["resume"]):
             runs.append(child)
+    if runs:
+        log(f"stopping: {len(runs)} run(s) saving their checkpoints")
     for run in runs:
         try:
             run.send_signal(signal.SIGTERM)
@@ -604,7 +619,8 @@ def _follow(client, tasks, submit, errors, progress, log) -> None:
     flight as the cluster has worker threads, the next submitted as one ends, and waits for every
     one, with a progress display (done, running, failed, ETA). Submitting all at once would let
     the scheduler queue several long runs on one worker while another stands idle (tasks of
-    unknown length are not stolen back reliably)."""
+    unknown length are not stolen back reliably); workers that join later take runs as others
+    end."""
     from distributed import as_completed
 
     total = len(tasks)

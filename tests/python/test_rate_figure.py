@@ -47,8 +47,13 @@ def test_a_sweep_is_grouped_by_velocity(tmp_path):
     # Standard error of two values a, b: |a - b| / 2.
     assert table["q_c_mean_MPa_se"].tolist() == pytest.approx([0.1, 0.2])
     assert table["breakages_mean"].tolist() == pytest.approx([1.5, 1.5])
+    # Each sample's q_c against its own at the slowest velocity: 2 for both here.
+    assert table["q_c_mean_ratio_mean"].tolist() == pytest.approx([1.0, 2.0])
+    assert table["q_c_mean_ratio_sd"].tolist() == pytest.approx([0.0, 0.0])
     assert (table["inertial_number"][1] / table["inertial_number"][0]) == pytest.approx(2.0)
     assert os.path.getsize(tmp_path / "fig" / "pile_rate.png") > 0
+    # A stage the configurations do not have is refused by name.
+    assert rate_figure.main([str(tmp_path), "--stage", "push", "--out", str(tmp_path)]) == 2
     # A sweep over something else is refused by name.
     pd.DataFrame([{"variant": "a", "status": "done"}]).to_csv(tmp_path / "results.csv",
                                                             index=False)
