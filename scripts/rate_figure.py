@@ -22,7 +22,7 @@ import argparse
 import os
 import sys
 import tomllib
-from typing import Dict, List
+from typing import Dict, List, Tuple
 
 import numpy as np
 
@@ -50,6 +50,11 @@ def inertial_number(config_path: str, stage: str, velocity: float) -> float:
     return velocity / (2.0 * float(body["radius"])) * d50 / np.sqrt(p / rho)
 
 
+def _columns(stage: str) -> List[Tuple[str, str]]:
+    """(name in pile_rate.csv, column of results.csv) of each figure, and the breakages."""
+    return [(key, f"{stage}.{key}") for key, _ in FIGURES] + [("breakages", "breakages")]
+
+
 def by_velocity(rows: List[Dict[str, float]], stage: str) -> List[Dict[str, float]]:
     """One row per velocity (increasing): its inertial number, the number of runs, the mean and
     standard error of each figure (nan where fewer than two runs have it) and, where the runs
@@ -68,8 +73,7 @@ def by_velocity(rows: List[Dict[str, float]], stage: str) -> List[Dict[str, floa
         row["q_c_mean_ratio_mean"] = float(ratios.mean()) if len(ratios) else float("nan")
         row["q_c_mean_ratio_sd"] = (float(ratios.std(ddof=1)) if len(ratios) > 1
                                     else float("nan"))
-        for key, _ in FIGURES + (("breakages", ""),):
-            col = f"{stage}.{key}" if key != "breakages" else key
+        for key, col in _columns(stage):
             vals = np.array([r[col] for r in runs if col in r and np.isfinite(r[col])])
             row[f"{key}_mean"] = float(vals.mean()) if len(vals) else float("nan")
             row[f"{key}_se"] = (float(vals.std(ddof=1) / np.sqrt(len(vals))) if len(vals) > 1
@@ -139,7 +143,7 @@ def main(argv=None) -> int:
         print(f"v = {t['velocity_m_s']:g} m/s  I = {t['inertial_number']:.2e}  runs {t['runs']}  "
               f"q_c ratio {t['q_c_mean_ratio_mean']:.3f} +- {t['q_c_mean_ratio_sd']:.3f}  " +
               "  ".join(f"{k} {t[f'{k}_mean']:.4g} +- {t[f'{k}_se']:.2g}"
-                        for k, _ in FIGURES + (("breakages", ""),)))
+                        for k, _ in _columns(a.stage)))
     return 0
 
 

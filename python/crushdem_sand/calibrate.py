@@ -32,8 +32,8 @@ import sys
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from ._optional import available, message, require
-from .sweep import (_stop_local_runs, cluster_parser, read_file_and_base, run_variant,
-                    set_dotted, summary_figures, variant_name)
+from .sweep import (cluster_parser, read_file_and_base, run_variant, set_dotted,
+                    stop_local_runs, summary_figures, variant_name)
 
 
 class _Converged(Exception):
@@ -174,7 +174,7 @@ def calibrate(path: str, out: str, workers: Optional[int] = None, threads_per_ru
             pass
     except KeyboardInterrupt:
         if cluster is not None:
-            _stop_local_runs(log)  # each run saves its checkpoint before the workers close
+            stop_local_runs(log)  # each run saves its checkpoint before the workers close
         raise
     finally:
         client.close()

@@ -571,7 +571,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
             client.close()
     except (_Stop, KeyboardInterrupt):
         if cluster is not None:
-            _stop_local_runs(log)
+            stop_local_runs(log)
         log("stopped: the runs in progress save their checkpoints; run the same command again "
             "to go on")
         raise
@@ -585,7 +585,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
 STOP_WAIT_S = 300.0
 
 
-def _stop_local_runs(log: Callable[[str], None], wait_s: float = STOP_WAIT_S) -> None:
+def stop_local_runs(log: Callable[[str], None], wait_s: float = STOP_WAIT_S) -> None:
     """SIGTERM to the runs that this process's local workers started (each saves its checkpoint
     and stops), and waits for them, before the cluster is closed: closing it kills a busy
     worker after a few seconds, and its run with it, before the run's checkpoint."""
