@@ -441,9 +441,9 @@ inline std::vector<Check> inspection(const ApiFactory& api) {
 /// and twice on the device: the device follows the CPU (positions and the bodies' degrees of
 /// freedom to 1e-6 of the mean radius), rebuilds when the CPU does, repeats itself bit for bit,
 /// and the bodies `moved` have moved (`what` names the case).
-inline std::vector<Check> body_checks(const SimulationConfig& cfg, const ApiFactory& api,
-                                      const std::string& what, std::vector<int> moved,
-                                      std::uint64_t steps = 4000) {
+/// body_checks' sample: 100 grains placed at random in the lower part of the box of `cfg`
+/// (side 3 L about [-L, 2 L]), with half the automatic time step fixed.
+inline Simulation body_sample(const SimulationConfig& cfg) {
   const double L = 1.25e-3;
   Simulation sample(cfg);
   RandomStream rng(5, 0xB0D);
@@ -455,6 +455,13 @@ inline std::vector<Check> body_checks(const SimulationConfig& cfg, const ApiFact
     sample.add_particle(p.position, p.radius);
   }
   sample.set_dt(0.5 * sample.automatic_dt());
+  return sample;
+}
+
+inline std::vector<Check> body_checks(const SimulationConfig& cfg, const ApiFactory& api,
+                                      const std::string& what, std::vector<int> moved,
+                                      std::uint64_t steps = 4000) {
+  const Simulation sample = body_sample(cfg);
   Simulation cpu = sample, d1 = sample, d2 = sample;
   const std::size_t builds0 = sample.neighbors().builds();
   cpu.step(steps);
@@ -513,10 +520,10 @@ inline BodyConfig check_chamber(double R) {
   return chamber;
 }
 
-/// h) Bodies beyond the box and gravity: grains in a chamber whose cylinder is servo-controlled
+/// i) Bodies beyond the box and gravity: grains in a chamber whose cylinder is servo-controlled
 /// by its radius, a pile with a conical tip driven into them at a prescribed velocity, and a
 /// platen servo-controlled from above (body_checks).
-inline std::vector<Check> bodies(const ApiFactory& api) {
+inline SimulationConfig bodies_config() {
   const double L = 1.25e-3, c = 0.5 * L;
   SimulationConfig cfg = box_config(-L, 2.0 * L, NormalLaw::Rough);
   cfg.damping.local_alpha = 0.7;
@@ -540,10 +547,44 @@ inline std::vector<Check> bodies(const ApiFactory& api) {
   platen.target_stress = 2e5;
   platen.max_speed = 10.0;
   cfg.bodies = {check_chamber(0.52 * L), pile, platen};
-  return body_checks(cfg, api, "bodies", {kNumWalls, kNumWalls + 1});
+  return cfg;
 }
 
-/// i) A chamber sample: the chamber's cylinder and the box's top wall as its platen, both
+inline std::vector<Check> bodies(const ApiFactory& api) {
+  return body_checks(bodies_config(), api, "bodies", {kNumWalls, kNumWalls + 1});
+}
+
+/// k) The automatic time step's contact term (Simulation::stiffness_dt(), min sqrt(m / sum k)),
+/// reduced on the device, is the host's on the same state bit for bit: a compressed sample
+/// between the box's servo walls, and grains about curved bodies (bodies' chamber, pile and
+/// platen, the pile moving), each after it has run on the device.
+inline std::vector<Check> stiffness_time(const ApiFactory& api) {
+  std::vector<Check> out;
+  const auto check = [&](const std::string& what, Simulation s, std::uint64_t steps) {
+    DeviceStepper d(api());
+    d.advance(s, steps);
+    const double on_device = d.stiffness_time();
+    d.sync(s, Sync::All);
+    const double on_host = s.stiffness_dt();
+    int walls = 0;
+    for (const ContactRecord& rec : s.contacts()) walls += rec.is_wall;
+    out.push_back(
+        {on_device == on_host && std::isfinite(on_host) && walls > 0,
+         "time step: " + what + ": the device's stiffness time is the host's",
+         fmt("device %.17g s, host %.17g s; %.0f wall contacts", on_device, on_host, walls)});
+  };
+  check("box", compressed_sample(0.05), 1500);
+  check("bodies", body_sample(bodies_config()), 3000);
+  // One grain pressed into the chamber's cylinder alone: the minimum is its curved contact's.
+  const double L = 1.25e-3, r = 0.06e-3;
+  Simulation one(bodies_config());
+  one.add_particle({0.5 * L + 0.52 * L - 0.9 * r, 0.5 * L, 0.3 * L}, r);
+  one.set_dt(0.5 * one.automatic_dt());
+  check("a grain on the chamber's cylinder", one, 10);
+  return out;
+}
+
+/// j) A chamber sample: the chamber's cylinder and the box's top wall as its platen, both
 /// servo-controlled on the areas of the chamber (2 pi R H and pi R^2, walls/body_geometry.hpp
 /// chamber_area) (body_checks).
 inline std::vector<Check> chamber_sample(const ApiFactory& api) {
@@ -586,6 +627,7 @@ inline std::vector<Check> all(const ApiFactory& api) {
   add(crushing(fixed, api));
   add(nan_rule(fixed, api));
   add(inspection(api));
+  add(stiffness_time(api));
   add(bodies(api));
   add(chamber_sample(api));
   return out;

@@ -73,6 +73,10 @@ TEST(DeviceStep, ControllersScalarsAreReducedOnTheDevice) {
   expect_all(device_checks::inspection(kEmulated));
 }
 
+TEST(DeviceStep, TheTimeStepsContactTermIsReducedOnTheDevice) {
+  expect_all(device_checks::stiffness_time(kEmulated));
+}
+
 TEST(DeviceStep, NonFinitePositionIsReportedByGrain) {
   expect_all(device_checks::nan_rule(fixed_step_sample(), kEmulated));
 }

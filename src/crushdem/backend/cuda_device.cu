@@ -12,9 +12,12 @@
 //   k_gather      one thread per grain; six more blocks make the wall totals in a fixed tree and
 //                 set the servo velocities; thread 0 advances the clock;
 //   k_crushing    at a crushing step, one thread per grain (the check and crack growth).
+// On demand, between batches: k_inspect_* (the controllers' scalars in fixed trees) and
+// k_stiffness_time (the automatic time step's contact term, a minimum by integer atomicMin).
 // Every kernel returns at once when `halt` is set, so the host finds the state where it stopped.
 #include <cuda_runtime.h>
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -145,6 +148,32 @@ __global__ void k_inspect_total(View v, unsigned blocks) {
   }
 }
 
+__global__ void k_stiffness_reset(View v) {
+  v.ctrl->stiffness_bits = static_cast<unsigned long long>(
+      __double_as_longlong(std::numeric_limits<double>::infinity()));
+}
+
+// Block minima, then an integer atomicMin of their bits (positive doubles order as their bits):
+// a minimum, so the result does not depend on the order.
+template <class Model>
+__global__ void k_stiffness_time(View v, Model model, unsigned grains) {
+  __shared__ double sm[kBlock];
+  const unsigned j = blockIdx.x * kBlock + threadIdx.x;
+  sm[threadIdx.x] =
+      j < grains ? stiffness_time_item(v, model, j) : std::numeric_limits<double>::infinity();
+  __syncthreads();
+  for (int s = kBlock / 2; s > 0; s >>= 1) {
+    if (static_cast<int>(threadIdx.x) < s) {
+      sm[threadIdx.x] = fmin(sm[threadIdx.x], sm[threadIdx.x + s]);
+    }
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) {
+    atomicMin(&v.ctrl->stiffness_bits,
+              static_cast<unsigned long long>(__double_as_longlong(sm[0])));
+  }
+}
+
 class CudaApi : public Api {
  public:
   CudaApi() {
@@ -206,6 +235,16 @@ class CudaApi : public Api {
       });
     }
     k_inspect_total<<<1, kInspectBlock, 0, stream_>>>(v, blocks);
+    CD_CUDA(cudaGetLastError());
+  }
+  void stiffness_time(const View& v, const Laws& laws, unsigned grains) override {
+    k_stiffness_reset<<<1, 1, 0, stream_>>>(v);
+    const unsigned blocks = (grains + kBlock - 1) / kBlock;
+    if (blocks > 0) {
+      laws.visit([&](const auto& model) {
+        k_stiffness_time<<<blocks, kBlock, 0, stream_>>>(v, model, grains);
+      });
+    }
     CD_CUDA(cudaGetLastError());
   }
   void read_control(const View& v, Control& host) override {

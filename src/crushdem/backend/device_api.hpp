@@ -54,6 +54,9 @@ class Api {
   /// pass of blocks of kInspectBlock grains, each summed by a fixed tree, then one block summing
   /// the blocks' results by a fixed tree (the same bits on the device and the emulation).
   virtual void inspect(const View& v, const Laws& laws, unsigned grains) = 0;
+  /// The stiffness time of the current state (the automatic time step's contact term, a minimum
+  /// over the grains of stiffness_time_item()) into Control::stiffness_bits.
+  virtual void stiffness_time(const View& v, const Laws& laws, unsigned grains) = 0;
   /// The view's pointers or parameters changed (a captured graph is stale).
   virtual void view_changed() {}
   /// Waits for the device and copies the control block to `host`.

@@ -31,6 +31,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 
 #include "crushdem/contact/contact_kernel.hpp"
 #include "crushdem/contact/contact_stress.hpp"
@@ -88,6 +89,9 @@ struct Control {
   // The inspection (the controllers' scalars, reduced on demand): sum over grains of
   // |resultant force|, sum of the elastic F_n of the touching grain pairs, and their count.
   double inspect_resultant, inspect_F_n, inspect_pairs;
+  // The stiffness time min_i sqrt(m_i / sum k_i) as the bits of a positive double (a minimum:
+  // exact in any order), reduced on demand for the automatic time step.
+  unsigned long long stiffness_bits;
   WallDev walls[kMaxDeviceBodies];
 };
 
@@ -506,6 +510,41 @@ CD_HD inline void add_inspect(InspectSum& a, const InspectSum& b) {
   a.resultant += b.resultant;
   a.F_n += b.F_n;
   a.pairs += b.pairs;
+}
+
+/// Grain j's stiffness time sqrt(m_j / sum k) for the automatic time step, k = (1 + k_t / k_n)
+/// k_n of each touching pair and wall contact (infinite without one): the host's
+/// stiffness_time() (integrate/time_step.cpp) term by term, its pair terms in increasing entry
+/// order (own and partner entries merged) and then its wall entries, so the bits are the host's.
+template <class Model>
+CD_HD inline double stiffness_time_item(const View& v, const Model& model, Index j) {
+  const double kt_ratio = 1.0 + v.cp.tangential_ratio;
+  double ksum = 0.0;
+  Index e = v.off[j];
+  const Index e_end = v.off[j + 1];
+  Index q = v.roff[j];
+  const Index q_end = v.roff[j + 1];
+  while (e < e_end || q < q_end) {
+    const bool own = q == q_end || (e < e_end && e < v.rev[q]);
+    const Index k = own ? e++ : v.rev[q++];
+    const Index i = v.owner[k], n = v.nb[k];
+    const double dx = v.x[n] - v.x[i], dy = v.y[n] - v.y[i], dz = v.z[n] - v.z[i];
+    const double delta = v.radius[i] + v.radius[n] - std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (delta <= 0.0) continue;
+    ksum += kt_ratio * model.pair_law(delta, v.RS[k], v.SRS[k]).k_n;
+  }
+  for (Index w = v.woff[j]; w < v.woff[j + 1]; ++w) {
+    const int b = v.ww[w];
+    int part = 0;
+    const SurfacePoint s =
+        body_surface(v.shape[b], v.ctrl->walls[b].position, Vec3{v.x[j], v.y[j], v.z[j]}, part);
+    const double delta = v.radius[j] - s.dist;
+    if (delta > 0.0) {
+      const double R_star = surface_R_star(v.radius[j], s.kappa_1, s.kappa_2);
+      ksum += kt_ratio * model.wall_law(delta, R_star, std::sqrt(R_star)).k_n;
+    }
+  }
+  return ksum > 0.0 ? std::sqrt(v.mass[j] / ksum) : std::numeric_limits<double>::infinity();
 }
 
 /// Whether the step just finished is a crushing step.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <tuple>
 #include <type_traits>
 #include <utility>
@@ -59,6 +60,15 @@ class EmulatedApi : public device::Api {
   void finish_step(const View& v, const device::Laws& laws) override { forces(v, laws); }
   void inspect(const View& v, const device::Laws& laws, unsigned grains) override {
     laws.visit([&](const auto& model) { inspect_with(v, model, grains); });
+  }
+  void stiffness_time(const View& v, const device::Laws& laws, unsigned grains) override {
+    double best = std::numeric_limits<double>::infinity();
+    laws.visit([&](const auto& model) {
+      for (Index j = 0; j < grains; ++j) {
+        best = std::min(best, device::stiffness_time_item(v, model, j));
+      }
+    });
+    std::memcpy(&v.ctrl->stiffness_bits, &best, sizeof best);
   }
   void read_control(const View& v, Control& host) override { host = *v.ctrl; }
 
@@ -460,19 +470,6 @@ struct DeviceStepper::Impl {
     }
   }
 
-  /// Downloads the named fields only (the positions the time step needs).
-  void download_fields(Simulation& sim, std::initializer_list<const char*> names) {
-    for (Field& f : fields) {
-      for (const char* name : names) {
-        if (f.name != name) continue;
-        const std::size_t bytes = count(f) * f.elem;
-        void* dst = host_data(f, sim);
-        api->download(dst, f.buf, bytes);
-        f.shadow.assign(static_cast<unsigned char*>(dst), static_cast<unsigned char*>(dst) + bytes);
-      }
-    }
-  }
-
   // --- the view and the control block ----------------------------------------------------------
 
   /// The view of the current buffers and the host's parameters (zeroed first, so that two views
@@ -665,12 +662,21 @@ struct DeviceStepper::Impl {
     particle_steps += static_cast<double>(N);
   }
 
-  /// The automatic time step, chosen on the host from the device's positions, as the CPU step
-  /// chooses it.
+  /// The device's stiffness time (reduced there, the bits of the host's stiffness_time() on
+  /// the same state).
+  double stiffness_time() {
+    api->stiffness_time(view, laws, static_cast<unsigned>(N));
+    api->read_control(view, ctrl);
+    double t = 0.0;
+    std::memcpy(&t, &ctrl.stiffness_bits, sizeof t);
+    return t;
+  }
+
+  /// The automatic time step, chosen as the CPU step chooses it, from the device's contacts
+  /// (no grain comes to the host).
   void choose_time_step(Simulation& sim) {
-    download_fields(sim, {"x", "y", "z"});
     control_to_host(sim);
-    sim.dt();
+    sim.choose_dt(stiffness_time());
     Control c = ctrl;
     c.h = sim.current_dt();
     c.hh = 0.5 * c.h;
@@ -768,6 +774,11 @@ std::uint64_t DeviceStepper::full_uploads() const {
 
 std::uint64_t DeviceStepper::field_uploads() const {
   return impl_->field_uploads;
+}
+
+double DeviceStepper::stiffness_time() {
+  if (!impl_->have_device) throw RuntimeFailure("device: no state to reduce before advance()");
+  return impl_->stiffness_time();
 }
 
 }  // namespace crushdem

@@ -15,9 +15,10 @@
 // The host keeps the jobs that change the layout: neighbour rebuilds (when the device's drift
 // finds one due, it stops; the host rebuilds with the history carried by ids and uploads), the
 // split of a grain that the device's crushing check found failing (Crusher::split, then the
-// forces of the new state, as the CPU driver does), and the automatic time step, chosen on the
-// host from the device's positions every timestep.update_interval steps exactly as the CPU
-// engine chooses it.
+// forces of the new state, as the CPU driver does). The automatic time step is chosen every
+// timestep.update_interval steps from the contact term the device reduces (the host's
+// stiffness_time(), bit for bit) and the Rayleigh term of the grains the host holds: no grain
+// comes back for it.
 #pragma once
 
 #include <cstdint>
@@ -44,6 +45,10 @@ class DeviceStepper : public Stepper {
   /// fields (for tests and reports).
   std::uint64_t full_uploads() const;
   std::uint64_t field_uploads() const;
+  /// The stiffness time (the automatic time step's contact term, Simulation::stiffness_dt())
+  /// of the device's copy as the last advance() left it, reduced on the device; for tests and
+  /// reports.
+  double stiffness_time();
 
  private:
   struct Impl;

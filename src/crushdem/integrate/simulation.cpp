@@ -460,14 +460,22 @@ double Simulation::stiffness_dt() const {
 
 double Simulation::automatic_dt() {
   if (!nl_valid_ && p_.size() > 0) rebuild_neighbors();
+  return automatic_dt_with(stiffness_dt());
+}
+
+double Simulation::automatic_dt_with(double stiffness_time) const {
   const double h = std::min(cfg_.timestep.rayleigh_fraction * rayleigh_dt(),
-                            cfg_.timestep.safety * stiffness_dt());
+                            cfg_.timestep.safety * stiffness_time);
   return std::isfinite(h) ? h : 1e-6;  // no particles: any value works
 }
 
 double Simulation::dt() {
   if (time_step_.due(steps_)) time_step_.choose(automatic_dt(), steps_);
   return time_step_.value();
+}
+
+void Simulation::choose_dt(double stiffness_time) {
+  time_step_.choose(automatic_dt_with(stiffness_time), steps_);
 }
 
 void Simulation::set_dt(double dt) {

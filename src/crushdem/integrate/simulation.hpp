@@ -120,6 +120,9 @@ class Simulation {
   /// The step the next call to step() uses (computes it if automatic).
   double dt();
   void set_dt(double dt);  // fixes the step (overrides automatic)
+  /// Chooses the automatic step now from `stiffness_time`, the contact term reduced elsewhere
+  /// (a device's copy of this state): what dt() chooses when due, without the host's list.
+  void choose_dt(double stiffness_time);
   /// Changes the grain-grain friction coefficient from the next step on (sample preparation
   /// lowers it, then restores the material's); stored tangential forces above the new Coulomb
   /// limit are capped at the next force evaluation.
@@ -206,6 +209,8 @@ class Simulation {
   /// The step the automatic choice would take now (timestep.rayleigh_fraction and safety),
   /// whether or not the step is fixed: a fixed step above it is likely unstable.
   double automatic_dt();
+  /// automatic_dt() with its contact term given (stiffness_dt() of the same state).
+  double automatic_dt_with(double stiffness_time) const;
   /// The configured normal law outside the force loops (reporting, time step).
   NormalForce normal_force(double delta, double R_star, bool wall) const;
 
