@@ -22,7 +22,8 @@ A sweep file names a base configuration and the values to vary::
 
 Named variants give their directory names (joined with ``__`` to the other factors' values).
 A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
-and a key: ``stage.1.strain_rate`` (by index) or ``stage.shear.strain_rate`` (by name). Each
+and a key: ``stage.1.strain_rate`` (by index), ``stage.shear.strain_rate`` (by name) or
+``stage.*.n_break`` (every stage of the base that sets ``n_break``: the age stages of a pile). Each
 variant is one task: ``crushdem-sand run`` in a subprocess with ``--threads-per-run`` threads, on a
 local Dask cluster of ``--workers`` processes (default: the cores divided by the threads per
 run), or on the cluster at ``--scheduler ADDRESS``. Its configuration is written to
@@ -147,6 +148,14 @@ def read_sweep(path: str) -> Dict[str, Any]:
     if len(set(keys)) != len(keys):
         raise ValueError(f"{path}: a key is varied twice")
     for k in keys:
+        parts = k.split(".")
+        if len(parts) == 3 and parts[:2] == ["stage", "*"]:
+            also = [o for o in keys if o != k and o.startswith("stage.")
+                    and o.split(".")[-1] == parts[2]]
+            if also:
+                raise ValueError(f"{path}: \"{k}\" and \"{also[0]}\" both set {parts[2]} "
+                                 "(stage.*.KEY sets it in every stage that has it)")
+    for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
             "factors": factors, "keys": keys, "from": branch}
@@ -199,7 +208,7 @@ def _named_variants(path: str, named: Any) -> Tuple[List[Dict[str, Any]], List[s
                 continue
             if "." not in key:
                 raise ValueError(f"{path}: variant '{name}': '{key}' is not a dotted key "
-                                 "(SECTION.KEY or stage.INDEX|NAME.KEY)")
+                                 "(SECTION.KEY or stage.INDEX|NAME|*.KEY)")
             if isinstance(value, (list, dict)):
                 raise ValueError(f"{path}: variant '{name}': \"{key}\" must be one value")
             if key not in keys:
@@ -214,24 +223,30 @@ def _check_values(path: str, table: str, key: str, values: Any) -> None:
 
 
 def set_dotted(cfg: Dict[str, Any], key: str, value: Any, check_only: bool = False) -> None:
-    """Sets ``section.key`` or ``stage.INDEX|NAME.key`` of a configuration dict."""
+    """Sets ``section.key``, ``stage.INDEX|NAME.key`` or ``stage.*.key`` (every stage of the
+    base that sets that key) of a configuration dict."""
     parts = key.split(".")
     if parts[0] == "stage":
         stages = cfg.get("stage")
         if len(parts) != 3 or not isinstance(stages, list):
-            raise ValueError(f"'{key}': a stage key is stage.INDEX.KEY or stage.NAME.KEY, and the "
-                             "base configuration needs [[stage]] tables")
+            raise ValueError(f"'{key}': a stage key is stage.INDEX.KEY, stage.NAME.KEY or "
+                             "stage.*.KEY, and the base configuration needs [[stage]] tables")
         which = parts[1]
-        if which.isdigit() and int(which) < len(stages):
-            target = stages[int(which)]
+        names = ", ".join(str(st.get("name", i)) for i, st in enumerate(stages))
+        if which == "*":
+            targets = [st for st in stages if parts[2] in st]
+            if not targets:
+                raise ValueError(f"'{key}': no stage of the base sets {parts[2]} (stages: "
+                                 f"{names}); stage.*.KEY changes the stages that set it")
+        elif which.isdigit() and int(which) < len(stages):
+            targets = [stages[int(which)]]
         else:
-            named = [st for st in stages if st.get("name") == which]
-            if not named:
-                names = ", ".join(str(st.get("name", i)) for i, st in enumerate(stages))
+            targets = [st for st in stages if st.get("name") == which][:1]
+            if not targets:
                 raise ValueError(f"'{key}': no stage '{which}' (stages: {names})")
-            target = named[0]
         if not check_only:
-            target[parts[2]] = value
+            for target in targets:
+                target[parts[2]] = value
         return
     if len(parts) < 2:
         raise ValueError(f"'{key}': expected SECTION.KEY (e.g. crushing.seed)")

@@ -302,6 +302,25 @@ def test_stages_keeps_some_of_the_base_stages(tmp_path):
                                       extra='stages = ["hold"]'))
 
 
+def test_a_star_stage_key_sets_every_stage_that_has_it(tmp_path):
+    """stage.*.KEY: the key in every stage of the base that sets it, and in no other; refused
+    when no stage sets it, or when a named stage's same key is varied beside it."""
+    base = _long_base(tmp_path, 100)
+    text = open(base).read() + '\n[[stage]]\ntype = "hold"\nname = "hold2"\nsteps = 300\n'
+    with open(base, "w") as f:
+        f.write(text)
+    listed = sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"stage.*.steps": [7, 9]}, base=base)))
+    assert [v["name"] for v in listed] == ["stage.-.steps=7", "stage.-.steps=9"]
+    stages = listed[1]["config"]["stage"]
+    assert [st.get("steps") for st in stages] == [None, 9, 9]  # the isotropic stage has none
+    with pytest.raises(ValueError, match="no stage of the base sets duration"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.duration": [1.0]}, base=base))
+    with pytest.raises(ValueError, match="both set steps"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.steps": [7],
+                                                 "stage.hold.steps": [8]}, base=base))
+
+
 @pytest.mark.parametrize("path", sorted(glob.glob(os.path.join(
     os.path.dirname(os.path.dirname(DATA)), "examples", "sweeps", "*.toml"))))
 def test_the_example_sweeps_read(path):
