@@ -3,6 +3,10 @@
 A sweep file names a base configuration and the values to vary::
 
     base = "relaxation_small.toml"      # relative to the sweep file
+    experiment = "run"                  # optional: "run" (the default: each variant one
+                                        # crushdem-sand run) or "pile" (each variant a
+                                        # crushdem-sand pile: its load tests at every ageing
+                                        # time and the set-up fit)
     from = "runs/loaded:relaxation"     # optional: every variant branches from this run's
                                         # state at the start of that stage
                                         # (crushdem-sand run --from)
@@ -32,7 +36,9 @@ and an interrupted one resumes from its checkpoint, so the command can be repeat
 variant is done; a variant that fails (a bad value, a blow-up) fails alone, its error in the
 table. ``DIR/results.csv`` and ``DIR/results.parquet`` hold one row per variant: its values (a
 column per dotted key), status, error, run directory, wall-clock and the summary figures of each
-stage; ``DIR/results.png`` draws each figure against each varied key.
+stage (of a pile experiment: those of its DIR/main, each load test's capacity at every ageing
+time and the set-up factors A with their standard errors); ``DIR/results.png`` draws each figure
+against each varied key.
 """
 
 from __future__ import annotations
@@ -41,7 +47,6 @@ import copy
 import hashlib
 import itertools
 import json
-import math
 import os
 import re
 import signal
@@ -51,13 +56,10 @@ import time
 import tomllib
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
-import numpy as np
-
 from ._cli import CommandParser
 from ._optional import available, message, require
-from .analysis import DAY_S, HOUR_S, T_REF_S, as_float, value_at
-from .rundir import (read_events, read_penetration, read_shaft_profile, read_summary,
-                     read_timing)
+# summary_figures is also this module's (calibrate and the tests read runs with it).
+from .sweep_results import EXPERIMENTS, figure, finished, results_table, summary_figures
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -101,10 +103,16 @@ def read_file_and_base(path: str, what: str, keys: Sequence[str]) -> Tuple[Dict,
 
 def read_sweep(path: str) -> Dict[str, Any]:
     """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]],
-    "keys", "from"}; every problem named by file and key. A named variant's element of its
-    factor carries its name under NAME_KEY."""
-    doc, base, base_path = read_file_and_base(path, "sweep",
-                                              ("base", "from", "stages", "vary", "zip", "variant"))
+    "keys", "from", "experiment"}; every problem named by file and key. A named variant's
+    element of its factor carries its name under NAME_KEY."""
+    doc, base, base_path = read_file_and_base(
+        path, "sweep", ("base", "experiment", "from", "stages", "vary", "zip", "variant"))
+    experiment = doc.get("experiment", "run")
+    if experiment not in EXPERIMENTS:
+        raise ValueError(f"{path}: experiment = {experiment!r}: expected \"run\" (each variant "
+                         "one crushdem-sand run, the default) or \"pile\" (each variant a "
+                         "crushdem-sand pile: its load tests at every ageing time and the set-up "
+                         "fit)")
     if "stages" in doc:
         kept = _kept_stages(path, base, doc["stages"])
         # A branch's stages before its start must be the original run's, position by position:
@@ -158,7 +166,7 @@ def read_sweep(path: str) -> Dict[str, Any]:
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
-            "factors": factors, "keys": keys, "from": branch}
+            "factors": factors, "keys": keys, "from": branch, "experiment": experiment}
 
 
 def _kept_stages(path: str, base: Dict[str, Any], kept: Any) -> List[Dict[str, Any]]:
@@ -309,15 +317,21 @@ def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
 
 
 def run_variant(config_path: str, run_dir: str, threads: int,
-                branch: Optional[str] = None, backend: str = "cpu") -> Dict[str, Any]:
+                branch: Optional[str] = None, backend: str = "cpu",
+                experiment: str = "run") -> Dict[str, Any]:
     """Runs (or resumes) one variant with the crushdem command on ``backend``, branching from
-    ``branch`` (DIR[:STAGE]) when given; returns {"resumed", "wall_s"}. Raises RuntimeError with
-    the end of the run's error output when it fails."""
-    if os.path.isfile(os.path.join(run_dir, "summary.json")):
+    ``branch`` (DIR[:STAGE]) when given: ``crushdem-sand run`` (``experiment`` "run"), or
+    ``crushdem-sand pile`` ("pile", which keeps its finished runs and resumes the others when
+    called again); returns {"resumed", "wall_s"}. Raises RuntimeError with the end of the
+    command's error output when it fails."""
+    if finished(run_dir, experiment):
         return {"resumed": False, "skipped": True}
     crushdem = [sys.executable, "-m", "crushdem_sand"]
     resumed = os.path.isdir(run_dir) and bool(os.listdir(run_dir))
-    if resumed:
+    if experiment == "pile":
+        cmd = crushdem + ["pile", config_path, "--out", run_dir, "--threads", str(threads)] + (
+            ["--from", branch] if branch else [])
+    elif resumed:
         cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"]
     else:
         cmd = crushdem + ["run", config_path, "--out", run_dir, "--threads", str(threads),
@@ -336,156 +350,6 @@ def run_variant(config_path: str, run_dir: str, threads: int,
         tail = "\n".join((p.stderr or p.stdout).strip().splitlines()[-5:])
         raise RuntimeError(f"exit status {p.returncode}: {tail}")
     return {"resumed": resumed, "skipped": False, "wall_s": time.perf_counter() - t0}
-
-
-# --- the results -------------------------------------------------------------------------------
-
-
-def _shaft_sigma_r_end(profile: Optional[Dict[str, Any]], stage: int) -> Optional[float]:
-    """The mean radial stress [Pa] over the shaft's bins that touch grains, at stage ``stage``'s
-    last record of shaft_profile.csv; None without such a record or bin."""
-    if profile is None or not {"stage", "time_s", "sigma_r_Pa", "contacts"} <= set(profile):
-        return None
-    rows = profile["stage"] == stage
-    if not rows.any():
-        return None
-    last = rows & (profile["time_s"] == profile["time_s"][rows].max())
-    touching = last & (profile["contacts"] > 0)
-    return float(np.mean(profile["sigma_r_Pa"][touching])) if touching.any() else None
-
-
-def summary_figures(run_dir: str) -> Dict[str, float]:
-    """The summary figures of a finished run: per stage (named by the stage's name) q_max, the
-    peak friction angle, K0, and for age stages sigma_v and q at 1 h and 1 day over their value
-    at 4 s of ageing and the axial strain at 1 day; for a penetrate stage the cone resistance at
-    its end (q_c averaged over the records of the last 10 % of its travel), the largest, the mean
-    over the last half of the travel, the tip's and the shaft's loads at the end (last 10 %) and
-    the shaft's radial stress at the end (sigma_r_shaft_end_kPa: the mean over the shaft's bins
-    that touch grains, at the stage's last record of shaft_profile.csv); for
-    a load test the capacity with the shaft and base loads at it (a pile sweep's result);
-    breakages, B_r, the final void ratio, coordination number, stresses and volumetric strain,
-    grains and steps."""
-    s = read_summary(run_dir)
-    out: Dict[str, float] = {}
-    if not s:
-        return out
-    ev = read_events(run_dir)
-    pen = profile = None
-    for k, st in enumerate(s.get("stages") or []):
-        name = st.get("name") or f"stage{k}"
-        kind = st.get("type")
-        if kind == "load_test":
-            for key in ("capacity_N", "shaft_at_capacity_N", "base_at_capacity_N"):
-                out[f"{name}.{key}"] = as_float(st.get(key))
-        if kind == "penetrate":
-            pen = read_penetration(run_dir) if pen is None else pen
-            rows = (pen["stage"] == k) if pen is not None and "stage" in pen else None
-            if rows is not None and rows.any():
-                travel, q_c = pen["travel_m"][rows], pen["q_c_Pa"][rows]
-                end = travel >= 0.9 * travel.max()
-                out[f"{name}.q_c_end_MPa"] = float(np.mean(q_c[end])) / 1e6
-                out[f"{name}.q_c_max_MPa"] = float(np.max(q_c)) / 1e6
-                half = travel >= 0.5 * travel.max()
-                out[f"{name}.q_c_mean_MPa"] = float(np.mean(q_c[half])) / 1e6
-                for load in ("tip_load_N", "shaft_load_N"):
-                    if load in pen:
-                        out[f"{name}.{load[:-2]}_end_N"] = float(np.mean(pen[load][rows][end]))
-                profile = read_shaft_profile(run_dir) if profile is None else profile
-                sigma_r = _shaft_sigma_r_end(profile, k)
-                if sigma_r is not None:
-                    out[f"{name}.sigma_r_shaft_end_kPa"] = sigma_r / 1e3
-        if kind == "triaxial":
-            out[f"{name}.q_max_MPa"] = as_float(st.get("q_max_Pa")) / 1e6
-            out[f"{name}.friction_angle_peak_deg"] = as_float(st.get("friction_angle_peak_deg"))
-        if kind in ("oedometric", "isotropic", "triaxial", "age"):
-            out[f"{name}.K0_end"] = as_float(st.get("K0_end"))
-        if kind == "age" and ev is not None and "ageing_time_s" in ev:
-            rows = np.arange(len(ev["ageing_time_s"]))
-            if "stage" in ev:
-                rows = rows[ev["stage"][rows] == k]
-            t = ev["ageing_time_s"][rows]
-            series = {}
-            walls = [ev[c][rows] for c in ("wall_zmin_stress_Pa", "wall_zmax_stress_Pa") if c in ev]
-            if walls:
-                series["sigma_v"] = np.mean(np.vstack(walls), axis=0)
-            if "deviator_stress_Pa" in ev:
-                series["q"] = ev["deviator_stress_Pa"][rows]
-            for label, y in series.items():
-                y_ref, _ = value_at(t, y, T_REF_S)
-                for tag, t_at in (("1h", HOUR_S), ("1day", DAY_S)):
-                    y_at, _ = value_at(t, y, t_at)
-                    out[f"{name}.{label}_ratio_{tag}"] = y_at / y_ref if y_ref else math.nan
-            if "axial_strain" in ev:
-                out[f"{name}.axial_strain_1day"] = value_at(t, ev["axial_strain"][rows], DAY_S)[0]
-    crushing = s.get("crushing") or {}
-    if crushing:
-        out["breakages"] = as_float(crushing.get("breakages_instant", 0)) + as_float(
-            crushing.get("breakages_crack", 0))
-        out["relative_breakage_Br"] = as_float(crushing.get("relative_breakage_Br"))
-    final = s.get("final") or {}
-    for k in ("void_ratio", "coordination_number", "mean_stress_Pa", "deviator_stress_Pa",
-              "volumetric_strain"):
-        if k in final:
-            out[f"final.{k}"] = as_float(final[k])
-    out["grains_end"] = as_float(s.get("particles"))
-    out["steps"] = as_float(s.get("steps"))
-    return out
-
-
-def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str],
-                  errors: Mapping[str, str]) -> pd.DataFrame:
-    """The pandas DataFrame of the sweep (one row per variant), written to results.csv and
-    results.parquet."""
-    import pandas as pd
-
-    rows = []
-    for v in listed:
-        run_dir = os.path.join(out, "runs", v["name"])
-        row: Dict[str, Any] = {"variant": v["name"]}
-        row.update({k: v["values"].get(k) for k in keys})
-        figures = summary_figures(run_dir)
-        done = os.path.isfile(os.path.join(run_dir, "summary.json"))
-        row["status"] = "done" if done else ("failed" if v["name"] in errors else "not run")
-        row["error"] = errors.get(v["name"], "") if not done else ""
-        row["run_dir"] = run_dir
-        row["wall_s"] = as_float(read_timing(run_dir).get("wall_seconds"))
-        row.update(figures)
-        rows.append(row)
-    df = pd.DataFrame(rows)
-    df.to_csv(os.path.join(out, "results.csv"), index=False)
-    try:
-        df.astype({k: str for k in keys if df[k].dtype == object}).to_parquet(
-            os.path.join(out, "results.parquet"), index=False)
-    except ImportError:  # no pyarrow: sweep() says so
-        pass
-    return df
-
-
-def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
-    """Each summary figure against each varied key (numeric keys only), one panel each."""
-    from pandas.api.types import is_numeric_dtype  # pandas' own string columns too
-
-    skip = {"variant", "status", "error", "run_dir", "wall_s", *keys}
-    done = df[df["status"] == "done"] if "status" in df else df
-    figures = [c for c in df.columns if c not in skip and is_numeric_dtype(df[c].dtype)
-               and np.isfinite(done[c].to_numpy(dtype=float)).any()] if len(done) else []
-    numeric = [k for k in keys if is_numeric_dtype(df[k].dtype)]
-    if not figures or not numeric:
-        return None
-    # No pyplot: no backend is chosen for the caller.
-    Figure = require("matplotlib.figure", "crushdem_sand.sweep.figure").Figure
-    fig = Figure(figsize=(3.6 * len(numeric), 2.6 * len(figures)))
-    axes = fig.subplots(len(figures), len(numeric), squeeze=False)
-    for i, f in enumerate(figures):
-        for j, k in enumerate(numeric):
-            ax = axes[i, j]
-            ax.plot(done[k], done[f], "o")
-            ax.set_xlabel(k)
-            ax.set_ylabel(f, fontsize=8)
-            ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
 
 
 # --- the driver --------------------------------------------------------------------------------
@@ -534,20 +398,21 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
             with open(cfg_path, "w") as f:
                 f.write(text)
         run_dir = os.path.join(out, "runs", v["name"])
-        if not os.path.isfile(os.path.join(run_dir, "summary.json")):
+        if not finished(run_dir, sw["experiment"]):
             todo.append((v["name"], cfg_path, run_dir))
     with open(os.path.join(out, "sweep.json"), "w") as f:
         json.dump({"sweep": os.path.abspath(path), "base": sw["base_path"], "keys": sw["keys"],
+                   "experiment": sw["experiment"],
                    "variants": [{"name": v["name"], "values": v["values"]} for v in listed]},
                   f, indent=1)
     log(f"{len(listed)} variants: {len(listed) - len(todo) - len(errors)} finished before, "
         f"{len(todo)} to run, {len(errors)} refused")
     if todo:
         _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"],
-                   backend)
+                   backend, sw["experiment"])
     if not available("pyarrow"):
         log(message("pyarrow", "results.parquet") + " (results.csv is written)")
-    df = results_table(out, listed, sw["keys"], errors)
+    df = results_table(out, listed, sw["keys"], errors, sw["experiment"])
     if available("matplotlib"):
         figure(df, sw["keys"], os.path.join(out, "results.png"))
     else:
@@ -556,7 +421,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
 
 
 def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
-               branch=None, backend="cpu") -> None:
+               branch=None, backend="cpu", experiment="run") -> None:
     distributed = require("distributed", "crushdem-sand sweep")
     Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
@@ -579,7 +444,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
             def submit(task):
                 name, cfg, run_dir = task
                 return client.submit(run_variant, cfg, run_dir, threads_per_run, branch, backend,
-                                     key=name, pure=False), name
+                                     experiment, key=name, pure=False), name
 
             _follow(client, list(todo), submit, errors, progress, log)
         finally:

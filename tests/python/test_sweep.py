@@ -4,6 +4,7 @@ made one by one; a stopped sweep (SIGTERM, or SIGKILL of one worker) run again c
 same results; a bad value fails alone with its error in the table; --scheduler reaches a scheduler
 and a worker started here."""
 
+import csv
 import glob
 import json
 import os
@@ -319,6 +320,38 @@ def test_a_star_stage_key_sets_every_stage_that_has_it(tmp_path):
     with pytest.raises(ValueError, match="both set steps"):
         sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.steps": [7],
                                                  "stage.hold.steps": [8]}, base=base))
+
+
+def test_a_pile_sweep_runs_each_variant_as_a_pile_experiment(tmp_path):
+    """experiment = "pile": each variant is a crushdem-sand pile (its main run and the load test
+    branched at the other ageing time), its row the capacities and set-up fits of that command's
+    files; run again, a finished variant is not run again; an unknown experiment is refused."""
+    text = open(os.path.join(DATA, "pile_400.toml")).read().replace("@DATA@", DATA)
+    base = tmp_path / "pile.toml"
+    base.write_text(text)
+    path = _write_sweep(tmp_path, {"stage.*.n_break": [2]}, base=str(base),
+                        extra='experiment = "pile"')
+    df = sweep.sweep(path, str(tmp_path / "out"), workers=1, progress=False,
+                     log=lambda s: None)
+    row = df.iloc[0]
+    assert row["status"] == "done", row["error"]
+    run = row["run_dir"]
+    assert sorted(d for d in os.listdir(run) if os.path.isdir(os.path.join(run, d))) == [
+        "configs", "main", "t0_compression"]
+    fits = json.load(open(os.path.join(run, "pile_setup.json")))["fits"]
+    assert row["setup.compression.A"] == pytest.approx(fits["compression"]["A"], rel=1e-12)
+    capacity = {r["ageing_time_s"]: r["capacity_N"] for r in csv.DictReader(
+        open(os.path.join(run, "pile_capacity.csv")))}
+    assert row["compression.capacity_N@3600s"] == pytest.approx(float(capacity["3600.0"]))
+    assert row["compression.capacity_N@86400s"] == pytest.approx(float(capacity["86400.0"]))
+    assert row["install.q_c_max_MPa"] > 0 and row["wall_s"] > 0
+    said = []
+    again = sweep.sweep(path, str(tmp_path / "out"), workers=1, progress=False, log=said.append)
+    assert "1 finished before, 0 to run" in said[0]
+    assert again.iloc[0]["setup.compression.A"] == row["setup.compression.A"]
+    with pytest.raises(ValueError, match="expected \"run\""):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.n_break": [2]}, base=str(base),
+                                      extra='experiment = "piles"'))
 
 
 @pytest.mark.parametrize("path", sorted(glob.glob(os.path.join(
