@@ -32,9 +32,9 @@ def finished(run_dir: str, experiment: str = "run") -> bool:
 
 def pile_figures(out: str) -> Dict[str, float]:
     """A pile experiment's results (``crushdem-sand pile``'s DIR): per load test the set-up
-    factor A with its standard error (``setup.TEST.A``, ``setup.TEST.A_std``; the shaft's own as
-    ``setup.TEST (shaft).A``), and each capacity by its ageing time
-    (``TEST.capacity_N@3600s``, with the shaft's load at it)."""
+    factor A with its standard error and the fit's Q0 (``setup.TEST.A``, ``setup.TEST.A_std``,
+    ``setup.TEST.Q0_N``; the shaft's own as ``setup.TEST (shaft).A``), and each capacity by its
+    ageing time (``TEST.capacity_N@3600s``, with the shaft's load at it)."""
     out_figs: Dict[str, float] = {}
     try:
         with open(os.path.join(out, "pile_setup.json")) as f:
@@ -42,7 +42,7 @@ def pile_figures(out: str) -> Dict[str, float]:
     except (OSError, ValueError):
         fits = {}
     for test, fit in fits.items():
-        for key in ("A", "A_std"):
+        for key in ("A", "A_std", "Q0_N"):
             out_figs[f"setup.{test}.{key}"] = as_float(fit.get(key))
     try:
         with open(os.path.join(out, "pile_capacity.csv"), newline="") as f:
@@ -50,7 +50,7 @@ def pile_figures(out: str) -> Dict[str, float]:
     except OSError:
         rows = []
     for r in rows:
-        at = f"@{as_float(r.get('ageing_time_s')):g}s"
+        at = f"@{as_float(r.get('ageing_time_s')):.0f}s"
         out_figs[f"{r.get('test')}.capacity_N{at}"] = as_float(r.get("capacity_N"))
         out_figs[f"{r.get('test')}.shaft_at_capacity_N{at}"] = as_float(
             r.get("shaft_at_capacity_N"))

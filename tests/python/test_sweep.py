@@ -340,6 +340,7 @@ def test_a_pile_sweep_runs_each_variant_as_a_pile_experiment(tmp_path):
         "configs", "main", "t0_compression"]
     fits = json.load(open(os.path.join(run, "pile_setup.json")))["fits"]
     assert row["setup.compression.A"] == pytest.approx(fits["compression"]["A"], rel=1e-12)
+    assert row["setup.compression.Q0_N"] == pytest.approx(fits["compression"]["Q0_N"])
     capacity = {r["ageing_time_s"]: r["capacity_N"] for r in csv.DictReader(
         open(os.path.join(run, "pile_capacity.csv")))}
     assert row["compression.capacity_N@3600s"] == pytest.approx(float(capacity["3600.0"]))
