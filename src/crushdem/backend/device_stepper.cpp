@@ -19,6 +19,13 @@ using device::Control;
 using device::Index;
 using device::View;
 
+/// A View member pointed at a buffer (the field rows' binding: the member's type, not a macro
+/// argument, names the element).
+template <class T>
+void bind_to(T*& member, void* p) {
+  member = static_cast<T*>(p);
+}
+
 /// Buffers keep spare room so that most rebuilds and splits do not reallocate (a reallocation
 /// changes the view and, on a GPU, the captured graph).
 std::size_t with_room(std::size_t bytes) {
@@ -234,7 +241,7 @@ struct DeviceStepper::Impl {
   explicit Impl(std::unique_ptr<device::Api> a) : api(std::move(a)) {
 #define CD_SCRATCH_ROW(name_, T, count_, when_)                            \
   scratch.push_back(Scratch{#name_, Count::count_, When::when_, sizeof(T), \
-                            [](View& v, void* p) { v.name_ = static_cast<T*>(p); }});
+                            [](View& v, void* p) { bind_to(v.name_, p); }});
     CD_DEVICE_SCRATCH(CD_SCRATCH_ROW)
 #undef CD_SCRATCH_ROW
   }
@@ -306,7 +313,7 @@ struct DeviceStepper::Impl {
       static_cast<void>(crusher);                                       \
       return host_array(host_expr);                                     \
     };                                                                  \
-    f.bind = [](View& v, void* p) { v.name_ = static_cast<T*>(p); };    \
+    f.bind = [](View& v, void* p) { bind_to(v.name_, p); };             \
     fields.push_back(std::move(f));                                     \
   }
     CD_DEVICE_FIELDS(CD_FIELD_ROW)
