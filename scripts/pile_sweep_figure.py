@@ -24,6 +24,12 @@ from typing import Any, Dict, List
 import numpy as np
 
 
+def varied_keys(sweep_dir: str) -> List[str]:
+    """The sweep's varied keys (its sweep.json)."""
+    with open(os.path.join(sweep_dir, "sweep.json")) as f:
+        return json.load(f)["keys"]
+
+
 def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
     """A row per finished variant and ageing time of results.csv: the variant, its varied values,
     t, the capacity and the shaft's load, and the variant's fits (A, A_std; shaft_A,
@@ -31,8 +37,7 @@ def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
     import pandas as pd
 
     df = pd.read_csv(os.path.join(sweep_dir, "results.csv"))
-    with open(os.path.join(sweep_dir, "sweep.json")) as f:
-        keys = json.load(f)["keys"]
+    keys = varied_keys(sweep_dir)
     at = re.compile(re.escape(f"{test}.capacity_N@") + r"(\d+)s$")
     times = sorted(int(m.group(1)) for c in df.columns if (m := at.match(c)))
     if not times:
@@ -100,9 +105,7 @@ def main(argv: List[str]) -> int:
 
     df = pd.DataFrame(table)
     df.to_csv(os.path.join(out, "pile_sweep.csv"), index=False)
-    with open(os.path.join(args.sweep_dir, "sweep.json")) as f:
-        keys = json.load(f)["keys"]
-    figure(table, keys, os.path.join(out, "pile_sweep.png"))
+    figure(table, varied_keys(args.sweep_dir), os.path.join(out, "pile_sweep.png"))
     # Printed: the values that differ between variants (a named variant's keys are its name).
     same = [c for c in df.columns[1:df.columns.get_loc("ageing_time_s")] if df[c].nunique() == 1]
     with pd.option_context("display.width", 140, "display.max_columns", 20):

@@ -23,3 +23,14 @@ def load(name):
         pkg.__path__ = [SOURCE_DIR]
         sys.modules[_PACKAGE] = pkg
     return importlib.import_module(f"{_PACKAGE}.{name}")
+
+
+def load_script(name):
+    """scripts/<name>.py of the checkout as a module (the scripts are not part of the package)."""
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(os.path.dirname(SOURCE_DIR)), "scripts", name + ".py")
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

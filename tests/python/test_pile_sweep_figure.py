@@ -1,7 +1,6 @@
 """scripts/pile_sweep_figure.py: the capacities of a sweep of pile experiments by variant and
 ageing time, with each variant's fits, on a sweep directory written here (no run needed)."""
 
-import importlib.util
 import json
 import os
 
@@ -10,11 +9,9 @@ import pytest
 pd = pytest.importorskip("pandas")
 pytest.importorskip("matplotlib")
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SPEC = importlib.util.spec_from_file_location(
-    "pile_sweep_figure", os.path.join(ROOT, "scripts", "pile_sweep_figure.py"))
-pile_sweep_figure = importlib.util.module_from_spec(SPEC)
-SPEC.loader.exec_module(pile_sweep_figure)
+from _source import load_script  # noqa: E402
+
+pile_sweep_figure = load_script("pile_sweep_figure")
 
 
 def _sweep_dir(tmp_path):

@@ -2,7 +2,6 @@
 the figures of a velocity sweep grouped by velocity (means and standard errors over the seeds),
 on a sweep directory written here (no run needed)."""
 
-import importlib.util
 import math
 import os
 import shutil
@@ -12,11 +11,10 @@ import pytest
 pd = pytest.importorskip("pandas")
 pytest.importorskip("matplotlib")
 
+from _source import load_script  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SPEC = importlib.util.spec_from_file_location(
-    "rate_figure", os.path.join(ROOT, "scripts", "rate_figure.py"))
-rate_figure = importlib.util.module_from_spec(SPEC)
-SPEC.loader.exec_module(rate_figure)
+rate_figure = load_script("rate_figure")
 PILE = os.path.join(ROOT, "examples", "pile_small.toml")
 
 
