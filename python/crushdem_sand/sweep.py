@@ -23,8 +23,11 @@ A sweep file names a base configuration and the values to vary::
     name = "rolling_0.3"                # own keys (none: the base as it is)
     "contact.rotation" = "rolling"
     "contact.rolling_friction" = 0.3
+    [names]                             # optional: a short name for a varied key in the
+    "crushing.r_prime" = "r_prime"      # directory names (r_prime=R_star, not the dotted key)
 
-Named variants give their directory names (joined with ``__`` to the other factors' values).
+Named variants give their directory names (joined with ``__`` to the other factors' values);
+the other factors give KEY=VALUE, KEY being the key's entry in [names] or the dotted key.
 A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
 and a key: ``stage.1.strain_rate`` (by index), ``stage.shear.strain_rate`` (by name) or
 ``stage.*.n_break`` (every stage of the base that sets ``n_break``: the age stages of a pile). Each
@@ -106,7 +109,7 @@ def read_sweep(path: str) -> Dict[str, Any]:
     "keys", "from", "experiment"}; every problem named by file and key. A named variant's
     element of its factor carries its name under NAME_KEY."""
     doc, base, base_path = read_file_and_base(
-        path, "sweep", ("base", "experiment", "from", "stages", "vary", "zip", "variant"))
+        path, "sweep", ("base", "experiment", "from", "stages", "vary", "zip", "variant", "names"))
     experiment = doc.get("experiment", "run")
     if experiment not in EXPERIMENTS:
         raise ValueError(f"{path}: experiment = {experiment!r}: expected \"run\" (each variant "
@@ -146,6 +149,7 @@ def read_sweep(path: str) -> Dict[str, Any]:
         factors.append([{k: v[i] for k, v in zipped.items()} for i in range(n)])
         keys.extend(zipped)
     named = doc.get("variant")
+    named_keys: List[str] = []
     if named is not None:
         factor, named_keys = _named_variants(path, named)
         factors.append(factor)
@@ -165,8 +169,54 @@ def read_sweep(path: str) -> Dict[str, Any]:
                                  "(stage.*.KEY sets it in every stage that has it)")
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
+    names = _short_names(path, doc.get("names"), [k for k in keys if k not in named_keys])
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
-            "factors": factors, "keys": keys, "from": branch, "experiment": experiment}
+            "factors": factors, "keys": keys, "from": branch, "experiment": experiment,
+            "names": names}
+
+
+def _check_names_kept(out: str, listed: Sequence[Mapping[str, Any]]) -> None:
+    """ValueError when the sweep already in ``out`` ran a variant of these values under another
+    directory name ([names] changed): its runs would be started again beside the old ones."""
+    try:
+        with open(os.path.join(out, "sweep.json")) as f:
+            before = {json.dumps(v["values"], sort_keys=True): v["name"]
+                      for v in json.load(f)["variants"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    for v in listed:
+        old = before.get(json.dumps(v["values"], sort_keys=True))
+        if old is not None and old != v["name"] and os.path.isdir(os.path.join(out, "runs", old)):
+            raise ValueError(f"{out}: the variant {v['name']} ran there as {old} (the directory "
+                             "names changed: [names]); keep the names it ran with or use "
+                             "another --out")
+
+
+def _short_names(path: str, table: Any, keys: Sequence[str]) -> Dict[str, str]:
+    """[names]: {dotted key: short name} for the directory names, each key one of [vary] or
+    [zip] (a named variant's keys never appear there) and each name a distinct directory word."""
+    if table is None:
+        return {}
+    if not isinstance(table, dict):
+        raise ValueError(f"{path}: [names] must be a table of \"DOTTED.KEY\" = \"short_name\"")
+    for key, name in table.items():
+        if isinstance(name, dict):
+            raise ValueError(f"{path}: [names] {key}: quote the dotted key (\"{key}.KEY\" = "
+                             "\"short_name\"), or TOML reads it as a table")
+        if key not in keys:
+            raise ValueError(f"{path}: [names] \"{key}\": not a key of [vary] or [zip] (they "
+                             f"are: {', '.join(keys) or 'none'})")
+        if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9.+-]+(_[A-Za-z0-9.+-]+)*",
+                                                           name):
+            raise ValueError(f"{path}: [names] \"{key}\" = {name!r}: expected a short name of "
+                             "letters, digits and ._+- (no '=' and no '__', which separate the "
+                             "parts of a directory name)")
+    shown = [_DIR_UNSAFE.sub("-", table.get(k, k)) for k in keys]
+    twice = sorted({n for n in shown if shown.count(n) > 1})
+    if twice:
+        raise ValueError(f"{path}: [names]: '{twice[0]}' would name two keys in the directory "
+                         "names")
+    return dict(table)
 
 
 def _kept_stages(path: str, base: Dict[str, Any], kept: Any) -> List[Dict[str, Any]]:
@@ -285,15 +335,22 @@ def variants(sweep: Mapping[str, Any]) -> List[Dict[str, Any]]:
             set_dotted(cfg, k, v)
         unnamed = {k: v for k, v in values.items()
                    if not any(k in p and NAME_KEY in p for p in combo)}
-        label = "__".join(names + ([variant_name(unnamed)] if unnamed else []))
+        label = "__".join(names + ([variant_name(unnamed, sweep.get("names"))] if unnamed
+                                   else []))
         out.append({"name": label or "base", "values": values, "config": cfg})
     return out
 
 
-def variant_name(values: Mapping[str, Any]) -> str:
-    """A directory name from the values (the same values give the same name on every call)."""
-    text = "__".join(f"{k}={_show(v)}" for k, v in values.items())
-    text = re.sub(r"[^A-Za-z0-9._=+-]", "-", text)
+# What a directory name does not hold (each such character becomes '-').
+_DIR_UNSAFE = re.compile(r"[^A-Za-z0-9._=+-]")
+
+
+def variant_name(values: Mapping[str, Any], names: Optional[Mapping[str, str]] = None) -> str:
+    """A directory name from the values, each key shown by its entry in ``names`` or dotted (the
+    same values give the same name on every call)."""
+    names = names or {}
+    text = "__".join(f"{names.get(k, k)}={_show(v)}" for k, v in values.items())
+    text = _DIR_UNSAFE.sub("-", text)
     if len(text) > 120:
         text = text[:100] + "-" + hashlib.sha1(text.encode()).hexdigest()[:12]
     return text
@@ -376,6 +433,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
         raise ValueError(f"--workers {workers}: expected a count >= 1")
     sw = read_sweep(path)
     listed = variants(sw)
+    _check_names_kept(out, listed)
     os.makedirs(os.path.join(out, "configs"), exist_ok=True)
     os.makedirs(os.path.join(out, "runs"), exist_ok=True)
     errors: Dict[str, str] = {}

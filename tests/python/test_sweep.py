@@ -322,6 +322,39 @@ def test_a_star_stage_key_sets_every_stage_that_has_it(tmp_path):
                                                  "stage.hold.steps": [8]}, base=base))
 
 
+def test_names_shorten_the_directory_names(tmp_path):
+    """[names]: a varied key's short name in the directory names (the values and the table keep
+    the dotted key); a key that is not varied, a name with '=' or '__', two keys under one name
+    and an unquoted dotted key are refused by name; a sweep whose directories would change name
+    in an --out that ran it is refused."""
+    base = _long_base(tmp_path, 100)
+    extra = '[names]\n"stage.*.steps" = "steps"\n"material.friction" = "mu"\n'
+    path = _write_sweep(tmp_path, {"stage.*.steps": [7], "material.friction": [0.2, 0.3]},
+                        base=base, extra=extra)
+    listed = sweep.variants(sweep.read_sweep(path))
+    assert [v["name"] for v in listed] == ["steps=7__mu=0.2", "steps=7__mu=0.3"]
+    assert listed[1]["values"] == {"stage.*.steps": 7, "material.friction": 0.3}
+    for bad, message in (('[names]\n"contact.law" = "law"\n', "not a key of"),
+                         ('[names]\n"material.friction" = "a=b"\n', "short name"),
+                         ('[names]\n"material.friction" = "a__b"\n', "short name"),
+                         ('[names]\n"material.friction" = "stage.-.steps"\n', "two keys"),
+                         ('[names]\nmaterial.friction = "mu"\n', "quote the dotted key")):
+        with pytest.raises(ValueError, match=message):
+            sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.steps": [7],
+                                                     "material.friction": [0.2]},
+                                          base=base, extra=bad))
+    # The --out of a sweep that ran under the dotted names: its runs would start again.
+    path = _write_sweep(tmp_path, {"stage.*.steps": [7], "material.friction": [0.2]},
+                        base=base, extra=extra)
+    out = tmp_path / "out"
+    (out / "runs" / "stage.-.steps=7__material.friction=0.2").mkdir(parents=True)
+    (out / "sweep.json").write_text(json.dumps({"variants": [
+        {"name": "stage.-.steps=7__material.friction=0.2",
+         "values": {"stage.*.steps": 7, "material.friction": 0.2}}]}))
+    with pytest.raises(ValueError, match="ran there as stage.-.steps=7__material.friction=0.2"):
+        sweep.sweep(path, str(out))
+
+
 def test_a_pile_sweep_runs_each_variant_as_a_pile_experiment(tmp_path):
     """experiment = "pile": each variant is a crushdem-sand pile (its main run and the load test
     branched at the other ageing time), its row the capacities and set-up fits of that command's
