@@ -32,8 +32,8 @@ def varied_keys(sweep_dir: str) -> List[str]:
 
 def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
     """A row per finished variant and ageing time of results.csv: the variant, its varied values,
-    t, the capacity and the shaft's load, and the variant's fits (A, A_std; shaft_A,
-    shaft_A_std)."""
+    t, the capacity and the shaft's load, and the variant's fits (A, A_std, Q0_N, t0_s; shaft_A
+    and so on); ValueError without a finished variant."""
     import pandas as pd
 
     df = pd.read_csv(os.path.join(sweep_dir, "results.csv"))
@@ -43,14 +43,18 @@ def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
     if not times:
         raise ValueError(f"{sweep_dir}/results.csv has no capacities of load test '{test}' "
                          "(a sweep with experiment = \"pile\"; --test names the load test)")
+    done = df[df["status"] == "done"]
+    if done.empty:
+        raise ValueError(f"{sweep_dir}/results.csv has no finished variant (run the sweep again "
+                         "to complete it)")
     out = []
-    for _, r in df[df["status"] == "done"].iterrows():
+    for _, r in done.iterrows():
         for t in times:
             row = {"variant": r["variant"], **{k: r[k] for k in keys}, "ageing_time_s": float(t),
                    "capacity_N": r[f"{test}.capacity_N@{t}s"],
                    "shaft_at_capacity_N": r[f"{test}.shaft_at_capacity_N@{t}s"]}
             for tag, fit in (("", test), ("shaft_", f"{test} (shaft)")):
-                for key in ("A", "A_std", "Q0_N"):
+                for key in ("A", "A_std", "Q0_N", "t0_s"):
                     row[f"{tag}{key}"] = r.get(f"setup.{fit}.{key}", math.nan)
             out.append(row)
     return out
@@ -58,7 +62,8 @@ def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
 
 def figure(table: List[Dict[str, Any]], keys: List[str], path: str) -> None:
     """Capacity and shaft load against ageing time, one line of points per variant, with its
-    fitted line Q0 (1 + A log10(t / t0)), t0 the first ageing time; each labelled by the
+    fitted line Q0 (1 + A log10(t / t0)), t0 the fit's (its first ageing time with a capacity);
+    each labelled by the
     values of ``keys`` that differ between variants."""
     from matplotlib.figure import Figure
 
@@ -73,11 +78,14 @@ def figure(table: List[Dict[str, Any]], keys: List[str], path: str) -> None:
         for ax, col, tag in ((axes[0], "capacity_N", ""), (axes[1], "shaft_at_capacity_N",
                                                            "shaft_")):
             q = np.array([r[col] for r in sel])
-            A, A_std, Q0 = (sel[0][f"{tag}{k}"] for k in ("A", "A_std", "Q0_N"))
+            A, A_std, Q0, t0 = (sel[0].get(f"{tag}{k}", math.nan)
+                                for k in ("A", "A_std", "Q0_N", "t0_s"))
             line = ax.plot(t, q, "o", label=f"{label}: A = {A:.3f} +- {A_std:.3f}")[0]
-            if np.isfinite(A) and np.isfinite(Q0):
-                tt = np.geomspace(t.min(), t.max(), 50)
-                ax.plot(tt, Q0 * (1.0 + A * np.log10(tt / t.min())), "-",
+            if not np.isfinite(t0):  # a results.csv of a sweep before t0 was tabulated
+                t0 = t[np.isfinite(q)].min() if np.isfinite(q).any() else math.nan
+            if np.isfinite(A) and np.isfinite(Q0) and np.isfinite(t0):
+                tt = np.geomspace(t0, t.max(), 50)
+                ax.plot(tt, Q0 * (1.0 + A * np.log10(tt / t0)), "-",
                         color=line.get_color(), alpha=0.6)
     for ax, what in zip(axes, ("capacity", "shaft's load at capacity")):
         ax.set_xscale("log")
@@ -107,7 +115,8 @@ def main(argv: List[str]) -> int:
     df.to_csv(os.path.join(out, "pile_sweep.csv"), index=False)
     figure(table, varied_keys(args.sweep_dir), os.path.join(out, "pile_sweep.png"))
     # Printed: the values that differ between variants (a named variant's keys are its name).
-    same = [c for c in df.columns[1:df.columns.get_loc("ageing_time_s")] if df[c].nunique() == 1]
+    same = [c for c in df.columns[1:df.columns.get_loc("ageing_time_s")]
+            if df[c].nunique(dropna=False) == 1]
     with pd.option_context("display.width", 140, "display.max_columns", 20):
         print(df.drop(columns=same).to_string(index=False))
     return 0

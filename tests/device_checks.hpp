@@ -557,7 +557,8 @@ inline std::vector<Check> bodies(const ApiFactory& api) {
 /// k) The automatic time step's contact term (Simulation::stiffness_dt(), min sqrt(m / sum k)),
 /// reduced on the device, is the host's on the same state bit for bit: a compressed sample
 /// between the box's servo walls, and grains about curved bodies (bodies' chamber, pile and
-/// platen, the pile moving), each after it has run on the device.
+/// platen, the pile moving), each after it has run on the device; and the automatic step a device
+/// run chooses is the host's choice on the same state.
 inline std::vector<Check> stiffness_time(const ApiFactory& api) {
   std::vector<Check> out;
   const auto check = [&](const std::string& what, Simulation s, std::uint64_t steps) {
@@ -581,6 +582,24 @@ inline std::vector<Check> stiffness_time(const ApiFactory& api) {
   one.add_particle({0.5 * L + 0.52 * L - 0.9 * r, 0.5 * L, 0.3 * L}, r);
   one.set_dt(0.5 * one.automatic_dt());
   check("a grain on the chamber's cylinder", one, 10);
+  const double fixed = one.current_dt();
+  one.choose_dt(1.0);  // a device's choice never replaces a fixed step
+  out.push_back({one.current_dt() == fixed, "time step: a fixed step stays fixed",
+                 fmt("%.17g s, fixed at %.17g s", one.current_dt(), fixed)});
+  // The automatic step as a device run chooses it (a batch ends where it is due): at the next
+  // due step, the host's choice on the same state, to the bit.
+  Simulation s = compressed_sample(0.05);
+  const std::uint64_t every = s.config().timestep.update_interval;
+  const std::uint64_t since = s.step_count() - s.time_step().computed_at();
+  DeviceStepper d(api());
+  d.advance(s, every + (since < every ? every - since : 0));
+  d.sync(s, Sync::All);
+  const double chosen = s.current_dt(), at = static_cast<double>(s.time_step().computed_at());
+  const double on_host = s.automatic_dt();
+  out.push_back({chosen == on_host && at == static_cast<double>(s.step_count()),
+                 "time step: the automatic step the device chose is the host's",
+                 fmt("device %.17g s, host %.17g s; chosen at step %.0f of %.0f", chosen, on_host,
+                     at, static_cast<double>(s.step_count()))});
   return out;
 }
 

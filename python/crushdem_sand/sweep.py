@@ -70,6 +70,8 @@ if TYPE_CHECKING:
 # How long a task waits for the lock of its run directory: a run killed with its worker takes a
 # moment to write its checkpoint and let go.
 LOCK_WAIT_S = 120.0
+# How long a stopped sweep (or pile) waits for its runs to save their checkpoints and stop.
+STOP_WAIT_S = 300.0
 
 
 # --- the sweep file ----------------------------------------------------------------------------
@@ -159,31 +161,49 @@ def read_sweep(path: str) -> Dict[str, Any]:
                          "one entry)")
     if len(set(keys)) != len(keys):
         raise ValueError(f"{path}: a key is varied twice")
+    # Keys one variant may set together: every [vary] and [zip] key with any other, a named
+    # variant's only with those of its own table.
+    tables = [set(v) - {NAME_KEY} for v in (named if named is not None else [])]
+
+    def together(a: str, b: str) -> bool:
+        return (a not in named_keys or b not in named_keys
+                or any(a in t and b in t for t in tables))
+
     for k in keys:
         parts = k.split(".")
         if len(parts) == 3 and parts[:2] == ["stage", "*"]:
             also = [o for o in keys if o != k and o.startswith("stage.")
-                    and o.split(".")[-1] == parts[2]]
+                    and o.split(".")[-1] == parts[2] and together(k, o)]
             if also:
                 raise ValueError(f"{path}: \"{k}\" and \"{also[0]}\" both set {parts[2]} "
                                  "(stage.*.KEY sets it in every stage that has it)")
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
+    if experiment == "pile":
+        from .pile import plan
+
+        plan(base, f"{path}: base '{doc['base']}'" + (" (its kept stages)" if "stages" in doc
+                                                      else ""))
     names = _short_names(path, doc.get("names"), [k for k in keys if k not in named_keys])
     return {"base": base, "base_path": base_path, "base_dir": os.path.dirname(base_path),
             "factors": factors, "keys": keys, "from": branch, "experiment": experiment,
             "names": names}
 
 
-def _check_names_kept(out: str, listed: Sequence[Mapping[str, Any]]) -> None:
-    """ValueError when the sweep already in ``out`` ran a variant of these values under another
-    directory name ([names] changed): its runs would be started again beside the old ones."""
+def _check_out_matches(out: str, listed: Sequence[Mapping[str, Any]], experiment: str) -> None:
+    """ValueError when the sweep already in ``out`` ran another experiment (its run directories
+    hold the other command's files), or a variant of these values under another directory name
+    ([names] changed: its runs would be started again beside the old ones)."""
     try:
         with open(os.path.join(out, "sweep.json")) as f:
-            before = {json.dumps(v["values"], sort_keys=True): v["name"]
-                      for v in json.load(f)["variants"]}
-    except (OSError, ValueError, KeyError, TypeError):
+            doc = json.load(f)
+        was = doc.get("experiment", "run")
+        before = {json.dumps(v["values"], sort_keys=True): v["name"] for v in doc["variants"]}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return
+    if was != experiment:
+        raise ValueError(f"{out}: its variants ran as experiment = \"{was}\", not "
+                         f"\"{experiment}\": use another --out")
     for v in listed:
         old = before.get(json.dumps(v["values"], sort_keys=True))
         if old is not None and old != v["name"] and os.path.isdir(os.path.join(out, "runs", old)):
@@ -373,6 +393,25 @@ def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
         pass
 
 
+def _run_command(cmd: Sequence[str]) -> Tuple[int, str, str]:
+    """(exit status, output, error output) of ``cmd``. When this process is stopped meanwhile
+    (SIGTERM made an exception, Ctrl-C), the command gets SIGTERM and is waited for, so that a
+    run saves its checkpoint: subprocess.run would SIGKILL it."""
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          preexec_fn=_die_with_parent) as p:
+        try:
+            stdout, stderr = p.communicate()
+        except BaseException:
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+            try:
+                p.communicate(timeout=STOP_WAIT_S)  # its pipes drained while it saves
+            except subprocess.TimeoutExpired:
+                p.kill()
+            raise
+    return p.returncode, stdout, stderr
+
+
 def run_variant(config_path: str, run_dir: str, threads: int,
                 branch: Optional[str] = None, backend: str = "cpu",
                 experiment: str = "run") -> Dict[str, Any]:
@@ -397,15 +436,15 @@ def run_variant(config_path: str, run_dir: str, threads: int,
     t0 = time.perf_counter()
     deadline = t0 + LOCK_WAIT_S
     while True:
-        p = subprocess.run(cmd, capture_output=True, text=True, preexec_fn=_die_with_parent)
-        locked = p.returncode == 2 and "another crushdem-sand run" in p.stderr
+        code, stdout, stderr = _run_command(cmd)
+        locked = code == 2 and "another crushdem-sand run" in stderr
         if locked and time.perf_counter() < deadline:
             time.sleep(1.0)
             continue
         break
-    if p.returncode != 0:
-        tail = "\n".join((p.stderr or p.stdout).strip().splitlines()[-5:])
-        raise RuntimeError(f"exit status {p.returncode}: {tail}")
+    if code != 0:
+        tail = "\n".join((stderr or stdout).strip().splitlines()[-5:])
+        raise RuntimeError(f"exit status {code}: {tail}")
     return {"resumed": resumed, "skipped": False, "wall_s": time.perf_counter() - t0}
 
 
@@ -433,7 +472,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
         raise ValueError(f"--workers {workers}: expected a count >= 1")
     sw = read_sweep(path)
     listed = variants(sw)
-    _check_names_kept(out, listed)
+    _check_out_matches(out, listed, sw["experiment"])
     os.makedirs(os.path.join(out, "configs"), exist_ok=True)
     os.makedirs(os.path.join(out, "runs"), exist_ok=True)
     errors: Dict[str, str] = {}
@@ -519,8 +558,6 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
         signal.signal(signal.SIGTERM, previous)
 
 
-# How long a stopped sweep waits for its local runs to save their checkpoints and stop.
-STOP_WAIT_S = 300.0
 
 
 def stop_local_runs(log: Callable[[str], None], wait_s: float = STOP_WAIT_S) -> None:

@@ -32,8 +32,9 @@ def finished(run_dir: str, experiment: str = "run") -> bool:
 
 def pile_figures(out: str) -> Dict[str, float]:
     """A pile experiment's results (``crushdem-sand pile``'s DIR): per load test the set-up
-    factor A with its standard error and the fit's Q0 (``setup.TEST.A``, ``setup.TEST.A_std``,
-    ``setup.TEST.Q0_N``; the shaft's own as ``setup.TEST (shaft).A``), and each capacity by its
+    factor A with its standard error, the fit's Q0 and its reference time t0 (``setup.TEST.A``,
+    ``setup.TEST.A_std``, ``setup.TEST.Q0_N``, ``setup.TEST.t0_s``; the shaft's own as
+    ``setup.TEST (shaft).A``), and each capacity by its
     ageing time (``TEST.capacity_N@3600s``, with the shaft's load at it)."""
     out_figs: Dict[str, float] = {}
     try:
@@ -42,7 +43,7 @@ def pile_figures(out: str) -> Dict[str, float]:
     except (OSError, ValueError):
         fits = {}
     for test, fit in fits.items():
-        for key in ("A", "A_std", "Q0_N"):
+        for key in ("A", "A_std", "Q0_N", "t0_s"):
             out_figs[f"setup.{test}.{key}"] = as_float(fit.get(key))
     try:
         with open(os.path.join(out, "pile_capacity.csv"), newline="") as f:

@@ -2,11 +2,16 @@
 capacities (and its uncertainty covers it under noise); the plan of runs follows the stages and
 refuses a configuration out of order; the command on the 400-grain pile of tests/data (a main run
 and one branch, about 20 s) writes the capacities, the fit and the figures, and called again
-reuses its finished runs."""
+reuses its finished runs; stopped with SIGTERM, the command stops its run as the run's own stop
+does (a checkpoint saved), and called again completes."""
 
 import json
 import math
 import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -152,6 +157,29 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
     for other in (None, f"{out / 't0_compression'}:0"):
         with pytest.raises(ValueError, match="was begun from"):
             pile.pile(str(cfg), str(variant), log=lambda s: None, branch=other)
+
+
+def test_a_stopped_pile_command_lets_its_run_save_its_checkpoint(tmp_path):
+    """SIGTERM to crushdem-sand pile during the installation: its run gets SIGTERM too and saves
+    its checkpoint (the installation stage has no other before its end); the command exits with
+    128 + SIGTERM, and called again resumes the run and completes."""
+    cfg = tmp_path / "pile.toml"
+    cfg.write_text(open(os.path.join(DATA, "pile_400.toml")).read().replace("@DATA@", DATA))
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "crushdem_sand", "pile", str(cfg), "--out",
+                          str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    log = out / "main" / "run.log"
+    deadline = time.monotonic() + 120
+    while not (log.is_file() and "install  step" in log.read_text()):
+        assert p.poll() is None and time.monotonic() < deadline, "the installation never began"
+        time.sleep(0.05)
+    p.send_signal(signal.SIGTERM)
+    assert p.wait(timeout=120) == 128 + signal.SIGTERM
+    assert (out / "main" / "checkpoint.bin").is_file()
+    assert "stopped by signal" in log.read_text()
+    r = pile.pile(str(cfg), str(out), log=lambda s: None)
+    assert [row["ageing_time_s"] for row in r["capacity"]] == [3600.0, 86400.0]
+    assert json.load(open(out / "main" / "timing.json"))["resumed"] is True
 
 
 def test_the_ring_profile_averages_the_slices_per_event_and_ring():

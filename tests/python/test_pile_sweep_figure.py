@@ -2,6 +2,7 @@
 ageing time, with each variant's fits, on a sweep directory written here (no run needed)."""
 
 import json
+import math
 import os
 
 import pytest
@@ -19,7 +20,8 @@ def _sweep_dir(tmp_path):
     for n, A in ((1, -0.05), (2, -0.08)):
         row = {"variant": f"nb{n}", "status": "done", "stage.*.n_break": n, "sample.stress": 5e6,
                "setup.compression.A": A, "setup.compression.A_std": 0.01,
-               "setup.compression.Q0_N": 17.0, "setup.compression (shaft).A": A / 2,
+               "setup.compression.Q0_N": 17.0, "setup.compression.t0_s": 3600.0,
+               "setup.compression (shaft).A": A / 2,
                "setup.compression (shaft).A_std": 0.02, "setup.compression (shaft).Q0_N": 3.0}
         for t in (3600, 86400):
             row[f"compression.capacity_N@{t}s"] = 17.0 * (1 + A * (t > 3600))
@@ -40,8 +42,16 @@ def test_the_capacities_are_tabulated_by_variant_and_ageing_time(tmp_path):
     assert table[3]["capacity_N"] == pytest.approx(17.0 * 0.92)
     assert table[2]["A"] == -0.08 and table[2]["shaft_A"] == -0.04
     assert table[0]["stage.*.n_break"] == 1 and table[0]["Q0_N"] == 17.0
+    assert table[0]["t0_s"] == 3600.0 and math.isnan(table[0]["shaft_t0_s"])  # not tabulated
     with pytest.raises(ValueError, match="no capacities of load test 'tension'"):
         pile_sweep_figure.rows(str(tmp_path), "tension")
+    # No variant finished yet: said, not a crash of the table.
+    df = pd.read_csv(tmp_path / "results.csv")
+    df["status"] = "failed"
+    df.to_csv(tmp_path / "results.csv", index=False)
+    with pytest.raises(ValueError, match="no finished variant"):
+        pile_sweep_figure.rows(str(tmp_path), "compression")
+    assert pile_sweep_figure.main([str(tmp_path)]) == 2
 
 
 def test_the_command_writes_its_table_and_figure(tmp_path, capsys):

@@ -320,6 +320,16 @@ def test_a_star_stage_key_sets_every_stage_that_has_it(tmp_path):
     with pytest.raises(ValueError, match="both set steps"):
         sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.steps": [7],
                                                  "stage.hold.steps": [8]}, base=base))
+    # Two named variants, one setting each, never set both in one run; one variant with both does.
+    two = ('[[variant]]\nname = "all"\n"stage.*.steps" = 7\n'
+           '[[variant]]\nname = "one"\n"stage.hold.steps" = 8\n')
+    listed = sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"material.friction": [0.2]}, base=base, extra=two)))
+    assert [[st.get("steps") for st in v["config"]["stage"]] for v in listed] == [
+        [None, 7, 7], [None, 8, 300]]
+    with pytest.raises(ValueError, match="both set steps"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"material.friction": [0.2]}, base=base, extra=(
+            '[[variant]]\nname = "both"\n"stage.*.steps" = 7\n"stage.hold.steps" = 8\n')))
 
 
 def test_names_shorten_the_directory_names(tmp_path):
@@ -386,6 +396,16 @@ def test_a_pile_sweep_runs_each_variant_as_a_pile_experiment(tmp_path):
     with pytest.raises(ValueError, match="expected \"run\""):
         sweep.read_sweep(_write_sweep(tmp_path, {"stage.*.n_break": [2]}, base=str(base),
                                       extra='experiment = "piles"'))
+    # The same --out as runs of the other command: refused before anything runs.
+    as_runs = _write_sweep(tmp_path, {"stage.*.n_break": [2]}, base=str(base))
+    with pytest.raises(ValueError, match="ran as experiment = \"pile\", not \"run\""):
+        sweep.sweep(as_runs, str(tmp_path / "out"), workers=1, progress=False, log=lambda s: None)
+    # A base that is not a pile run (no age stage left) is refused once, by the sweep file.
+    with pytest.raises(ValueError,
+                       match="sweep.toml: base '.*pile.toml' .its kept stages.: no .age. stage"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.install.velocity": [1.0]},
+                                      base=str(base), extra='experiment = "pile"\n'
+                                      'stages = ["install", "unload"]'))
 
 
 @pytest.mark.parametrize("path", sorted(glob.glob(os.path.join(

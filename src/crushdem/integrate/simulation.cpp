@@ -475,6 +475,7 @@ double Simulation::dt() {
 }
 
 void Simulation::choose_dt(double stiffness_time) {
+  if (time_step_.fixed()) return;  // a fixed step is never replaced
   time_step_.choose(automatic_dt_with(stiffness_time), steps_);
 }
 

@@ -122,6 +122,7 @@ class Simulation {
   void set_dt(double dt);  // fixes the step (overrides automatic)
   /// Chooses the automatic step now from `stiffness_time`, the contact term reduced elsewhere
   /// (a device's copy of this state): what dt() chooses when due, without the host's list.
+  /// Nothing with a fixed step (set_dt()).
   void choose_dt(double stiffness_time);
   /// Changes the grain-grain friction coefficient from the next step on (sample preparation
   /// lowers it, then restores the material's); stored tangential forces above the new Coulomb
