@@ -162,7 +162,8 @@ def results_table(out: str, listed: Sequence[Dict[str, Any]], keys: Sequence[str
         row.update({k: v["values"].get(k) for k in keys})
         done = finished(run_dir, experiment)
         row["status"] = "done" if done else ("failed" if v["name"] in errors else "not run")
-        row["error"] = errors.get(v["name"], "") if not done else ""
+        # A finished variant's error too: its command failed after its results (a figure).
+        row["error"] = errors.get(v["name"], "")
         row["run_dir"] = run_dir
         if experiment == "pile":
             runs = [os.path.join(run_dir, d) for d in (sorted(os.listdir(run_dir))
