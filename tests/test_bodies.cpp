@@ -298,6 +298,8 @@ TEST(Bodies, BadBodiesAreRefusedNamingTheKey) {
       {"[[body]]\nname = \"a\"\n[[body]]\nname = \"a\"\n", "body[1].name"},
       {"[[body]]\nname = \"zmax\"\n", "body[0].name"},
       {"[[body]]\nname = \"a\"\naxis = [0, 0, 0]\n", "body[0].axis"},
+      {"[[body]]\nname = \"a\"\naxis = [0, 0, nan]\n", "body[0].axis"},
+      {"[[body]]\nname = \"a\"\norigin = [0, 0, inf]\n", "body[0].origin"},
       {"[[body]]\nname = \"pile\"\nshape = \"pile\"\nradius = 1e-3\nlength = 1e-3\n",
        "body[0].length"},
       {"[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n", "body[0].target_stress"},

@@ -3,6 +3,8 @@
 // grain that leaves the box with the likely cause.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include "box_config.hpp"
 #include "crushdem/io/config.hpp"
 #include "helpers.hpp"
@@ -29,6 +31,21 @@ std::string with(const std::string& from, const std::string& to) {
   const std::size_t at = s.find(from);
   EXPECT_NE(at, std::string::npos) << from;
   return s.replace(at, from.size(), to);
+}
+
+// A number reads as the shortest form that gives it back, without an exponent below 10^6.
+TEST(Messages, NumbersAreShownShortAndReadBackExactly) {
+  EXPECT_EQ(show_number(90.0), "90");
+  EXPECT_EQ(show_number(1800.0), "1800");
+  EXPECT_EQ(show_number(-3600.0), "-3600");
+  EXPECT_EQ(show_number(1234.5), "1234.5");
+  EXPECT_EQ(show_number(1e6), "1e+06");
+  EXPECT_EQ(show_number(2.5e-4), "0.00025");
+  EXPECT_EQ(show_number(0.1), "0.1");
+  EXPECT_EQ(show_number(1.0 / 3.0), "0.3333333333333333");
+  for (const double v : {90.0, 1800.0, 999999.0, 123456.75, 1.0 / 3.0, 6.02e23, -1e-300}) {
+    EXPECT_EQ(std::strtod(show_number(v).c_str(), nullptr), v) << show_number(v);
+  }
 }
 
 TEST(Messages, ABadSampleKeyIsNamedNotTheWallItMade) {

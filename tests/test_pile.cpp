@@ -240,6 +240,9 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
       // An ageing time before the previous one.
       {changed("until = 86400.0", "until = 1800.0"), "stage[3].until"},
       {changed("until = 86400.0", "until = 86400.0\nduration = 10.0"), "stage[3].duration"},
+      {changed("until = 86400.0", "until = -5.0"), "stage[3].until"},
+      // A pile wider than the chamber (0.73 mm in radius).
+      {changed("radius = 0.2e-3", "radius = 1.0e-3"), "body[0].radius"},
       // The pile pushed through the sample (1.43 mm high) into the bottom platen.
       {changed("depth = 0.6e-3", "depth = 1.5e-3"), "stage[0].depth"},
       // A load test before the installation.

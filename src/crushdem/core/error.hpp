@@ -2,8 +2,10 @@
 // that was given and what was expected, so that a user can fix the input without reading code.
 #pragma once
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -25,7 +27,12 @@ inline std::string show_number(double v) {
   for (int prec = 1; prec < 17; ++prec) {
     char shorter[32];
     std::snprintf(shorter, sizeof shorter, "%.*g", prec, v);
-    if (std::strtod(shorter, nullptr) == v) return shorter;
+    if (std::strtod(shorter, nullptr) != v) continue;
+    // %g writes 90 as 9e+01 and 3600 as 3.6e+03: below 10^6 a number reads better unexponented.
+    if (std::strchr(shorter, 'e') != nullptr && std::fabs(v) >= 1.0 && std::fabs(v) < 1e6) {
+      std::snprintf(shorter, sizeof shorter, "%.0f", v);
+    }
+    return shorter;
   }
   return buf;
 }

@@ -157,8 +157,10 @@ void append_rows(ParamTable<S>& out, const ParamTable<Part>& rows) {
 template <class S>
 void validate_params(const S& obj, const ParamTable<S>& table, const std::string& section) {
   for (const Param<S>& p : table) {
-    if (!p.ok || (p.applies && !p.applies(obj))) continue;
+    if (p.applies && !p.applies(obj)) continue;
     double v = 0.0;
+    // A point or direction is finite whatever else its row checks (an infinite origin would
+    // place a body nowhere and a run would step forever).
     if (std::holds_alternative<typename Param<S>::Triple>(p.member)) {
       if constexpr (!kMayHoldTriple<S>) continue;
       const Vec3 t = obj.*std::get<typename Param<S>::Triple>(p.member);
@@ -170,6 +172,7 @@ void validate_params(const S& obj, const ParamTable<S>& table, const std::string
       }
       continue;
     }
+    if (!p.ok) continue;
     if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
       v = obj.*(*num);
     } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {

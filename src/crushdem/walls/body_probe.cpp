@@ -27,6 +27,16 @@ bool probe_supports(const BodyShape& b) {
 void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies) {
   const int end = bodies < 0 ? walls.size() : std::min(walls.size(), kNumWalls + bodies);
   for (int k = kNumWalls; k < end; ++k) {
+    // A pile or cone as wide as the chamber would crush the whole sample as it goes in.
+    if (walls.chamber() >= 0 && k != walls.chamber() && probe_supports(walls.shape(k))) {
+      double r = 0.0;
+      for (int j = 0; j < walls.shape(k).parts; ++j) r = std::max(r, walls.shape(k).part[j].radius);
+      if (r >= walls.chamber_radius()) {
+        throw ConfigError(bad_value(
+            "body[" + std::to_string(k - kNumWalls) + "].radius", show_number(r),
+            "a radius below the chamber's (" + show_number(walls.chamber_radius()) + " m)"));
+      }
+    }
     for (std::size_t i = 0; i < p.size(); ++i) {
       const Vec3 c{p.x[i], p.y[i], p.z[i]};
       if (walls.surface(k, c).dist >= p.radius[i]) continue;

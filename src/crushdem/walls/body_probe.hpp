@@ -53,7 +53,8 @@ struct BodyProbe {
 
 /// Every body beyond the box clear of every grain (no grain overlaps its surface or lies inside
 /// it): a body placed into the grains would start with an explosive overlap. ConfigError naming
-/// body[i].origin, the body, the grain and its position otherwise.
+/// body[i].origin, the body, the grain and its position otherwise; and in a chamber sample a pile
+/// or cone at least as wide as the chamber, naming body[i].radius.
 /// Only the first `bodies` [[body]] tables are checked (all: -1): the bodies a chamber sample
 /// brings (its chamber and symmetry planes, after them) hold grains pressed against them.
 void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies = -1);

@@ -231,12 +231,12 @@ const StageKind& age_stage_kind() {
            "ageing time this stage adds (the relaxation clock; DEM time is reported apart); or "
            "give until",
            [](double v) { return v > 0.0; }, "a positive ageing time in s (the relaxation clock)",
-           "-", [](const StageConfig& c) { return !(c.until > 0.0); }},
+           "-", [](const StageConfig& c) { return c.until == 0.0; }},  // until not given
           {"until", &StageConfig::until, "s",
            "the run's ageing clock (summed over its age stages) this stage ages to; or give "
            "duration (a pile aged to 1 h, 1 day, 1 week, each load-tested by a branch)",
            [](double v) { return v > 0.0; }, "a positive ageing time in s", "-",
-           [](const StageConfig& c) { return c.until > 0.0; }},
+           [](const StageConfig& c) { return c.until != 0.0; }},  // given: NaN, < 0 refused
           {"min_cycles", &StageConfig::min_cycles, "", "steps of each dynamic phase (STUDY)",
            [](double v) { return v >= 1.0; }, "> 0 steps"},
           {"n_break", &StageConfig::n_break, "",
