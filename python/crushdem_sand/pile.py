@@ -224,7 +224,11 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
     base_dir = os.path.dirname(os.path.abspath(config_path))
     os.makedirs(os.path.join(out, "configs"), exist_ok=True)
     main_cfg = os.path.join(out, "configs", "main.toml")
-    _write_config(config, p["main"], main_cfg, base_dir)
+    try:
+        _write_config(config, p["main"], main_cfg, base_dir)
+    except (ValueError, RuntimeError) as e:
+        # The main run's stages are the file's first ones, at the file's indices: name the file.
+        raise ValueError(str(e).replace("<python>", config_path, 1)) from None
     main_dir = os.path.join(out, "main")
     _check_main_origin(main_dir, branch)
     log(f"main: installation, {len(p['ages'])} age stages and load test "

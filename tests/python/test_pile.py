@@ -159,6 +159,15 @@ def test_the_pile_command_tests_each_ageing_time_and_fits_the_setup(tmp_path):
             pile.pile(str(cfg), str(variant), log=lambda s: None, branch=other)
 
 
+def test_a_bad_key_is_named_with_the_pile_file(tmp_path):
+    cfg = tmp_path / "pile.toml"
+    text = open(os.path.join(DATA, "pile_400.toml")).read().replace("@DATA@", DATA)
+    cfg.write_text(text.replace("depth = 0.6e-3", "dept = 0.6e-3", 1))
+    with pytest.raises(ValueError, match=f"{cfg}: .*'stage\\[0\\]\\.dept'"):
+        pile.pile(str(cfg), str(tmp_path / "out"), log=lambda s: None)
+    assert not (tmp_path / "out" / "main").exists()
+
+
 def test_a_stopped_pile_command_lets_its_run_save_its_checkpoint(tmp_path):
     """SIGTERM to crushdem-sand pile during the installation: its run gets SIGTERM too and saves
     its checkpoint (the installation stage has no other before its end); the command exits with
