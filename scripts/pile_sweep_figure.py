@@ -19,7 +19,7 @@ import math
 import os
 import re
 import sys
-from typing import Any, Dict, List
+from typing import Any, Dict, List, Optional
 
 import numpy as np
 
@@ -28,6 +28,16 @@ def varied_keys(sweep_dir: str) -> List[str]:
     """The sweep's varied keys (its sweep.json)."""
     with open(os.path.join(sweep_dir, "sweep.json")) as f:
         return json.load(f)["keys"]
+
+
+def short_names(sweep_dir: str) -> Dict[str, str]:
+    """The sweep file's [names] (its sweep.json; none in a sweep written before them)."""
+    with open(os.path.join(sweep_dir, "sweep.json")) as f:
+        return json.load(f).get("names") or {}
+
+
+def _show(v: Any) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
 
 
 def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
@@ -60,11 +70,12 @@ def rows(sweep_dir: str, test: str) -> List[Dict[str, Any]]:
     return out
 
 
-def figure(table: List[Dict[str, Any]], keys: List[str], path: str) -> None:
+def figure(table: List[Dict[str, Any]], keys: List[str], path: str,
+           names: Optional[Dict[str, str]] = None) -> None:
     """Capacity and shaft load against ageing time, one line of points per variant, with its
     fitted line Q0 (1 + A log10(t / t0)), t0 the fit's (its first ageing time with a capacity);
-    each labelled by the
-    values of ``keys`` that differ between variants."""
+    each labelled by the values of ``keys`` that differ between variants (a key by its entry in
+    ``names``, the sweep file's [names], where it has one)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(10, 4))
@@ -73,7 +84,8 @@ def figure(table: List[Dict[str, Any]], keys: List[str], path: str) -> None:
     differ = [k for k in keys if len({str(r[k]) for r in table}) > 1]
     for v in variants:
         sel = [r for r in table if r["variant"] == v]
-        label = ", ".join(f"{k} = {sel[0][k]}" for k in differ) or v
+        label = ", ".join(f"{(names or {}).get(k, k)} = {_show(sel[0][k])}"
+                          for k in differ) or v
         t = np.array([r["ageing_time_s"] for r in sel])
         for ax, col, tag in ((axes[0], "capacity_N", ""), (axes[1], "shaft_at_capacity_N",
                                                            "shaft_")):
@@ -113,7 +125,8 @@ def main(argv: List[str]) -> int:
 
     df = pd.DataFrame(table)
     df.to_csv(os.path.join(out, "pile_sweep.csv"), index=False)
-    figure(table, varied_keys(args.sweep_dir), os.path.join(out, "pile_sweep.png"))
+    figure(table, varied_keys(args.sweep_dir), os.path.join(out, "pile_sweep.png"),
+           short_names(args.sweep_dir))
     # Printed: the values that differ between variants (a named variant's keys are its name).
     same = [c for c in df.columns[1:df.columns.get_loc("ageing_time_s")]
             if df[c].nunique(dropna=False) == 1]

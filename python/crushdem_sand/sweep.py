@@ -499,7 +499,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
             todo.append((v["name"], cfg_path, run_dir))
     with open(os.path.join(out, "sweep.json"), "w") as f:
         json.dump({"sweep": os.path.abspath(path), "base": sw["base_path"], "keys": sw["keys"],
-                   "experiment": sw["experiment"],
+                   "names": sw["names"], "experiment": sw["experiment"],
                    "variants": [{"name": v["name"], "values": v["values"]} for v in listed]},
                   f, indent=1)
     log(f"{len(listed)} variants: {len(listed) - len(todo) - len(errors)} finished before, "

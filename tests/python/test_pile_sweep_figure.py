@@ -31,7 +31,7 @@ def _sweep_dir(tmp_path):
                  "sample.stress": 5e6})
     pd.DataFrame(rows).to_csv(tmp_path / "results.csv", index=False)
     (tmp_path / "sweep.json").write_text(json.dumps(
-        {"keys": ["sample.stress", "stage.*.n_break"]}))
+        {"keys": ["sample.stress", "stage.*.n_break"], "names": {"stage.*.n_break": "n_break"}}))
     return str(tmp_path)
 
 
@@ -42,6 +42,7 @@ def test_the_capacities_are_tabulated_by_variant_and_ageing_time(tmp_path):
     assert table[3]["capacity_N"] == pytest.approx(17.0 * 0.92)
     assert table[2]["A"] == -0.08 and table[2]["shaft_A"] == -0.04
     assert table[0]["stage.*.n_break"] == 1 and table[0]["Q0_N"] == 17.0
+    assert pile_sweep_figure.short_names(str(tmp_path)) == {"stage.*.n_break": "n_break"}
     assert table[0]["t0_s"] == 3600.0 and math.isnan(table[0]["shaft_t0_s"])  # not tabulated
     with pytest.raises(ValueError, match="no capacities of load test 'tension'"):
         pile_sweep_figure.rows(str(tmp_path), "tension")
