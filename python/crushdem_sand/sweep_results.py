@@ -194,7 +194,9 @@ def figure(df: pd.DataFrame, keys: Sequence[str], path: str) -> Optional[str]:
 
     skip = {"variant", "status", "error", "run_dir", "wall_s", *keys}
     done = df[df["status"] == "done"] if "status" in df else df
+    # A set-up fit's t0 is the first ageing time, a setting rather than a result: not drawn.
     figures = [c for c in df.columns if c not in skip and is_numeric_dtype(df[c].dtype)
+               and not c.endswith(".t0_s")
                and np.isfinite(done[c].to_numpy(dtype=float)).any()] if len(done) else []
     numeric = [k for k in keys if is_numeric_dtype(df[k].dtype)]
     if not figures or not numeric:
