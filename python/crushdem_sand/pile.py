@@ -91,14 +91,16 @@ def plan(config: Mapping[str, Any], path: str = "CONFIG") -> Dict[str, Any]:
                          "installation and its load tests")
     last = ages[-1]
     tests = [i for i, k in enumerate(kinds) if k == "load_test" and i > last]
-    if not tests:
-        raise ValueError(f"{path}: no \"load_test\" stage after the last age stage "
-                         f"(stage[{last}])")
+    # A test out of order is named first: it is the likelier mistake than a missing one.
     for i, k in enumerate(kinds):
         if k == "load_test" and i < last:
             raise ValueError(f"{path}: stage[{i}] is a load test before the last age stage: "
                              "the load tests come after the ageing (each is branched from every "
                              "ageing time)")
+    if not tests:
+        raise ValueError(f"{path}: no \"load_test\" stage after the last age stage "
+                         f"(stage[{last}])")
+    for i, k in enumerate(kinds):
         if i > last and k != "load_test":
             raise ValueError(f"{path}: stage[{i}] ({k}) follows the last age stage: only load "
                              "tests may")

@@ -71,6 +71,7 @@ def test_the_plan_follows_the_stages_and_refuses_them_out_of_order():
         ([install] + tests, "no \"age\" stage"),
         ([install] + ages, "no \"load_test\""),
         ([install, ages[0], tests[0], ages[1], tests[1]], "stage[2] is a load test before"),
+        ([install, tests[0]] + ages, "stage[1] is a load test before"),  # none after: this first
         ([install] + ages + tests + [_stage("hold", "h")], "stage[6] (hold) follows"),
         (ages + tests, "no \"penetrate\" stage"),
     ]:
