@@ -108,8 +108,8 @@ def read_file_and_base(path: str, what: str, keys: Sequence[str]) -> Tuple[Dict,
 
 def read_sweep(path: str) -> Dict[str, Any]:
     """The sweep file as {"base": dict, "base_path", "base_dir", "factors": [[{key: value}]],
-    "keys", "from", "experiment"}; every problem named by file and key. A named variant's
-    element of its factor carries its name under NAME_KEY."""
+    "keys", "from", "experiment", "names": {key: short name}}; every problem named by file and
+    key. A named variant's element of its factor carries its name under NAME_KEY."""
     doc, base, base_path = read_file_and_base(
         path, "sweep", ("base", "experiment", "from", "stages", "vary", "zip", "variant", "names"))
     experiment = doc.get("experiment", "run")
