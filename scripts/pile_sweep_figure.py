@@ -24,16 +24,19 @@ from typing import Any, Dict, List, Optional
 import numpy as np
 
 
+def _sweep_json(sweep_dir: str) -> Dict[str, Any]:
+    with open(os.path.join(sweep_dir, "sweep.json")) as f:
+        return json.load(f)
+
+
 def varied_keys(sweep_dir: str) -> List[str]:
     """The sweep's varied keys (its sweep.json)."""
-    with open(os.path.join(sweep_dir, "sweep.json")) as f:
-        return json.load(f)["keys"]
+    return _sweep_json(sweep_dir)["keys"]
 
 
 def short_names(sweep_dir: str) -> Dict[str, str]:
     """The sweep file's [names] (its sweep.json; none in a sweep written before them)."""
-    with open(os.path.join(sweep_dir, "sweep.json")) as f:
-        return json.load(f).get("names") or {}
+    return _sweep_json(sweep_dir).get("names") or {}
 
 
 def _show(v: Any) -> str:
