@@ -264,6 +264,28 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
     const std::string error = run_error(bad);
     EXPECT_NE(error.find(key), std::string::npos) << key << " -> " << error;
   }
+  // A tip inside the bottom platen (at z = 0.19 mm) is refused for the platen, ahead of the
+  // grains its shaft overlaps.
+  for (const char* tip : {"tip = \"flat\"", "half_angle = 30.0"}) {
+    std::string bad = changed("origin = [0.0, 0.0, 0.01]", "origin = [0.0, 0.0, 0.1e-3]");
+    bad.replace(bad.find("tip = \"flat\""), std::string("tip = \"flat\"").size(), tip);
+    const std::string error = run_error(bad);
+    EXPECT_NE(error.find("body[0].origin"), std::string::npos) << error;
+    EXPECT_NE(error.find("above the bottom platen"), std::string::npos) << error;
+    // `crushdem-sand check` (check_start) finds it without running, as it finds a pile that
+    // overlaps grains.
+    for (const std::string& checked :
+         {bad, changed("origin = [0.0, 0.0, 0.01]", "origin = [0.0, 0.0, 1.0e-3]")}) {
+      std::string found;
+      try {
+        check_start(config(checked));
+      } catch (const ConfigError& e) {
+        found = e.what();
+      }
+      EXPECT_EQ(found, run_error(checked));
+      EXPECT_NE(found.find("body[0].origin"), std::string::npos) << found;
+    }
+  }
 }
 
 }  // namespace

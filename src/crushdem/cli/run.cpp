@@ -71,6 +71,7 @@ int resume_main(const ResumeArgs& a) {
 
 int check_main(const std::string& config) {
   const RunConfig cfg = load_run_config(config);
+  check_start(cfg);
   for (const std::string& w : cfg.warnings()) std::printf("warning: %s\n", w.c_str());
   for (const std::string& line : parameter_set_report(cfg.parameters, cfg.simulation.contact,
                                                       cfg.crushing, cfg.crushing.enabled)) {

@@ -78,6 +78,51 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// A sample prepared here starts as a loose cloud (`cloud`; null when resumed) in a cube of its
+// own size; a cylindrical one in its chamber about the z axis, between the box's z walls (the
+// box's side walls stand half a diameter clear of it).
+SimulationConfig starting_simulation(const RunConfig& cfg, const LooseCloud* cloud) {
+  SimulationConfig sim_cfg = cfg.simulation;
+  const bool cylinder = cfg.has_sample && cfg.sample.shape == SampleShape::Cylinder;
+  if (cfg.has_sample && cloud != nullptr) {
+    for (int a = 0; a < 3; ++a) {
+      const bool side = cylinder && a < 2;
+      sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = side ? -cloud->side : 0.0;
+      sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = side    ? cloud->side
+                                                                    : a < 2 ? cloud->side
+                                                                            : cloud->height;
+    }
+  }
+  // The chamber's bodies (its place, when resumed, is in the state); a file's stands about the
+  // file's box, at the radius it was prepared to.
+  std::vector<BodyConfig> chamber;
+  if (cylinder) {
+    chamber =
+        chamber_sample_bodies(cloud != nullptr ? *cloud : make_loose_cloud(cfg.sample, false), 0.0);
+  } else if (cfg.file_chamber_radius > 0.0) {
+    chamber = file_chamber_bodies(cfg.file_chamber_radius, cfg.file_sector,
+                                  sim_cfg.walls[4].position, sim_cfg.walls[5].position);
+  }
+  for (const BodyConfig& b : chamber) sim_cfg.bodies.push_back(b);
+  return sim_cfg;
+}
+
+// The grains a new run starts from, the sample's loose cloud or the configured ones, checked
+// clear of the bodies (the chamber of a sample file holds its grains, so only the configured
+// bodies are checked there).
+void add_starting_grains(Simulation& sim, const RunConfig& cfg, const LooseCloud& cloud) {
+  if (cfg.has_sample) {
+    for (std::size_t i = 0; i < cloud.radius.size(); ++i) {
+      sim.add_particle(cloud.position[i], cloud.radius[i]);
+    }
+    check_bodies_clear(sim.walls(), sim.particles());
+  } else {
+    add_configured_particles(sim, cfg);
+    check_bodies_clear(sim.walls(), sim.particles(),
+                       static_cast<int>(cfg.simulation.bodies.size()));
+  }
+}
+
 void create_directory(const fs::path& dir, const std::string& out) {
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -230,33 +275,9 @@ class Run {
     }
   }
 
-  // A sample prepared here starts as a loose cloud in a cube of its own size.
-  // A cylindrical one in its chamber about the z axis, between the box's z walls (the box's side
-  // walls stand half a diameter clear of it).
   void make_simulation() {
-    SimulationConfig sim_cfg = cfg_.simulation;
-    const bool cylinder = cfg_.has_sample && cfg_.sample.shape == SampleShape::Cylinder;
-    if (cfg_.has_sample && !resumed_) {
-      cloud_ = make_loose_cloud(cfg_.sample);
-      for (int a = 0; a < 3; ++a) {
-        const bool side = cylinder && a < 2;
-        sim_cfg.walls[static_cast<std::size_t>(2 * a)].position = side ? -cloud_.side : 0.0;
-        sim_cfg.walls[static_cast<std::size_t>(2 * a + 1)].position = side    ? cloud_.side
-                                                                      : a < 2 ? cloud_.side
-                                                                              : cloud_.height;
-      }
-    }
-    // The chamber's bodies (its place, when resumed, is in the state); a file's stands about the
-    // file's box, at the radius it was prepared to.
-    std::vector<BodyConfig> chamber;
-    if (cylinder) {
-      chamber =
-          chamber_sample_bodies(resumed_ ? make_loose_cloud(cfg_.sample, false) : cloud_, 0.0);
-    } else if (cfg_.file_chamber_radius > 0.0) {
-      chamber = file_chamber_bodies(cfg_.file_chamber_radius, cfg_.file_sector,
-                                    sim_cfg.walls[4].position, sim_cfg.walls[5].position);
-    }
-    for (const BodyConfig& b : chamber) sim_cfg.bodies.push_back(b);
+    if (cfg_.has_sample && !resumed_) cloud_ = make_loose_cloud(cfg_.sample);
+    const SimulationConfig sim_cfg = starting_simulation(cfg_, resumed_ ? nullptr : &cloud_);
     sim_ = std::make_unique<Simulation>(sim_cfg);
     driver_ = std::make_unique<Driver>(*sim_, *stepper_, cfg_, opt_);
     driver_->manifest = &manifest_;
@@ -372,9 +393,7 @@ class Run {
     if (cfg_.has_sample && (!resumed_ || pos_.part == kPartPreparation)) {
       prepare_sample();
     } else if (!cfg_.has_sample && !resumed_) {
-      add_configured_particles(*sim_, cfg_);
-      check_bodies_clear(sim_->walls(), sim_->particles(),
-                         static_cast<int>(cfg_.simulation.bodies.size()));
+      add_starting_grains(*sim_, cfg_, cloud_);
       sim_->compute_forces();
       driver_->snapshot();
     }
@@ -385,10 +404,7 @@ class Run {
   void prepare_sample() {
     Simulation& sim = *sim_;
     if (!resumed_) {
-      for (std::size_t i = 0; i < cloud_.radius.size(); ++i) {
-        sim.add_particle(cloud_.position[i], cloud_.radius[i]);
-      }
-      check_bodies_clear(sim.walls(), sim.particles());
+      add_starting_grains(sim, cfg_, cloud_);
       sim.compute_forces();
       // No frame of the loose cloud: the first is the prepared sample (below).
       pos_.ref0 = StrainReference::from(sim.walls());
@@ -614,6 +630,13 @@ class Run {
 };
 
 }  // namespace
+
+void check_start(const RunConfig& given) {
+  const RunConfig cfg = upscaled(given);
+  const LooseCloud cloud = cfg.has_sample ? make_loose_cloud(cfg.sample) : LooseCloud{};
+  Simulation sim(starting_simulation(cfg, &cloud));
+  add_starting_grains(sim, cfg, cloud);
+}
 
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
   Run run(cfg, opt);

@@ -29,6 +29,10 @@ void add_packing_particles(Simulation& sim, const Packing& pk);
 /// Adds the configured particles (from a file or generated) to a simulation.
 void add_configured_particles(Simulation& sim, const RunConfig& cfg);
 
+/// What a new run checks of its starting state before its first step (the bodies clear of the
+/// grains: the sample's loose cloud, or the configured grains), without running it; ConfigError
+/// naming the key otherwise.
+void check_start(const RunConfig& cfg);
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt);
 
 /// Continues the run in `dir` from its checkpoint (configuration from dir/config.toml); a run

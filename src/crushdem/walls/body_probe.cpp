@@ -13,6 +13,23 @@ bool is_tip(Shape s) {
   return s == Shape::Cone || s == Shape::Disk;
 }
 
+// A pile or cone whose tip starts beyond the platen it moves toward (the bottom one for a body
+// driven down): its shaft would also overlap grains, but the platen is what the user misplaced.
+void check_tip_inside(const Walls& walls, int k) {
+  const BodyShape& b = walls.shape(k);
+  if (!probe_supports(b) || b.motion.z == 0.0) return;
+  const double tip_z = placed_part(b.part[0], walls.position(k), b.motion, b.dilate).origin.z;
+  const bool down = b.motion.z < 0.0;
+  const double platen = walls.position(down ? 4 : 5);
+  if (down ? tip_z > platen : tip_z < platen) return;
+  throw ConfigError(
+      bad_value("body[" + std::to_string(k - kNumWalls) + "].origin", show_vec(b.part[0].origin),
+                std::string("a place where body \"") + walls.name(k) + "\"'s tip is " +
+                    (down ? "above the bottom" : "below the top") +
+                    " platen, which it moves toward (the tip is at z = " + show_number(tip_z) +
+                    " m, the platen at " + show_number(platen) + " m)"));
+}
+
 }  // namespace
 
 bool probe_supports(const BodyShape& b) {
@@ -37,6 +54,7 @@ void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies) 
             "a radius below the chamber's (" + show_number(walls.chamber_radius()) + " m)"));
       }
     }
+    check_tip_inside(walls, k);
     for (std::size_t i = 0; i < p.size(); ++i) {
       const Vec3 c{p.x[i], p.y[i], p.z[i]};
       if (walls.surface(k, c).dist >= p.radius[i]) continue;
