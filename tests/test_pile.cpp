@@ -259,6 +259,10 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
       {changed("name = \"unload\"\nbody = \"pile\"\n", "name = \"unload\"\n"), "stage[1].head"},
       {changed("record_interval = 200", "record_interval = 200\ncapacity_window = 0"),
        "stage[4].capacity_window"},
+      // A count that is no integer hears its range too.
+      {changed("bins = 4", "bins = 1e20"),
+       "stage[2].bins' = 1e+20: expected an integer: a number "
+       "of bins in [1, 10000]"},
   };
   for (const auto& [bad, key] : cases) {
     const std::string error = run_error(bad);

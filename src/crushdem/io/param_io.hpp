@@ -62,9 +62,13 @@ class Section {
       out = v->as_number();
     }
   }
-  void count(const std::string& k, std::uint64_t& out) {
+  /// `expected`: the range the value is checked against later, named here too, so that a value
+  /// that is no integer at all (1e20, 2.5, -1) hears the same range as one outside it.
+  void count(const std::string& k, std::uint64_t& out, const std::string& expected = "") {
     if (const Value* v = find(k)) {
-      if (v->type != Type::Integer || v->integer < 0) fail(k, *v, "an integer >= 0");
+      if (v->type != Type::Integer || v->integer < 0) {
+        fail(k, *v, expected.empty() ? "an integer >= 0" : "an integer: " + expected);
+      }
       out = static_cast<std::uint64_t>(v->integer);
     }
   }
@@ -154,7 +158,7 @@ void read_params(Section& s, S& obj, const ParamTable<S>& table) {
     if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
       s.number(k, obj.*(*num));
     } else if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
-      s.count(k, obj.*(*cnt));
+      s.count(k, obj.*(*cnt), std::string(p.expected));
     } else if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
       s.boolean(k, obj.*(*flag));
     } else if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
