@@ -1,24 +1,24 @@
 """``crushdem-sand pile CONFIG --out DIR``: a pile installed, aged and load-tested at every ageing
 time (docs/pile.md).
 
-CONFIG is a run configuration whose stages are, in order: the installation (one or more
-"penetrate" stages of the pile, and any "hold" after them, the head load taken off, say), the
-ageing ("age" stages, each ending at an ageing time: ``until = 3600.0``, ``86400.0``, ...) and one
-or more "load_test" stages after the last age stage. ``crushdem-sand run CONFIG`` would run those
-tests one after the other on the same pile; ``crushdem-sand pile`` instead tests a fresh copy of the
-aged pile at every ageing time, without running the installation or the ageing again:
+CONFIG is a run configuration whose stages are, in order: the installation (one or more "penetrate"
+stages of the pile, and any "hold" after them, the head load taken off, say), the ageing ("age"
+stages, each ending at an ageing time: ``until = 3600.0``, ``86400.0``, ...) and one or more
+"load_test" stages after the last age stage. ``crushdem-sand run CONFIG --out DIR`` runs those tests
+one after the other on the same pile; ``crushdem-sand pile`` instead tests a fresh copy of the aged
+pile at every ageing time, without running the installation or the ageing again:
 
 * ``DIR/main``: the installation, every age stage and the first load test;
 * ``DIR/t{i}_{test}``: the load test ``test`` branched (``crushdem-sand run --from``) from the state
   of DIR/main at the end of age stage i, for every age stage and every load test DIR/main did not
   run; ``DIR/configs/`` holds each run's configuration.
 
-Then ``DIR/pile_capacity.csv`` (a row per load test: the ageing time, the test, its direction, the
-capacity and the shaft and base loads at it, the head displacement there), ``DIR/pile_setup.json``
-(per test, the set-up factor A of Q(t)/Q(t0) = 1 + A log10(t/t0), Skov and Denver 1988, fitted by
-least squares over the ageing times t >= t0 = the first positive one, with its standard error),
-``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem-sand plot``). Called again, finished
-runs are kept, interrupted ones resumed, and the tables redrawn.
+Then ``DIR/pile_capacity.csv`` (a row per load test: its run, its age stage, the ageing time, the
+test, the capacity and the shaft and base loads at it, the head displacement there),
+``DIR/pile_setup.json`` (per test, the set-up factor A of Q(t)/Q(t0) = 1 + A log10(t/t0), Skov and
+Denver 1988, fitted by least squares over the ageing times t >= t0 = the first positive one, with
+its standard error), ``DIR/pile_setup.png`` and the figures of DIR/main (``crushdem-sand plot``).
+Called again, finished runs are kept, interrupted ones resumed, and the tables redrawn.
 
 ``--from RUN[:STAGE]`` branches DIR/main from another run's state (``crushdem-sand run --from``):
 a variant of the unloading, the ageing or the tests starts from an installed pile instead of
@@ -137,8 +137,8 @@ def _write_config(base: Mapping[str, Any], stages: List[Any], path: str, base_di
 
 
 def capacity_rows(out: str, p: Mapping[str, Any]) -> List[Dict[str, Any]]:
-    """A row per finished load test of DIR: its ageing time (the run's ageing clock: the age
-    stages' ageing summed), test, direction, capacity and the loads at it."""
+    """A row per finished load test of DIR: its run, age stage, ageing time (the run's ageing
+    clock: the age stages' ageing summed), test, capacity and the loads at it."""
     runs = [("main", len(p["ages"]) - 1, p["test_names"][0])]
     runs += [(name, a_pos, test) for name, _, _, a_pos, test in p["branches"]]
     rows = []

@@ -54,7 +54,7 @@ def figure_pile_shaft(run: Run) -> Optional[Figure]:
         t = _positive_times(s["ageing_time_s"][rows])
         h = s["height_m"][rows][0] * 1e3
         ax.plot(t, s["sigma_r_Pa"][rows] * KPA, "o-", ms=3, lw=1.0,
-                color=cmap(0.9 * j / max(len(used) - 1, 1)), label=f"{h:.3g} mm above the tip")
+                color=cmap(0.9 * j / max(len(used) - 1, 1)), label=f"{h:.3g} mm up the shaft")
     ax.set_xscale("log")
     plain_log_ticks(ax)
     label_axes(ax, AGEING_TIME_LABEL, r"radial stress on the shaft $\sigma_r$ [kPa]",
@@ -255,10 +255,10 @@ def figure_pile_breakage(run: Run) -> Optional[Figure]:
 
 def figure_pile_setup(table: Mapping[str, Any], fits: Mapping[str, Mapping[str, float]],
                       title: str = "") -> Optional[Figure]:
-    """pile_setup.png (``crushdem-sand pile``): each load test's capacity over its value at the
-    first ageing time against ageing time (log axis), with the fitted Q(t)/Q(t0) = 1 + A log10(t/t0)
-    (Skov and Denver 1988) and A with its standard error; table: columns ``test``,
-    ``ageing_time_s``, ``capacity_N``; fits: test -> {A, A_std, Q0_N, t0_s}."""
+    """pile_setup.png (``crushdem-sand pile``): each load test's capacity over the fit's Q0 (the
+    fitted line's value at t0) against ageing time (log axis), with the fitted
+    Q(t)/Q(t0) = 1 + A log10(t/t0) (Skov and Denver 1988) and A with its standard error; table:
+    columns ``test``, ``ageing_time_s``, ``capacity_N``; fits: test -> {A, A_std, Q0_N, t0_s}."""
     tests = list(dict.fromkeys(table["test"]))
     if not tests:
         return None

@@ -104,6 +104,13 @@ const ParamTable<BodyConfig>& body_params() {
          [](double v) { return v >= 0.0; }, "an area >= 0 in m^2"},
     };
     append_rows(t, wall_params());
+    for (Param<B>& p : t) {  // a body's q is not a box wall's coordinate
+      if (p.key == std::string_view("velocity")) {
+        p.doc =
+            "velocity mode: dq/dt, along `direction` for a translating body (positive: into the "
+            "grains) or the radius's rate of change for a dilating cylinder";
+      }
+    }
     return t;
   }();
   return table;
