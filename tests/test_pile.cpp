@@ -204,6 +204,40 @@ std::string run_error(const std::string& text) {
   return "";
 }
 
+// A stage cut short at max_steps stops the body it drives, as its own end does: the next stage
+// finds the pile still. A load test of fewer rows than capacity_window takes the median of those
+// it has (not a capacity of 0), with a warning.
+TEST(Pile, AStageEndedAtMaxStepsStopsItsBodyAndAShortLoadTestHasACapacity) {
+  const testing::TempDir temp("max_steps");
+  std::string text = without_stage(without_stage(pile_text(), "age_1h"), "age_1d");
+  text = without_stage(text, "unload");
+  text.replace(text.find("max_strain_rate = 100.0\n"), 24,
+               "max_strain_rate = 100.0\nmax_steps = 2000\n[[stage]]\ntype = \"hold\"\n"
+               "name = \"still\"\nsteps = 1000\n");
+  text.replace(text.find("record_interval = 200"), 21,
+               "record_interval = 200\ncapacity_window = 50");
+  text.replace(text.find("interval = 2000"), 15, "interval = 100");
+  run_to_directory(config(text), options(temp.path() / "run"));
+  const std::string summary = testing::read_file(temp.path() / "run" / "summary.json");
+  EXPECT_NE(summary.find("\"max_steps\""), std::string::npos) << summary;
+  auto ts = testing::read_csv((temp.path() / "run" / "timeseries.csv").string());
+  const std::vector<double>& stage = ts["stage"];
+  const std::vector<double>& q = ts["body_pile_position_m"];
+  std::vector<double> held;
+  for (std::size_t i = 0; i < stage.size(); ++i) {
+    if (stage[i] == 1.0) held.push_back(q[i]);
+  }
+  ASSERT_GE(held.size(), 5U);
+  EXPECT_EQ(held.front(), held.back());
+  auto load = testing::read_csv((temp.path() / "run" / "load_test.csv").string());
+  const std::vector<double>& Q = load["head_load_N"];
+  ASSERT_LT(Q.size(), 50U);
+  const double capacity = testing::json_number(summary, "capacity_N");
+  EXPECT_GT(capacity, 0.0);
+  EXPECT_LT(capacity, *std::max_element(Q.begin(), Q.end()));
+  EXPECT_NE(summary.find("fewer than capacity_window = 50"), std::string::npos) << summary;
+}
+
 // A hold with `settle` ends once the head load is off and the sand at rest, before its longest
 // length; the same hold without it runs that length.
 TEST(Pile, AHoldThatSettlesEndsWhenTheHeadLoadIsOffAndTheSandAtRest) {

@@ -346,10 +346,11 @@ bool Stage::update(Simulation& sim) {
     return true;
   }
   if (res_.steps >= cfg_.max_steps) {
-    add_warning("stopped at max_steps = " + std::to_string(cfg_.max_steps) +
-                " before its end condition");
-    std::fprintf(stderr, "[crushdem] warning: stage '%s' %s\n", res_.name.c_str(),
-                 res_.warning.c_str());
+    const std::string why =
+        "stopped at max_steps = " + std::to_string(cfg_.max_steps) + " before its end condition";
+    add_warning(why);
+    std::fprintf(stderr, "[crushdem] warning: stage '%s' %s\n", res_.name.c_str(), why.c_str());
+    stop_early(sim);
     res_.end_reason = "max_steps";
     return true;
   }

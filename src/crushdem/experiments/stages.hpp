@@ -239,6 +239,9 @@ class Stage : public Controller {
   virtual std::string target_met_at_start(const Walls&) const { return ""; }
   /// What the kind tracks beyond the peak (observe).
   virtual void observe_kind(const Walls&) {}
+  /// The stage ends at max_steps, before its own end condition: a kind that drives a body stops
+  /// it here, so that the next stage finds it still, as after the kind's own end.
+  virtual void stop_early(Simulation&) {}
   /// The steps to the next check, at most n.
   virtual std::uint64_t limit_steps(Simulation&, std::uint64_t n) const { return n; }
   /// The servo speed limit as a strain rate when max_strain_rate = 0 [1/s] (10 /s: I ~ 3e-4 at

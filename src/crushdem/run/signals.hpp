@@ -1,12 +1,16 @@
 // Stopping a run cleanly: SIGINT / SIGTERM ask the running run to save its checkpoint and stop
 // at its next chunk boundary (within seconds); Interrupted then tells the caller where the state
-// is. A second signal ends the process at once.
+// is. A second signal ends the process at once, unless it comes within kSameRequestMs of the
+// first (one request delivered twice).
 #pragma once
 
 #include <stdexcept>
 #include <string>
 
 namespace crushdem {
+
+/// A signal this soon after the first [ms] repeats its request rather than ending the process.
+inline constexpr long long kSameRequestMs = 1000;
 
 /// Asks the running run to write a checkpoint and stop at its next chunk boundary.
 /// Async-signal-safe: the CLI calls it from its SIGINT / SIGTERM handler.
@@ -19,7 +23,8 @@ int stop_signal();
 void clear_stop_request();
 
 /// SIGINT and SIGTERM call request_stop() for as long as this object lives, so that a run
-/// saves its checkpoint and stops; a second signal ends the process at once. The previous
+/// saves its checkpoint and stops; a second signal ends the process at once, one within
+/// kSameRequestMs of the first is ignored. The previous
 /// handlers (Python's, say) come back afterwards. Used by the CLI and by the Python run/resume.
 class StopOnSignals {
  public:

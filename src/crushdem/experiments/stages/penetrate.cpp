@@ -150,6 +150,11 @@ class PenetrateStage final : public Stage {
     return "depth reached";
   }
 
+  void stop_early(Simulation& sim) override {
+    pausing_ = false;
+    move(sim, false);
+  }
+
   std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override {
     const std::uint64_t done = sim.step_count() - start_step_;
     n = std::min(n, cfg_.record_interval - done % cfg_.record_interval);
@@ -213,9 +218,10 @@ class PenetrateStage final : public Stage {
 // held as `axial` and `lateral` say. load_test.csv gets a row every record_interval steps: the
 // head displacement and the whole pile's head, shaft and base loads, positive in the test's
 // direction (a sector's loads divided by its fraction of the circle). The capacity is the
-// largest running median of the head load over `capacity_window` rows, with the shaft and base
-// loads and the displacement of the median row (summary.json): a grain that splits under the tip
-// gives a row a spike (its fragments start overlapping the tip) that is not the pile's capacity.
+// largest running median of the head load over `capacity_window` rows (a test of fewer rows: the
+// median of those), with the shaft and base loads and the displacement of the median row
+// (summary.json): a grain that splits under the tip gives a row a spike (its fragments start
+// overlapping the tip) that is not the pile's capacity.
 class LoadTestStage final : public Stage {
  public:
   using Stage::Stage;
@@ -259,7 +265,13 @@ class LoadTestStage final : public Stage {
     if ((sim.step_count() - start_step_) % cfg_.record_interval == 0 || done) record(sim);
     if (!done) return nullptr;
     drive_body(sim, cfg_, 0.0);  // held where the test left it
+    finish_capacity();
     return "displacement reached";
+  }
+
+  void stop_early(Simulation& sim) override {
+    drive_body(sim, cfg_, 0.0);
+    finish_capacity();
   }
 
   std::uint64_t limit_steps(Simulation& sim, std::uint64_t n) const override {
@@ -306,9 +318,29 @@ class LoadTestStage final : public Stage {
     recent_.insert(recent_.end(), row.begin(), row.end());
     const std::size_t n = cfg_.capacity_window;
     if (recent_.size() > 4 * n) recent_.erase(recent_.begin(), recent_.begin() + 4);
-    if (recent_.size() < 4 * n) return;
+    if (recent_.size() == 4 * n) take_median(n);
+  }
+
+  // A test of fewer rows than capacity_window: the median of the rows there are (a capacity of
+  // 0 would pass for a measured one), with a warning.
+  void finish_capacity() {
+    const std::size_t rows = recent_.size() / 4;
+    if (rows == 0 || rows >= cfg_.capacity_window) return;
+    take_median(rows);
+    const std::string why =
+        "load_test.csv has " + std::to_string(rows) +
+        " rows, fewer than capacity_window = " + std::to_string(cfg_.capacity_window) +
+        ": the capacity is their median (a lower record_interval gives the "
+        "window its rows)";
+    add_warning(why);
+    std::fprintf(stderr, "[crushdem] warning: stage '%s': %s\n", res_.name.c_str(), why.c_str());
+  }
+
+  // The median row (by head load) of the last n rows: the capacity when it is the largest so far.
+  void take_median(std::size_t n) {
     std::vector<std::size_t> rows(n);
-    for (std::size_t i = 0; i < n; ++i) rows[i] = i;
+    const std::size_t first = recent_.size() / 4 - n;
+    for (std::size_t i = 0; i < n; ++i) rows[i] = first + i;
     std::nth_element(rows.begin(), rows.begin() + n / 2, rows.end(),
                      [&](std::size_t a, std::size_t b) { return recent_[4 * a] < recent_[4 * b]; });
     const double* median = &recent_[4 * rows[n / 2]];
