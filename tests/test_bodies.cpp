@@ -300,6 +300,10 @@ TEST(Bodies, BadBodiesAreRefusedNamingTheKey) {
       {"[[body]]\nname = \"a\"\naxis = [0, 0, 0]\n", "body[0].axis"},
       {"[[body]]\nname = \"a\"\naxis = [0, 0, nan]\n", "body[0].axis"},
       {"[[body]]\nname = \"a\"\norigin = [0, 0, inf]\n", "body[0].origin"},
+      // A length unit() cannot take (its square overflows).
+      {"[[body]]\nname = \"a\"\naxis = [0, 0, 1e200]\n", "body[0].axis"},
+      {"[[body]]\nname = \"a\"\ndirection = [0, 0, -1e200]\n", "body[0].direction"},
+      {"[[body]]\nname = \"a\"\ndirection = [0, 0, 1e-200]\n", "body[0].direction"},
       {"[[body]]\nname = \"pile\"\nshape = \"pile\"\nradius = 1e-3\nlength = 1e-3\n",
        "body[0].length"},
       {"[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n", "body[0].target_stress"},

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -204,6 +205,43 @@ std::string run_error(const std::string& text) {
   return "";
 }
 
+// What the stages ask of a body is checked with the configuration, before a sample is prepared
+// or a stage has run: a second push of an installed pile cannot start from the top, and a pile
+// driven in a sector of a chamber is on its axis.
+TEST(Pile, ABodyTheStagesCannotDriveIsRefusedWithTheConfiguration) {
+  const std::string text = pile_text();
+  const auto error = [](const std::string& t) {
+    try {
+      (void)config(t);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  std::string again = text;
+  again.insert(again.find("[[stage]]", again.find("name = \"install\"")),
+               "[[stage]]\ntype = \"penetrate\"\nname = \"again\"\nbody = \"pile\"\n"
+               "from_top = true\nvelocity = 1.0\ndepth = 0.1e-3\n");
+  EXPECT_NE(error(again).find("stage[1].from_top' = true: expected false"), std::string::npos)
+      << error(again);
+  std::string quarter = text;
+  const std::size_t p = quarter.find("[particles]");
+  quarter.replace(p, quarter.find("[[body]]") - p,
+                  "[sample]\nshape = \"cylinder\"\nsector = 90\ncount = 400\n"
+                  "void_ratio = 0.75\nstress = 100e3\n[sample.grading]\n"
+                  "diameter = [0.12e-3, 0.27e-3]\npassing = [0.0, 1.0]\n");
+  EXPECT_EQ(error(quarter), "");
+  for (const auto& [from, to, key] :
+       {std::array<std::string, 3>{"origin = [0.0, 0.0, 0.01]", "origin = [1e-4, 0.0, 0.01]",
+                                   "body[0].origin"},
+        {"tip = \"flat\"", "tip = \"flat\"\naxis = [0.1, 0, 1]", "body[0].axis"}}) {
+    std::string off = quarter;
+    off.replace(off.find(from), from.size(), to);
+    EXPECT_NE(error(off).find(key + "'"), std::string::npos) << key << ": " << error(off);
+    EXPECT_NE(error(off).find("on that axis"), std::string::npos) << error(off);
+  }
+}
+
 // A stage cut short at max_steps stops the body it drives, as its own end does: the next stage
 // finds the pile still. A load test of fewer rows than capacity_window takes the median of those
 // it has (not a capacity of 0), with a warning.
@@ -293,6 +331,12 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
       {changed("name = \"unload\"\nbody = \"pile\"\n", "name = \"unload\"\n"), "stage[1].head"},
       {changed("record_interval = 200", "record_interval = 200\ncapacity_window = 0"),
        "stage[4].capacity_window"},
+      // A shaft without a tip, driven into the grains.
+      {[&] {
+         std::string t = changed("shape = \"pile\"", "shape = \"cylinder_outside\"");
+         return t.erase(t.find("tip = \"flat\"\n"), 13);
+       }(),
+       "stage[0].body\' = \"pile\": expected a body with a leading end"},
       // A count that is no integer hears its range too.
       {changed("bins = 4", "bins = 1e20"),
        "stage[2].bins' = 1e+20: expected an integer: a number "
@@ -301,6 +345,14 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
   for (const auto& [bad, key] : cases) {
     const std::string error = run_error(bad);
     EXPECT_NE(error.find(key), std::string::npos) << key << " -> " << error;
+  }
+  // A run that stops on an error ends its run.log with it.
+  {
+    const testing::TempDir temp("pile_log");
+    const std::string bad = changed("origin = [0.0, 0.0, 0.01]", "origin = [0.0, 0.0, 0.1e-3]");
+    EXPECT_THROW(run_to_directory(config(bad), options(temp.path() / "run")), ConfigError);
+    const std::string log = testing::read_file(temp.path() / "run" / "run.log");
+    EXPECT_NE(log.find("error: key 'body[0].origin'"), std::string::npos) << log;
   }
   // A tip inside the bottom platen (at z = 0.19 mm) is refused for the platen, ahead of the
   // grains its shaft overlaps.

@@ -253,6 +253,7 @@ std::vector<BodyConfig> symmetry_planes(const LooseCloud& cloud) {
     b.kind = BodyKind::Plane;
     b.axis = a == 0 ? Vec3{-1.0, 0.0, 0.0} : Vec3{0.0, -1.0, 0.0};  // into the body: x, y < 0
     b.friction = 0.0;  // a plane of symmetry carries no shear
+    b.symmetry = true;
     planes.push_back(b);
   }
   return planes;

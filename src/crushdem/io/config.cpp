@@ -541,6 +541,30 @@ RunConfig upscaled(const RunConfig& c) {
   return u;
 }
 
+namespace {
+
+// A body driven in a sector of a chamber: on the sector's axis, the z axis, and moving along it.
+void check_on_axis(const BodyConfig& body, std::size_t j) {
+  const std::string key = "body[" + std::to_string(j) + "].";
+  const char* why =
+      "the sample is a sector of a chamber about the z axis, and a body driven "
+      "in it must be on that axis";
+  if (body.origin.x != 0.0 || body.origin.y != 0.0) {
+    throw ConfigError(bad_value(key + "origin", show_vec(body.origin),
+                                std::string("a point on the z axis, [0, 0, z]: ") + why));
+  }
+  if (body.axis.x != 0.0 || body.axis.y != 0.0) {
+    throw ConfigError(
+        bad_value(key + "axis", show_vec(body.axis), std::string("the z axis, [0, 0, 1]: ") + why));
+  }
+  if (body.direction.x != 0.0 || body.direction.y != 0.0) {
+    throw ConfigError(bad_value(key + "direction", show_vec(body.direction),
+                                std::string("[0, 0, -1] (or [0, 0, 0]: -axis): ") + why));
+  }
+}
+
+}  // namespace
+
 void RunConfig::validate_stage_sequence() const {
   // The ageing clock runs on through the age stages: each `until` beyond the clock before it.
   double clock = 0.0;
@@ -558,15 +582,32 @@ void RunConfig::validate_stage_sequence() const {
   // comes after its body's installation, and no body ends inside the bottom platen.
   const std::array<double, 6> b = upscaled(*this).box();
   const double height = b[5] - b[4];
-  for (const BodyConfig& body : simulation.bodies) {
+  // A sector of a chamber about the z axis: a body driven there must be on that axis.
+  const bool sector = has_sample ? sample.sector_fraction() < 1.0
+                                 : file_chamber_radius > 0.0 && file_sector < 360.0;
+  for (std::size_t j = 0; j < simulation.bodies.size(); ++j) {
+    const BodyConfig& body = simulation.bodies[j];
     double travel = 0.0;  // below the sample's top, when the first push starts there
     bool installed = false, from_top = false;
+    std::size_t installed_by = 0;
     for (std::size_t i = 0; i < stages.size(); ++i) {
       const StageConfig& s = stages[i];
       if (s.body != body.name) continue;
       const std::string prefix = "stage[" + std::to_string(i) + "]";
       if (s.kind == &penetrate_stage_kind()) {
-        if (!installed) from_top = s.from_top;
+        if (installed && s.from_top) {
+          throw ConfigError(bad_value(
+              prefix + ".from_top", "true",
+              "false: body \"" + body.name + "\" is already in the sample (stage[" +
+                  std::to_string(installed_by) +
+                  "] pushed it); from_top lowers a body from above the top wall at its first "
+                  "push"));
+        }
+        if (!installed && sector) check_on_axis(body, j);
+        if (!installed) {
+          from_top = s.from_top;
+          installed_by = i;
+        }
         installed = true;
         travel += s.depth;
       } else if (s.kind == &load_test_stage_kind()) {

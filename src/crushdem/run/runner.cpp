@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <memory>
 
@@ -215,14 +216,22 @@ class Run {
     driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
       save_checkpoint(&c, to_check);
     };
-    prepare();
-    start_test();
-    if (!cfg_.stages.empty()) {
-      driver_->file("timeseries.csv");  // listed in every checkpoint of the test, as it began
-      const std::size_t first = in_test_ ? pos_.part - kPartFirstStage : 0;
-      for (std::size_t k = first; k < cfg_.stages.size(); ++k) run_stage(k);
-    } else if (!cfg_.has_sample) {
-      run_plain();
+    try {
+      prepare();
+      start_test();
+      if (!cfg_.stages.empty()) {
+        driver_->file("timeseries.csv");  // listed in every checkpoint of the test, as it began
+        const std::size_t first = in_test_ ? pos_.part - kPartFirstStage : 0;
+        for (std::size_t k = first; k < cfg_.stages.size(); ++k) run_stage(k);
+      } else if (!cfg_.has_sample) {
+        run_plain();
+      }
+    } catch (const Interrupted&) {
+      throw;  // the log says so already
+    } catch (const std::exception& e) {
+      // The log of a run that stops on an error ends with it, for whoever reads it later.
+      driver_->say(std::string("error: ") + e.what(), false);
+      throw;
     }
     return finish();
   }

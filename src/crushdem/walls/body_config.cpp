@@ -124,6 +124,17 @@ void BodyConfig::validate(const std::string& prefix) const {
   };
   if (name.empty()) fail("name", "\"\"", "a name for the body");
   if (!(dot(axis, axis) > 0.0)) fail("axis", show_vec(axis), "a direction, not [0, 0, 0]");
+  // unit() divides by the square root of the squared length: it must be a finite, non-zero
+  // double, or the body would be built along a zero or NaN direction.
+  const char* scaled =
+      "a direction whose components are between 1e-150 and 1e150 in size "
+      "(their scale does not matter: [0, 0, 1], say)";
+  if (!std::isfinite(dot(axis, axis))) fail("axis", show_vec(axis), scaled);
+  const bool given = direction.x != 0.0 || direction.y != 0.0 || direction.z != 0.0;
+  const double d2 = dot(direction, direction);
+  if (given && !(d2 > 0.0 && std::isfinite(d2))) {
+    fail("direction", show_vec(direction), std::string(scaled) + ", or [0, 0, 0] for -axis");
+  }
   if (has_radius(kind) && !(radius > 0.0)) {
     fail("radius", show_number(radius), std::string("a radius > 0 in m for a ") + to_string(kind));
   }
@@ -153,6 +164,7 @@ Body BodyConfig::make(double wall_friction) const {
   b.area = area;
   b.chamber = chamber;
   b.sector = sector;
+  b.symmetry = symmetry;
   BodyShape& s = b.shape;
   const Vec3 a = unit(axis);
   s.friction = friction < 0.0 ? wall_friction : friction;

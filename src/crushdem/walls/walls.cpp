@@ -80,6 +80,7 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
     shape_.push_back(b);
   }
   area_.assign(kNumWalls, 0.0);
+  symmetry_.assign(kNumWalls, false);
   double chamber_sector = 1.0;
   for (Body& body : bodies) {
     if (body.chamber) {
@@ -91,6 +92,7 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
     shape_.push_back(body.shape);
     names_.push_back(std::move(body.name));
     area_.push_back(body.area);
+    symmetry_.push_back(body.symmetry);
   }
   if (chamber_ >= 0) {
     for (const int k : {4, 5, chamber_}) {
@@ -114,6 +116,9 @@ double Walls::area(int k) const {
   if (k < kNumWalls) {
     const int a = wall_axis(k);
     return length((a + 1) % 3) * length((a + 2) % 3);
+  }
+  if (symmetry_[static_cast<std::size_t>(k)] && chamber_ >= 0) {
+    return chamber_radius() * length(2);
   }
   const double given = area_[static_cast<std::size_t>(k)];
   return given > 0.0 ? given : body_own_area(shape(k), position(k));

@@ -18,6 +18,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,9 @@ struct Body {
   /// walls its platens): the sample's volume, lateral size and stress are then the chamber's.
   bool chamber = false;
   double sector = 1.0;  // the chamber's: the fraction of the circle the sample fills
+  /// A plane of symmetry of a chamber's sector: its stress is over the sector's half-plane from
+  /// the axis to the chamber, R (z_top - z_bottom) (the mean hoop stress there).
+  bool symmetry = false;
 };
 
 class Walls {
@@ -135,9 +139,12 @@ class Walls {
   }
   /// Current area of body k: a box wall's cross-section of the box, or the body's own.
   double area(int k) const;
-  /// Compressive normal stress on body k [Pa]: its load (body_load()) over its area.
+  /// Compressive normal stress on body k [Pa]: its load (body_load()) over its area; NaN for a
+  /// body without one (a plane given no `area`).
   double stress(int k) const {
-    return body_load(shape(k), state(k).normal_force, state(k).force) / area(k);
+    const double A = area(k);
+    return A > 0.0 ? body_load(shape(k), state(k).normal_force, state(k).force) / A
+                   : std::numeric_limits<double>::quiet_NaN();
   }
   /// Mean of the two walls of an axis [Pa], or across (x, y) in a chamber sample the chamber's
   /// radial stress; axial is z, lateral the mean of x and y.
@@ -174,6 +181,7 @@ class Walls {
   std::vector<BodyShape> shape_;
   std::vector<std::string> names_;  // of the bodies beyond the box
   std::vector<double> area_;        // configured servo areas (0: the box's or the shape's)
+  std::vector<bool> symmetry_;      // a chamber sector's plane of symmetry
   int chamber_ = -1;
 };
 

@@ -34,6 +34,16 @@ void check_driven_body(const StageConfig& c, const std::vector<BodyConfig>& bodi
     throw ConfigError(bad_value(prefix + ".body", "\"\"", "the name of the [[body]] it drives"));
   }
   check_probed_body(c, bodies, prefix);
+  for (const BodyConfig& b : bodies) {
+    // A shaft without a tip has no leading end (body_geometry.hpp): the grains under it would
+    // pass inside it as it advanced, unseen.
+    if (b.name == c.body && b.kind == BodyKind::CylinderOutside) {
+      throw ConfigError(bad_value(prefix + ".body", "\"" + c.body + "\"",
+                                  "a body with a leading end to drive: a cone, a pile or a disk "
+                                  "(this one is a bare cylinder_outside, which grains under it "
+                                  "would pass into; a pile is a shaft on a tip)"));
+    }
+  }
 }
 
 /// Body `c.body` driven at `velocity` along its direction (0: held still where it is).
@@ -363,14 +373,13 @@ const StageKind& penetrate_stage_kind() {
   static const StageKind kind{
       .name = "penetrate",
       .description =
-          "a [[body]] (cone, pile, flat punch, shaft) driven at `velocity` for `depth`; q_c, f_s "
+          "a [[body]] (cone, pile, flat punch) driven at `velocity` for `depth`; q_c, f_s "
           "and the shaft's radial stress recorded (penetration.csv, shaft_profile.csv)",
       .params = held_walls_stage_table({
           {"body",
            &StageConfig::body,
            "",
-           "the [[body]] driven (its `name`): a translating cone, pile, disk or "
-           "cylinder_outside",
+           "the [[body]] driven (its `name`): a translating cone, pile or disk",
            nullptr,
            {},
            "-"},
