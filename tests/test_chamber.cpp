@@ -253,6 +253,32 @@ TEST(Chamber, AChamberSampleFromItsFileRestsUnderGravityWithItsWeightOnTheBase) 
   EXPECT_GT(sigma_zz["cpu"][0] - sigma_zz["cpu"][3], 0.05 * W / (kPi * R * R));
 }
 
+// A symmetry plane's stress is over the part of it the grains press on: from the axis to the
+// chamber in a quarter, across the whole diameter in a half.
+TEST(Chamber, ASymmetryPlanesAreaIsWhereTheGrainsPressOnIt) {
+  for (const double sector : {90.0, 180.0}) {
+    SampleConfig sc;
+    sc.shape = SampleShape::Cylinder;
+    sc.sector = sector;
+    sc.count = 50;
+    const LooseCloud cloud = make_loose_cloud(sc, false);
+    SimulationConfig sim_cfg;
+    sim_cfg.walls[5].position = cloud.height;
+    for (const BodyConfig& b : chamber_sample_bodies(cloud, 0.0)) sim_cfg.bodies.push_back(b);
+    const Walls w(sim_cfg.walls, 0.0, [&] {
+      std::vector<Body> bodies;
+      for (const BodyConfig& b : sim_cfg.bodies) bodies.push_back(b.make(0.0));
+      return bodies;
+    }());
+    const double R = w.chamber_radius(), H = cloud.height;
+    const int planes = sector == 90.0 ? 2 : 1;
+    ASSERT_EQ(w.size(), kNumWalls + 1 + planes);
+    for (int k = w.size() - planes; k < w.size(); ++k) {
+      EXPECT_DOUBLE_EQ(w.area(k), (sector == 90.0 ? 1.0 : 2.0) * R * H) << sector << " " << k;
+    }
+  }
+}
+
 TEST(Chamber, AffineCompactionCarriesTheCloudWithItsWallsThenPreparesTheSample) {
   // follow_walls: the velocity of the walls' homogeneous deformation at every grain of a loose
   // quarter cloud, radial about the chamber's axis in proportion to the radius and linear

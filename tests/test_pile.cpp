@@ -346,6 +346,14 @@ TEST(Pile, BadPileRunsAreRefusedNamingTheKey) {
     const std::string error = run_error(bad);
     EXPECT_NE(error.find(key), std::string::npos) << key << " -> " << error;
   }
+  // A body that stays may pass through the bottom platen: a rod, or a pile no stage drives.
+  for (const char* shape : {"cylinder_outside", "pile\"\ntip = \"flat"}) {
+    const std::string rod = testing::tiny_run_toml() + "[[body]]\nname = \"rod\"\nshape = \"" +
+                            shape +
+                            "\"\norigin = [0.95e-3, 0.5e-3, -0.5e-3]\nradius = 1e-5\n"
+                            "length = 2e-3\n";
+    EXPECT_NO_THROW(check_start(config(rod))) << shape;
+  }
   // A run that stops on an error ends its run.log with it.
   {
     const testing::TempDir temp("pile_log");

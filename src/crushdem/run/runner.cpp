@@ -112,15 +112,19 @@ SimulationConfig starting_simulation(const RunConfig& cfg, const LooseCloud* clo
 // clear of the bodies (the chamber of a sample file holds its grains, so only the configured
 // bodies are checked there).
 void add_starting_grains(Simulation& sim, const RunConfig& cfg, const LooseCloud& cloud) {
+  std::vector<std::string> driven;  // the bodies the stages move
+  for (const StageConfig& s : cfg.stages) {
+    if (!s.body.empty()) driven.push_back(s.body);
+  }
   if (cfg.has_sample) {
     for (std::size_t i = 0; i < cloud.radius.size(); ++i) {
       sim.add_particle(cloud.position[i], cloud.radius[i]);
     }
-    check_bodies_clear(sim.walls(), sim.particles());
+    check_bodies_clear(sim.walls(), sim.particles(), -1, driven);
   } else {
     add_configured_particles(sim, cfg);
-    check_bodies_clear(sim.walls(), sim.particles(),
-                       static_cast<int>(cfg.simulation.bodies.size()));
+    check_bodies_clear(sim.walls(), sim.particles(), static_cast<int>(cfg.simulation.bodies.size()),
+                       driven);
   }
 }
 
@@ -212,11 +216,11 @@ class Run {
         driver_->say("warning: " + w);
       }
     }
-    if (resumed_) restore();
-    driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
-      save_checkpoint(&c, to_check);
-    };
     try {
+      if (resumed_) restore();
+      driver_->checkpoint = [this](const Controller& c, std::uint64_t to_check) {
+        save_checkpoint(&c, to_check);
+      };
       prepare();
       start_test();
       if (!cfg_.stages.empty()) {
@@ -226,6 +230,7 @@ class Run {
       } else if (!cfg_.has_sample) {
         run_plain();
       }
+      return finish();
     } catch (const Interrupted&) {
       throw;  // the log says so already
     } catch (const std::exception& e) {
@@ -233,7 +238,6 @@ class Run {
       driver_->say(std::string("error: ") + e.what(), false);
       throw;
     }
-    return finish();
   }
 
  private:

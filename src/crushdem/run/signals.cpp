@@ -8,9 +8,11 @@ namespace crushdem {
 
 namespace {
 
-volatile std::sig_atomic_t g_stop_signal = 0;
-// When the pending request came [ms, CLOCK_MONOTONIC]; lock-free, so the handler may write it.
-std::atomic<long long> g_first_ms{0};
+// Lock-free atomics: the handler may run on any thread of the run's team.
+std::atomic<int> g_stop_signal{0};
+// When each signal first came while its handler was installed [ms, CLOCK_MONOTONIC]; -1: not yet.
+std::atomic<long long> g_first_int{-1}, g_first_term{-1};
+static_assert(std::atomic<int>::is_always_lock_free);
 static_assert(std::atomic<long long>::is_always_lock_free);
 
 long long monotonic_ms() {
@@ -20,17 +22,19 @@ long long monotonic_ms() {
 }
 
 extern "C" void stop_on_signal(int sig) {
-  // The run saves a checkpoint and stops within seconds; a second signal ends it at once. A
-  // repeat within kSameRequestMs is the same request: GNU timeout signals the process and then
-  // its group, a terminal's Ctrl-C reaches a front end and its run at once and the front end
-  // passes it on. Ending there would lose the work since the last checkpoint.
+  // The run saves a checkpoint and stops within seconds; the same signal again ends it at once.
+  // A repeat within kSameRequestMs is the same request: GNU timeout signals the process and then
+  // its group, and a terminal's Ctrl-C reaches a front end and its run together. The other
+  // signal (a front end's SIGTERM after Ctrl-C) is another request, as it always was.
+  std::atomic<long long>& first = sig == SIGINT ? g_first_int : g_first_term;
   const long long now = monotonic_ms();
-  if (g_stop_signal == 0) {
-    g_first_ms.store(now);
+  const long long then = first.load();
+  if (then < 0) {
+    first.store(now);
     request_stop(sig);
     return;
   }
-  if (now - g_first_ms.load() < kSameRequestMs) return;
+  if (now - then < kSameRequestMs) return;
   std::signal(sig, SIG_DFL);
   std::raise(sig);
 }
@@ -38,19 +42,23 @@ extern "C" void stop_on_signal(int sig) {
 }  // namespace
 
 void request_stop(int signal) {
-  g_stop_signal = signal;
+  g_stop_signal.store(signal);
 }
 
 int stop_signal() {
-  return static_cast<int>(g_stop_signal);
+  return g_stop_signal.load();
 }
 
 void clear_stop_request() {
-  g_stop_signal = 0;
+  g_stop_signal.store(0);
 }
 
-StopOnSignals::StopOnSignals()
-    : int_(std::signal(SIGINT, stop_on_signal)), term_(std::signal(SIGTERM, stop_on_signal)) {}
+StopOnSignals::StopOnSignals() : int_(nullptr), term_(nullptr) {
+  g_first_int.store(-1);
+  g_first_term.store(-1);
+  int_ = std::signal(SIGINT, stop_on_signal);
+  term_ = std::signal(SIGTERM, stop_on_signal);
+}
 
 StopOnSignals::~StopOnSignals() {
   std::signal(SIGINT, int_);

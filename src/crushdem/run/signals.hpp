@@ -1,7 +1,7 @@
 // Stopping a run cleanly: SIGINT / SIGTERM ask the running run to save its checkpoint and stop
 // at its next chunk boundary (within seconds); Interrupted then tells the caller where the state
-// is. A second signal ends the process at once, unless it comes within kSameRequestMs of the
-// first (one request delivered twice).
+// is. The same signal again ends the process at once, unless it comes within kSameRequestMs of
+// the first (one request delivered twice).
 #pragma once
 
 #include <stdexcept>
@@ -23,7 +23,7 @@ int stop_signal();
 void clear_stop_request();
 
 /// SIGINT and SIGTERM call request_stop() for as long as this object lives, so that a run
-/// saves its checkpoint and stops; a second signal ends the process at once, one within
+/// saves its checkpoint and stops; the same signal again ends the process at once, one within
 /// kSameRequestMs of the first is ignored. The previous
 /// handlers (Python's, say) come back afterwards. Used by the CLI and by the Python run/resume.
 class StopOnSignals {

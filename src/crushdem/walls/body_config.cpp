@@ -123,16 +123,16 @@ void BodyConfig::validate(const std::string& prefix) const {
     throw ConfigError(bad_value(prefix + "." + key, value, expected));
   };
   if (name.empty()) fail("name", "\"\"", "a name for the body");
-  if (!(dot(axis, axis) > 0.0)) fail("axis", show_vec(axis), "a direction, not [0, 0, 0]");
   // unit() divides by the square root of the squared length: it must be a finite, non-zero
   // double, or the body would be built along a zero or NaN direction.
+  const auto zero = [](Vec3 v) { return v.x == 0.0 && v.y == 0.0 && v.z == 0.0; };
+  const auto usable = [](Vec3 v) { return dot(v, v) > 0.0 && std::isfinite(dot(v, v)); };
   const char* scaled =
       "a direction whose components are between 1e-150 and 1e150 in size "
       "(their scale does not matter: [0, 0, 1], say)";
-  if (!std::isfinite(dot(axis, axis))) fail("axis", show_vec(axis), scaled);
-  const bool given = direction.x != 0.0 || direction.y != 0.0 || direction.z != 0.0;
-  const double d2 = dot(direction, direction);
-  if (given && !(d2 > 0.0 && std::isfinite(d2))) {
+  if (zero(axis)) fail("axis", show_vec(axis), "a direction, not [0, 0, 0]");
+  if (!usable(axis)) fail("axis", show_vec(axis), scaled);
+  if (!zero(direction) && !usable(direction)) {
     fail("direction", show_vec(direction), std::string(scaled) + ", or [0, 0, 0] for -axis");
   }
   if (has_radius(kind) && !(radius > 0.0)) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "crushdem/core/error.hpp"
 
@@ -13,11 +14,15 @@ bool is_tip(Shape s) {
   return s == Shape::Cone || s == Shape::Disk;
 }
 
-// A pile or cone whose tip starts beyond the platen it moves toward (the bottom one for a body
-// driven down): its shaft would also overlap grains, but the platen is what the user misplaced.
-void check_tip_inside(const Walls& walls, int k) {
+// A pile or cone that moves (driven by a stage, or at a velocity of its own) whose tip starts
+// beyond the platen it moves toward (the bottom one for a body driven down): its shaft would also
+// overlap grains, but the platen is what the user misplaced. A body that stays may pass through
+// a platen (a rod through the sample).
+void check_tip_inside(const Walls& walls, int k, const std::vector<std::string>& driven) {
   const BodyShape& b = walls.shape(k);
-  if (!probe_supports(b) || b.motion.z == 0.0) return;
+  const bool moves = walls.config(k).mode != WallMode::Fixed ||
+                     std::find(driven.begin(), driven.end(), walls.name(k)) != driven.end();
+  if (!probe_supports(b) || !is_tip(b.part[0].shape) || !moves || b.motion.z == 0.0) return;
   const double tip_z = placed_part(b.part[0], walls.position(k), b.motion, b.dilate).origin.z;
   const bool down = b.motion.z < 0.0;
   const double platen = walls.position(down ? 4 : 5);
@@ -41,7 +46,8 @@ bool probe_supports(const BodyShape& b) {
   return true;
 }
 
-void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies) {
+void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies,
+                        const std::vector<std::string>& driven) {
   const int end = bodies < 0 ? walls.size() : std::min(walls.size(), kNumWalls + bodies);
   for (int k = kNumWalls; k < end; ++k) {
     // A pile or cone as wide as the chamber would crush the whole sample as it goes in.
@@ -54,7 +60,7 @@ void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies) 
             "a radius below the chamber's (" + show_number(walls.chamber_radius()) + " m)"));
       }
     }
-    check_tip_inside(walls, k);
+    check_tip_inside(walls, k, driven);
     for (std::size_t i = 0; i < p.size(); ++i) {
       const Vec3 c{p.x[i], p.y[i], p.z[i]};
       if (walls.surface(k, c).dist >= p.radius[i]) continue;

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "crushdem/core/types.hpp"
@@ -54,10 +55,13 @@ struct BodyProbe {
 /// Every body beyond the box clear of every grain (no grain overlaps its surface or lies inside
 /// it): a body placed into the grains would start with an explosive overlap. ConfigError naming
 /// body[i].origin, the body, the grain and its position otherwise; and in a chamber sample a pile
-/// or cone at least as wide as the chamber, naming body[i].radius.
+/// or cone at least as wide as the chamber, naming body[i].radius; and a pile or cone that moves
+/// (named in `driven`, the bodies the stages drive, or at a velocity of its own) whose tip starts
+/// beyond the platen it moves toward, naming body[i].origin.
 /// Only the first `bodies` [[body]] tables are checked (all: -1): the bodies a chamber sample
 /// brings (its chamber and symmetry planes, after them) hold grains pressed against them.
-void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies = -1);
+void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies = -1,
+                        const std::vector<std::string>& driven = {});
 
 /// Body k of `walls` as the last force evaluation left it (probe_supports() must hold).
 /// sleeve_length: L_s (clamped to the shaft's length); bins: the number of bins along the shaft.

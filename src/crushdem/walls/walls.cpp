@@ -118,7 +118,9 @@ double Walls::area(int k) const {
     return length((a + 1) % 3) * length((a + 2) % 3);
   }
   if (symmetry_[static_cast<std::size_t>(k)] && chamber_ >= 0) {
-    return chamber_radius() * length(2);
+    // A quarter presses on its planes from the axis to the chamber, a half on its one plane
+    // across the whole diameter.
+    return (sector() > 0.25 ? 2.0 : 1.0) * chamber_radius() * length(2);
   }
   const double given = area_[static_cast<std::size_t>(k)];
   return given > 0.0 ? given : body_own_area(shape(k), position(k));

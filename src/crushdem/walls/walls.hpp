@@ -77,8 +77,9 @@ struct Body {
   /// walls its platens): the sample's volume, lateral size and stress are then the chamber's.
   bool chamber = false;
   double sector = 1.0;  // the chamber's: the fraction of the circle the sample fills
-  /// A plane of symmetry of a chamber's sector: its stress is over the sector's half-plane from
-  /// the axis to the chamber, R (z_top - z_bottom) (the mean hoop stress there).
+  /// A plane of symmetry of a chamber's sector: its stress is over the part the grains press on,
+  /// R (z_top - z_bottom) in a quarter, 2 R (z_top - z_bottom) in a half (the mean hoop stress
+  /// there).
   bool symmetry = false;
 };
 
