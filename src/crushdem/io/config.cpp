@@ -603,8 +603,8 @@ void RunConfig::validate_stage_sequence() const {
                   "] pushed it); from_top lowers a body from above the top wall at its first "
                   "push"));
         }
-        if (!installed && sector) check_on_axis(body, j);
         if (!installed) {
+          if (sector) check_on_axis(body, j);
           from_top = s.from_top;
           installed_by = i;
         }

@@ -63,14 +63,6 @@ class PenetrateStage final : public Stage {
     Stage::begin(sim);
     Walls& w = sim.walls();
     const int k = stage_body_index(w, cfg_);
-    if (w.sector() < 1.0) {  // a sector: the body on its axis, the z axis
-      const BodyPart& tip = w.shape(k).part[0];
-      if (tip.origin.x != 0.0 || tip.origin.y != 0.0 || tip.axis.x != 0.0 || tip.axis.y != 0.0) {
-        throw ConfigError(bad_value("stage '" + cfg_.label() + "'.body", "\"" + cfg_.body + "\"",
-                                    "a body on the z axis (origin [0, 0, z], axis [0, 0, 1]): "
-                                    "the sample is a sector of a chamber about that axis"));
-      }
-    }
     if (cfg_.from_top) {
       // Down its direction until the tip is level with the top wall: the sample's surface.
       const BodyShape& b = w.shape(k);
