@@ -178,6 +178,12 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
       ADD_FAILURE() << "resumed a checkpoint with byte " << k << " changed";
     } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find("damaged"), std::string::npos) << e.what();
+      // The refusal is the log's last line.
+      const std::string log = read_file(damaged / "run.log");
+      const std::size_t last = log.rfind('\n', log.size() - 2);
+      EXPECT_NE(log.find("error: resume refused: " + std::string(e.what()), last),
+                std::string::npos)
+          << log;
     }
     EXPECT_EQ(read_file(damaged / "checkpoint.bin"), bytes);
   }
@@ -381,12 +387,14 @@ TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
   cfg.stages[0].steps = 200;
   opt.out_dir = (base / "done").string();
   run_to_directory(cfg, opt);
+  const std::string log = read_file(base / "done" / "run.log");
   try {
     resume_directory(opt.out_dir, opt);
     ADD_FAILURE() << "resumed a finished run";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("finished"), std::string::npos) << e.what();
   }
+  EXPECT_EQ(read_file(base / "done" / "run.log"), log) << "a finished run's log changed";
 }
 
 }  // namespace

@@ -143,9 +143,9 @@ const ParamTable<SampleConfig>& sample_params() {
           "equilibrium: every wall within this relative error of stress",
           [](double v) { return v > 0.0 && v < 0.5; }, "a relative tolerance in (0, 0.5)"},
       Row{"check_interval", &SampleConfig::check_interval, "", "steps between checks",
-          [](double v) { return v >= 1.0; }, "> 0 steps"},
+          [](double v) { return v >= 1.0; }, "a number of steps >= 1"},
       Row{"max_steps", &SampleConfig::max_steps, "", "error after this many steps",
-          [](double v) { return v >= 1.0; }, "> 0 steps"},
+          [](double v) { return v >= 1.0; }, "a number of steps >= 1"},
   };
   return table;
 }

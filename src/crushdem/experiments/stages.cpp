@@ -68,15 +68,12 @@ const Row kMaxStrainRate{
     "0 = 10 /s, and for triaxial lateral walls at least 2 strain_rate",
     [](double v) { return v >= 0.0; },
     "a servo strain-rate limit in 1/s (0 = automatic)"};
-const Row kCheckInterval{"check_interval",
-                         &StageConfig::check_interval,
-                         "",
-                         "steps between end-condition checks",
-                         at_least_one,
-                         "> 0 steps"};
+const Row kCheckInterval{
+    "check_interval", &StageConfig::check_interval, "", "steps between end-condition checks",
+    at_least_one,     "a number of steps >= 1"};
 const Row kMaxSteps{"max_steps",  &StageConfig::max_steps,
                     "",           "the stage stops (with a warning) after this many steps",
-                    at_least_one, "> 0 steps"};
+                    at_least_one, "a number of steps >= 1"};
 
 const Row kAxial{"axial", enum_choice(&StageConfig::axial, kWallControlNames), "",
                  "the top wall: fixed, or servo-controlled to axial_stress"};

@@ -105,7 +105,8 @@ const ParamTable<CrushingConfig>& crushing_params() {
       {"d_min", &K::d_min, "m",
        "fragments smaller than this are removed (volume and mass accounted) (STUDY)", non_negative,
        "a diameter in m (>= 0)"},
-      {"interval", &K::interval, "", "steps between criterion checks", positive, "> 0 steps"},
+      {"interval", &K::interval, "", "steps between criterion checks", positive,
+       "a number of steps >= 1"},
       {"seed", &K::seed, "", "strength, orientation and crack random streams"},
       {"density_scaling", &K::density_scaling, "",
        "fragments smaller than the smallest initial grain d_ref get density rho (d_ref / d)^2, "

@@ -360,13 +360,17 @@ void Driver::log_line(const std::string& text) {
     run_log_.reset(std::fopen((dir_ / "run.log").c_str(), "a"));
     if (!run_log_) return;  // the log is for people; a run never stops for it
   }
+  write_log_line(run_log_.get(), text);
+}
+
+void write_log_line(std::FILE* log, const std::string& text) {
   const std::time_t t = std::time(nullptr);
   std::tm utc{};
   gmtime_r(&t, &utc);
   char stamp[32];
   std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", &utc);
-  std::fprintf(run_log_.get(), "%s  %s\n", stamp, text.c_str());
-  std::fflush(run_log_.get());
+  std::fprintf(log, "%s  %s\n", stamp, text.c_str());
+  std::fflush(log);
 }
 
 void Driver::log(const std::vector<BreakageEvent>& events) {

@@ -30,6 +30,8 @@ class RunManifest;
 std::string ordinal_stamp(std::size_t k);
 /// Snapshot file names carry the step, zero-padded so that they sort in order.
 std::string step_stamp(std::uint64_t step);
+/// Appends "UTC-STAMP  text" to an open run.log and flushes it.
+void write_log_line(std::FILE* log, const std::string& text);
 
 /// A ParaView snapshot: the step (its files' names), the simulated (DEM) time and the run's
 /// ageing clock then. The .pvd's time is their sum, the physical time: the DEM time plus every

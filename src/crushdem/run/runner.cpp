@@ -182,7 +182,12 @@ class Run {
     // gets no manifest); one in a folder of a release before manifests adopts the files a run
     // writes there.
     if (opt_.resume) {
-      read_saved_position();
+      try {
+        read_saved_position();
+      } catch (const std::exception& e) {
+        log_refused_resume(e.what());
+        throw;
+      }
       if (!RunManifest::present(dir_)) manifest_.adopt_earlier_run();
     }
     manifest_.add(".lock");
@@ -253,6 +258,18 @@ class Run {
 
   // Resuming: the checkpoint says where the run stood; the state is read part by part after
   // it. A branch reads the original run's state at the start of its branch stage the same way.
+  // A refused resume (a changed config.toml, a damaged checkpoint) leaves its reason in the log
+  // of an unfinished run crushdem wrote there, and touches nothing else.
+  void log_refused_resume(const std::string& why) const {
+    const fs::path log = dir_ / "run.log";
+    if (!RunManifest::present(dir_) || !fs::exists(log) || fs::exists(dir_ / "summary.json")) {
+      return;
+    }
+    const std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(log.c_str(), "a"),
+                                                            &std::fclose);
+    if (f) write_log_line(f.get(), "error: resume refused: " + why);
+  }
+
   void read_saved_position() {
     std::string path = (dir_ / "checkpoint.bin").string();
     if (branching_) {

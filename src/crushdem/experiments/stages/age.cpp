@@ -238,13 +238,13 @@ const StageKind& age_stage_kind() {
            [](double v) { return v > 0.0; }, "a positive ageing time in s", "-",
            [](const StageConfig& c) { return c.until != 0.0; }},  // given: NaN, < 0 refused
           {"min_cycles", &StageConfig::min_cycles, "", "steps of each dynamic phase (STUDY)",
-           [](double v) { return v >= 1.0; }, "> 0 steps"},
+           [](double v) { return v >= 1.0; }, "a number of steps >= 1"},
           {"n_break", &StageConfig::n_break, "",
            "grains brought to failure by each ageing jump (STUDY)",
-           [](double v) { return v >= 1.0; }, "> 0 grains"},
+           [](double v) { return v >= 1.0; }, "a number of grains >= 1"},
           {"record_interval", &StageConfig::record_interval, "",
            "steps between rows of phases.csv within each dynamic phase (the study's Figure 2)",
-           [](double v) { return v >= 1.0; }, "> 0 steps"},
+           [](double v) { return v >= 1.0; }, "a number of steps >= 1"},
           {"bins", &StageConfig::bins, "",
            "with a body: slices along the shaft (pile_shaft.csv) and from its tip to the top "
            "wall (pile_rings.csv)",

@@ -383,7 +383,7 @@ const StageKind& penetrate_stage_kind() {
            [](double v) { return v > 0.0; }, "a positive travel in m", "-"},
           {"record_interval", &StageConfig::record_interval, "",
            "steps between rows of penetration.csv and shaft_profile.csv",
-           [](double v) { return v >= 1.0; }, "> 0 steps"},
+           [](double v) { return v >= 1.0; }, "a number of steps >= 1"},
           {"bins", &StageConfig::bins, "", "bins along the shaft in shaft_profile.csv",
            [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of bins in [1, 10000]"},
           {"from_top", &StageConfig::from_top, "",
@@ -446,7 +446,8 @@ const StageKind& load_test_stage_kind() {
            "the pile's diameter is the usual failure criterion in compression)",
            [](double v) { return v > 0.0; }, "a positive head displacement in m", "-"},
           {"record_interval", &StageConfig::record_interval, "",
-           "steps between rows of load_test.csv", [](double v) { return v >= 1.0; }, "> 0 steps"},
+           "steps between rows of load_test.csv", [](double v) { return v >= 1.0; },
+           "a number of steps >= 1"},
           {"capacity_window", &StageConfig::capacity_window, "",
            "rows of load_test.csv whose median head load the capacity is the largest of (one "
            "row's dynamic swing, a force chain giving way or a grain split under the tip, is no "
