@@ -4,6 +4,7 @@
 // uninterrupted one byte for byte; bad input names its key.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -74,6 +75,38 @@ void expect_cone_recorded_and_stopped(const std::string& backend) {
   // The shaft's profile: 10 bins per record.
   auto shaft = testing::read_csv((temp.path() / "run" / "shaft_profile.csv").string());
   EXPECT_EQ(shaft["bin"].size(), 10 * n);
+  // The stress field, every 2500 steps and at the end: 5 rings by 4 slices. Its rings reach
+  // past the box's corners, so every grain is in a cell, and the trace of each grain's
+  // Love-Weber term is the same in its cylindrical frame: summed over the cells, the field
+  // gives the sample's Love-Weber mean stress, whatever the frames and the cells' volumes.
+  auto field = testing::read_csv((temp.path() / "run" / "penetration_field.csv").string());
+  const std::vector<double>& t_field = field["time_s"];
+  ASSERT_EQ(t_field.size() % 20, 0u);
+  const std::size_t records = t_field.size() / 20;
+  EXPECT_GE(records, 3u);
+  EXPECT_EQ(t_field.front(), pen["time_s"].front());
+  EXPECT_EQ(t_field.back(), pen["time_s"].back());
+  for (std::size_t f = 0; f < records; ++f) {
+    const std::size_t i = static_cast<std::size_t>(
+        std::find(pen["time_s"].begin(), pen["time_s"].end(), t_field[20 * f]) -
+        pen["time_s"].begin());
+    ASSERT_LT(i, n) << "a field record at no row of penetration.csv";
+    const double H = pen["wall_zmax_position_m"][i] - pen["wall_zmin_position_m"][i];
+    const double V = (pen["wall_xmax_position_m"][i] - pen["wall_xmin_position_m"][i]) *
+                     (pen["wall_ymax_position_m"][i] - pen["wall_ymin_position_m"][i]) * H;
+    double trace = 0.0, grains = 0.0;
+    for (std::size_t c = 20 * f; c < 20 * (f + 1); ++c) {
+      EXPECT_EQ(field["time_s"][c], t_field[20 * f]);
+      EXPECT_EQ(field["tip_z_m"][c], pen["tip_z_m"][i]);
+      const double r0 = field["r_in_m"][c], r1 = field["r_out_m"][c];
+      EXPECT_NEAR(r1 - r0, 0.2e-3, 1e-15);
+      trace += (field["sigma_rr_Pa"][c] + field["sigma_tt_Pa"][c] + field["sigma_zz_Pa"][c]) * kPi *
+               (r1 * r1 - r0 * r0) * H / 4.0;
+      grains += field["grains"][c];
+    }
+    EXPECT_EQ(grains, pen["n_particles"][i]);
+    EXPECT_NEAR(trace / (3.0 * pen["love_mean_stress_Pa"][i] * V), 1.0, 1e-9) << "record " << f;
+  }
   // The cone stays where the stage left it.
   auto ts = testing::read_csv((temp.path() / "run" / "timeseries.csv").string());
   EXPECT_EQ(ts["body_cone_position_m"].back(), travel.back());
@@ -103,7 +136,8 @@ TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) 
   // Stopped (as SIGINT does) as soon as the cone has begun to move, then resumed.
   const std::size_t compared = testing::expect_stopped_run_resumes_exactly(
       cfg, opt, base / "whole", base / "stopped", "penetration.csv");
-  EXPECT_GE(compared, 6u);  // config, timeseries, summary, penetration, shaft profile, snapshots
+  EXPECT_GE(compared,
+            7u);  // config, timeseries, summary, penetration, shaft profile, field, snapshots
 }
 
 // The cone of config() jacked in strokes of 0.1 mm with pauses of 20 us (0.1, 0.2, 0.3 and

@@ -101,6 +101,9 @@ Penetration ("penetrate" stages; drawn only when DIR/penetration.csv exists):
                               the body's travel [mm], downwards
 * ``shaft_stress.png``        radial stress on the shaft [kPa] against the height above its
                               start [mm], at four travels of the last penetrate stage
+* ``stress_field.png``        radial, hoop and vertical stress [kPa] of the grains about the
+                              body in rings by slices (r [mm] against z [mm]) at the last record
+                              of penetration_field.csv (with ``field_interval``)
 * ``breakage_field.png``      where grains broke around the body (with [crushing]): distance
                               from its axis [mm] against z [mm], coloured by the travel
 

@@ -2,10 +2,11 @@
 
 A run directory holds ``config.toml`` (written when the run starts), ``timeseries.csv``,
 ``summary.json`` (written when it ends), and, depending on the run, ``events.csv`` and
-``phases.csv`` (age stages), ``penetration.csv`` and ``shaft_profile.csv`` (penetrate
-stages), ``grading.csv`` and ``breakage.csv`` (grain crushing) and ``timing.json``;
-docs/configuration.md lists their columns. Every reader here returns an empty or ``None`` result for
-a file that is missing, so a run still going can be read too.
+``phases.csv`` (age stages), ``penetration.csv``, ``shaft_profile.csv`` and
+``penetration_field.csv`` (penetrate stages), ``grading.csv`` and ``breakage.csv`` (grain
+crushing) and ``timing.json``; docs/configuration.md lists their columns. Every reader here
+returns an empty or ``None`` result for a file that is missing, so a run still going can be read
+too.
 
 :func:`read_run` reads everything the figures need into one :class:`RunData`.
 """
@@ -187,6 +188,15 @@ def read_shaft_profile(run_dir: PathLike) -> Optional[Columns]:
     return read_csv(path) if os.path.isfile(path) else None
 
 
+def read_penetration_field(run_dir: PathLike) -> Optional[Columns]:
+    """DIR/penetration_field.csv (a penetrate stage's ``field_interval``: at each of its records,
+    one row per ring and slice about the body: ``travel_m``, ``tip_z_m``, ``ring``, ``bin``,
+    ``r_in_m``, ``r_out_m``, ``z_m`` (the slice's middle), ``sigma_rr_Pa``, ``sigma_tt_Pa``,
+    ``sigma_zz_Pa``, ``tau_rz_Pa``, ``grains``), or None when missing."""
+    path = os.path.join(run_dir, "penetration_field.csv")
+    return read_csv(path) if os.path.isfile(path) else None
+
+
 def read_phases(run_dir: PathLike) -> Optional[Columns]:
     """DIR/phases.csv (rows within the dynamic phases of age stages), or None when missing."""
     path = os.path.join(run_dir, "phases.csv")
@@ -294,6 +304,7 @@ class RunData:
     breakage: List[Tuple[float, str]] = field(default_factory=list)
     penetration: Optional[Columns] = None
     shaft_profile: Optional[Columns] = None
+    penetration_field: Optional[Columns] = None
     breakage_positions: Optional[Columns] = None
 
     @property
@@ -315,4 +326,5 @@ def read_run(run_dir: PathLike) -> RunData:
                    events=read_events(run_dir), grading=read_grading(run_dir),
                    breakage=read_breakage(run_dir), penetration=read_penetration(run_dir),
                    shaft_profile=read_shaft_profile(run_dir),
+                   penetration_field=read_penetration_field(run_dir),
                    breakage_positions=read_breakage_positions(run_dir))

@@ -40,16 +40,17 @@ def assert_drawn(line, x, y):
     np.testing.assert_array_equal(np.asarray(line.get_ydata(), dtype=float), y)
 
 
-def assert_png_shows_a_drawing(path):
+def assert_png_shows_a_drawing(path, max_ink=0.5):
     """``path`` is a PNG whose pixels are neither blank nor filled: a few percent of them carry
-    ink (axes, curves, text) in several colours."""
+    ink (axes, curves, text) in several colours; a colour map (``max_ink`` raised) fills its
+    axes."""
     import matplotlib.image
 
     with open(path, "rb") as f:
         assert f.read(8) == b"\x89PNG\r\n\x1a\n", path
     rgb = matplotlib.image.imread(path)[..., :3].reshape(-1, 3)
     ink = float(np.mean(np.any(rgb < 0.9, axis=1)))
-    assert 0.005 < ink < 0.5, (path, ink)
+    assert 0.005 < ink < max_ink, (path, ink)
     level = np.round(rgb * 255).astype(np.uint32)
     colours = np.unique((level[:, 0] << 16) | (level[:, 1] << 8) | level[:, 2])
     assert len(colours) > 16, (path, len(colours))

@@ -149,7 +149,7 @@ def _plots(run, out=None):
     written = plot.make_plots(run, None if out is None else str(out))
     for p in written:
         assert os.path.dirname(os.path.abspath(p)) == os.path.abspath(out or run)
-        assert_png_shows_a_drawing(p)
+        assert_png_shows_a_drawing(p, 0.8 if p.endswith("stress_field.png") else 0.5)
     return _names(written)
 
 
@@ -955,6 +955,38 @@ def test_penetration_run_draws_q_c_f_s_and_the_shaft_stress(tmp_path):
     assert lines[-1].get_label() == "travel 0.7 mm"
     assert_drawn(lines[-1], [100.0, 200.0, 300.0], (np.arange(3) + 0.5) * 1e-4 * 1e3)
     assert len(lines) == 4
+    _close(fig)
+
+
+def test_the_stress_field_about_the_cone_is_drawn_at_its_last_record(tmp_path):
+    run, travel, _ = _penetration_run(tmp_path / "cpt")
+    assert "stress_field.png" not in _plots(run)  # no penetration_field.csv
+    # Two records of 2 rings (0.1 mm wide) by 3 slices; at the last, sigma_rr = 10 (ring + 1)
+    # (bin + 1) kPa, and ring 0's lowest slice is empty (inside the body).
+    with open(os.path.join(run, "penetration_field.csv"), "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["stage", "time_s", "travel_m", "tip_z_m", "ring", "bin", "r_in_m", "r_out_m",
+                    "z_m", "sigma_rr_Pa", "sigma_tt_Pa", "sigma_zz_Pa", "tau_rz_Pa", "grains"])
+        for k, t in ((0, 0.0), (1, 3.5e-4)):
+            for ring in range(2):
+                for b in range(3):
+                    s = 1e4 * (ring + 1) * (b + 1) * k
+                    w.writerow([1, t, 2 * t, 1.2e-3 - 2 * t, ring, b, ring * 1e-4,
+                                (ring + 1) * 1e-4, (b + 0.5) * 4e-4, s, 0.5 * s, 2 * s, 0.0,
+                                0 if (ring, b) == (0, 0) else 3])
+    assert "stress_field.png" in _plots(run, tmp_path / "field")
+    fig = figures.figure_stress_field(rundir.read_run(run))
+    ax = fig.axes[0]
+    mesh = ax.collections[0]
+    grid = np.ma.masked_array(mesh.get_array()).reshape(3, 2)  # slices by rings
+    assert np.ma.getmaskarray(grid)[0, 0] and not np.ma.getmaskarray(grid)[1, 0]
+    np.testing.assert_allclose(grid[1:, :], [[20.0, 40.0], [30.0, 60.0]])
+    np.testing.assert_allclose(grid[0, 1], 20.0)
+    # The cells' edges: rings from the axis, slices about their middles.
+    coords = mesh.get_coordinates()
+    np.testing.assert_allclose(coords[0, :, 0], [0.0, 0.1, 0.2])
+    np.testing.assert_allclose(coords[:, 0, 1], [0.0, 0.4, 0.8, 1.2])
+    assert "0.7 mm" in fig.texts[0].get_text()
     _close(fig)
 
 

@@ -37,7 +37,8 @@ from .laboratory import (figure_inertial_number, figure_oedometer, figure_prepar
                          figure_triaxial, figure_void_ratio, oedometer_label, oedometric_stages)
 from .study import (figure_dynamic_phase, figure_force_statistics, figure_oedometric_relaxation,
                     figure_triaxial_relaxation)
-from .penetration import figure_breakage_field, figure_penetration, figure_shaft_stress
+from .penetration import (figure_breakage_field, figure_penetration, figure_shaft_stress,
+                          figure_stress_field)
 from .pile import (figure_pile_breakage, figure_pile_forces, figure_pile_rings,
                    figure_pile_setup, figure_pile_shaft)
 from .time_series import figure_coordination, figure_kinetic_energy, figure_stress_time
@@ -54,7 +55,7 @@ __all__ = [
     "figure_grading", "figure_breakage", "figure_breakage_sizes",
     "figure_relaxation", "figure_relaxation_forces", "figure_relaxation_breakage",
     "figure_oedometric_relaxation", "figure_dynamic_phase", "figure_triaxial_relaxation",
-    "figure_force_statistics", "figure_penetration", "figure_shaft_stress",
+    "figure_force_statistics", "figure_penetration", "figure_shaft_stress", "figure_stress_field",
     "figure_breakage_field", "figure_pile_shaft", "figure_pile_rings", "figure_pile_forces",
     "figure_pile_breakage", "figure_pile_setup",
     "draw_all", "display_available", "use_file_backend_without_display",
@@ -82,6 +83,7 @@ FIGURES: Dict[str, Callable[[Run], Any]] = {
     "relaxation_breakage.png": figure_relaxation_breakage,
     "penetration.png": figure_penetration,
     "shaft_stress.png": figure_shaft_stress,
+    "stress_field.png": figure_stress_field,
     "breakage_field.png": figure_breakage_field,
     "pile_shaft.png": figure_pile_shaft,
     "pile_rings.png": figure_pile_rings,

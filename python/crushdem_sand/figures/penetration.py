@@ -1,7 +1,7 @@
 """The figures of a penetration test (``crushdem-sand plot``, "penetrate" stages): the cone
 resistance q_c and the sleeve friction f_s against the travel, the radial stress on the shaft
-along it at a few travels, and where grains broke around the body (penetration.csv,
-shaft_profile.csv, breakage.csv; docs/chamber.md)."""
+along it at a few travels, the stress field about the body, and where grains broke around it
+(penetration.csv, shaft_profile.csv, penetration_field.csv, breakage.csv; docs/chamber.md)."""
 
 from __future__ import annotations
 
@@ -95,5 +95,50 @@ def figure_breakage_field(run: Run) -> Optional[Figure]:
                f"{run.title}: {int(r.size)} breakages", fontsize=8)
     ah.hist(r, bins=min(30, max(5, r.size // 5)), orientation="vertical", color="C1")
     label_axes(ah, "r [mm]", "breakages", "by distance")
+    fig.tight_layout()
+    return fig
+
+
+def figure_stress_field(run: Run) -> Optional[Figure]:
+    """stress_field.png: the radial, hoop and vertical stress [kPa] of the grains about the body
+    at the last record of penetration_field.csv (a penetrate stage's ``field_interval``), in
+    rings from its axis (r [mm]) by slices from the bottom platen up (z [mm]); cells without a
+    grain (inside the body, beyond the chamber) left blank; the tip's path drawn on the axis."""
+    run = as_run(run)
+    f = run.penetration_field
+    if f is None or "time_s" not in f or f["time_s"].size == 0:
+        return None
+    last = f["time_s"] == f["time_s"][-1]
+    rings = f["ring"][last].astype(int)
+    bins = f["bin"][last].astype(int)
+    n_r, n_z = rings.max() + 1, bins.max() + 1
+    if rings.size != n_r * n_z:
+        return None
+    r_edges = np.zeros(n_r + 1)
+    r_edges[rings + 1] = f["r_out_m"][last] * 1e3
+    z_mid = np.zeros(n_z)
+    z_mid[bins] = f["z_m"][last] * 1e3
+    dz = (z_mid[-1] - z_mid[0]) / (n_z - 1) if n_z > 1 else 1.0
+    z_edges = np.concatenate([z_mid - 0.5 * dz, [z_mid[-1] + 0.5 * dz]])
+    empty = np.zeros((n_z, n_r), bool)
+    empty[bins, rings] = f["grains"][last] == 0
+    tip_z = f["tip_z_m"][last][0] * 1e3
+    p = run.penetration
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(12, 6), sharey=True)
+    for ax, (key, name) in zip(axes, (("sigma_rr_Pa", r"radial $\sigma_{rr}$"),
+                                      ("sigma_tt_Pa", r"hoop $\sigma_{\theta\theta}$"),
+                                      ("sigma_zz_Pa", r"vertical $\sigma_{zz}$"))):
+        grid = np.zeros((n_z, n_r))
+        grid[bins, rings] = f[key][last] * KPA
+        mesh = ax.pcolormesh(r_edges, z_edges, np.ma.masked_array(grid, empty), cmap="YlOrRd",
+                             shading="flat")
+        fig.colorbar(mesh, ax=ax, label=f"{name} [kPa]", orientation="horizontal", pad=0.1)
+        top = p["tip_z_m"][0] * 1e3 if p is not None and "tip_z_m" in p else z_edges[-1]
+        ax.plot([0.0, 0.0], [tip_z, max(top, tip_z)], "k-", lw=3, label="the tip's path")
+        ax.plot([0.0], [tip_z], "kv", ms=8)
+        label_axes(ax, "distance from the axis r [mm]", "z [mm]" if ax is axes[0] else "", name)
+    travel = f["travel_m"][last][0] * 1e3
+    fig.suptitle(f"{run.title}: the stress about the body at {travel:.4g} mm of travel")
     fig.tight_layout()
     return fig

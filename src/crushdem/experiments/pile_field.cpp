@@ -121,6 +121,22 @@ std::vector<RingStress> ring_stresses(const Simulation& sim, const FieldGrid& gr
   return out;
 }
 
+/// A body's tip (its first part's origin where its degree of freedom puts it) and the radius of
+/// its shaft (of its tip where it has none).
+struct TipAndRadius {
+  Vec3 apex;
+  double R = 0.0;
+};
+TipAndRadius tip_and_radius(const Walls& w, int k) {
+  const BodyShape& b = w.shape(k);
+  TipAndRadius t{placed_part(b.part[0], w.position(k), b.motion, b.dilate).origin,
+                 b.part[0].radius};
+  for (int j = 0; j < b.parts; ++j) {
+    if (b.part[j].shape == Shape::CylinderOutside) t.R = b.part[j].radius;
+  }
+  return t;
+}
+
 }  // namespace
 
 PileField measure_pile_field(const Simulation& sim, int k, int rings, double field_radius,
@@ -128,13 +144,10 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
   PileField out;
   const Walls& w = sim.walls();
   const BodyShape& b = w.shape(k);
-  const double q = w.position(k);
-  const Vec3 apex = placed_part(b.part[0], q, b.motion, b.dilate).origin;
+  const TipAndRadius tip = tip_and_radius(w, k);
+  const Vec3 apex = tip.apex;  // (plain names: a lambda below reads them)
+  const double R = tip.R;
   const Vec3 up = (-1.0 / norm(b.motion)) * b.motion;
-  double R = b.part[0].radius;
-  for (int j = 0; j < b.parts; ++j) {
-    if (b.part[j].shape == Shape::CylinderOutside) R = b.part[j].radius;
-  }
   // The slices reach the top wall (the sample's surface) along the axis.
   const double h_top = up.z > 0.5 ? (w.position(5) - apex.z) / up.z : 0.0;
   if (!(h_top > 0.0) || rings < 1 || bins < 1 || !(field_radius > 1.0)) return out;
@@ -163,6 +176,20 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
     out.std_Ft = std::sqrt(std::max(0.0, sum_ft2 / n - out.mean_Ft * out.mean_Ft));
   }
   return out;
+}
+
+std::vector<RingStress> measure_body_field(const Simulation& sim, int k, int rings,
+                                           double field_radius, int bins) {
+  const Walls& w = sim.walls();
+  const double h = w.position(5) - w.position(4);
+  if (!(h > 0.0) || rings < 1 || bins < 1 || !(field_radius > 0.0)) return {};
+  const auto [apex, R] = tip_and_radius(w, k);
+  std::vector<double> edges(static_cast<std::size_t>(rings) + 1);
+  for (int m = 0; m <= rings; ++m) {
+    edges[static_cast<std::size_t>(m)] = field_radius * R * m / rings;
+  }
+  const FieldGrid grid({apex.x, apex.y, w.position(4)}, {0.0, 0.0, 1.0}, std::move(edges), h, bins);
+  return ring_stresses(sim, grid, [](Vec3, const ContactRecord&) {});
 }
 
 std::vector<RingStress> measure_chamber_profile(const Simulation& sim, double radius, int bins) {

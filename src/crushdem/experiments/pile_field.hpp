@@ -44,6 +44,15 @@ struct PileField {
 PileField measure_pile_field(const Simulation& sim, int k, int rings, double field_radius,
                              int bins);
 
+/// The stress field about body k as a penetrate stage drives it (penetration_field.csv): rings of
+/// equal width from the vertical line through its tip (ring 0 from r = 0: the sand under the
+/// tip) out to field_radius R, R its shaft's radius, cut into `bins` slices from the bottom
+/// platen to the top one (height above the bottom platen). Cells the body passes through count
+/// its volume as void. Empty without a positive sample height. rings >= 1, field_radius > 0,
+/// bins >= 1.
+std::vector<RingStress> measure_body_field(const Simulation& sim, int k, int rings,
+                                           double field_radius, int bins);
+
 /// A chamber sample's stress profile with depth: the Love-Weber stress, in the cylindrical frame
 /// about the chamber's axis, of the grains within `radius` of the axis (the core, clear of the
 /// chamber wall's layers), in `bins` slices from the bottom platen to the top one (ring 0, bin

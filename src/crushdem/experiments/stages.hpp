@@ -72,8 +72,10 @@ struct StageConfig {
   bool unload = false;  // penetrate: the head load taken off between strokes, not held still
   HeadControl head = HeadControl::Held;  // hold, age: the pile named by `body`
   double head_load = 0.0;                // [N] the whole pile's, with head = "load"
-  std::uint64_t rings = 6;               // age: rings of grains about the pile
-  double field_radius = 8.0;             // age: the outer ring's radius [shaft radii]
+  std::uint64_t rings = 6;               // age, penetrate: rings of grains about the body
+  double field_radius = 8.0;             // age, penetrate: the outer ring's radius [shaft radii]
+  std::uint64_t field_interval = 0;      // penetrate: steps between field records; 0 = none
+  std::uint64_t field_bins = 20;         // penetrate: the field's slices, platen to platen
   LoadDirection direction = LoadDirection::Compression;  // load_test
   double displacement = 0.0;                             // load_test: head travel [m]
   std::uint64_t capacity_window = 5;  // load_test: records whose median the capacity is taken of

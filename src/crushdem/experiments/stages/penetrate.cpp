@@ -4,7 +4,9 @@
 // `from_top` it starts with its tip level with the top wall (the sample's surface). Its own files,
 // a row every record_interval steps: penetration.csv (travel, tip position, q_c, f_s, the loads on
 // the tip and the shaft, with the run's measurements) and shaft_profile.csv (the radial and shear
-// stress on the shaft by bins along it: walls/body_probe.hpp). With `stroke` the body is jacked:
+// stress on the shaft by bins along it: walls/body_probe.hpp); with `field_interval`, also
+// penetration_field.csv (the stress in rings of grains about the body from the bottom platen to
+// the top one: experiments/pile_field.hpp). With `stroke` the body is jacked:
 // it advances `stroke` at `velocity`, stands still for `pause` (held where it is, as a jack that
 // grips it, or with `unload` its head load taken off so that it may rebound, as the Grenoble
 // chamber's mini-piles were unloaded between strokes), and so on until `depth`. The load_test
@@ -17,6 +19,7 @@
 #include <vector>
 
 #include "crushdem/core/error.hpp"
+#include "crushdem/experiments/pile_field.hpp"
 #include "crushdem/experiments/stages.hpp"
 #include "crushdem/walls/body_config.hpp"
 #include "crushdem/walls/body_probe.hpp"
@@ -193,6 +196,36 @@ class PenetrateStage final : public Stage {
     write_shaft_rows(
         *out, "shaft_profile.csv", p,
         {{"stage", static_cast<double>(index())}, {"time_s", sim.time()}, {"travel_m", travel_}});
+    const bool last = travel_ >= cfg_.depth * (1.0 - 1e-12);
+    if (cfg_.field_interval > 0 &&
+        ((sim.step_count() - start_step_) % cfg_.field_interval == 0 || last)) {
+      record_field(sim, p, *out);
+    }
+  }
+
+  // penetration_field.csv: the stress in rings of grains about the body, platen to platen.
+  void record_field(const Simulation& sim, const BodyProbe& p, StageOutputs& out) const {
+    const int k = stage_body_index(sim.walls(), cfg_);
+    for (const RingStress& r :
+         measure_body_field(sim, k, static_cast<int>(cfg_.rings), cfg_.field_radius,
+                            static_cast<int>(cfg_.field_bins))) {
+      Measurement b;
+      b.emplace_back("stage", static_cast<double>(index()));
+      b.emplace_back("time_s", sim.time());
+      b.emplace_back("travel_m", travel_);
+      b.emplace_back("tip_z_m", p.tip.z);
+      b.emplace_back("ring", static_cast<double>(r.ring));
+      b.emplace_back("bin", static_cast<double>(r.bin));
+      b.emplace_back("r_in_m", r.r_in);
+      b.emplace_back("r_out_m", r.r_out);
+      b.emplace_back("z_m", sim.walls().position(4) + r.height);
+      b.emplace_back("sigma_rr_Pa", r.sigma_rr);
+      b.emplace_back("sigma_tt_Pa", r.sigma_tt);
+      b.emplace_back("sigma_zz_Pa", r.sigma_zz);
+      b.emplace_back("tau_rz_Pa", r.tau_rz);
+      b.emplace_back("grains", static_cast<double>(r.grains));
+      out.write("penetration_field.csv", b);
+    }
   }
 
   // The body driven at `velocity` (moving) or held still where it is.
@@ -412,10 +445,39 @@ const StageKind& penetrate_stage_kind() {
            "friction sleeve above the tip for f_s; 0 = 3.75 shaft diameters (150 cm^2 on a "
            "35.7 mm cone, ISO 22476-1)",
            [](double v) { return v >= 0.0; }, "a length >= 0 in m"},
+          {"field_interval",
+           &StageConfig::field_interval,
+           "",
+           "steps between records of the stress field about the body (penetration_field.csv: "
+           "rings of grains from its axis, platen to platen), and at the stage's end; a "
+           "multiple of record_interval; 0 = none",
+           nullptr,
+           {},
+           {},
+           [](const StageConfig& c) { return c.field_interval > 0; }},
+          {"rings", &StageConfig::rings, "",
+           "with field_interval: rings of equal width from the body's axis (ring 0 holds the "
+           "sand under the tip)",
+           [](double v) { return v >= 1.0 && v <= 1e3; }, "a number of rings in [1, 1000]", "",
+           [](const StageConfig& c) { return c.field_interval > 0; }},
+          {"field_radius", &StageConfig::field_radius, "-",
+           "with field_interval: the outer ring's radius in shaft radii",
+           [](double v) { return v > 0.0 && v <= 1e3; }, "a radius in (0, 1000] shaft radii", "",
+           [](const StageConfig& c) { return c.field_interval > 0; }},
+          {"field_bins", &StageConfig::field_bins, "",
+           "with field_interval: slices of the field from the bottom platen to the top one",
+           [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of slices in [1, 10000]", "",
+           [](const StageConfig& c) { return c.field_interval > 0; }},
       }),
       .make = make_stage_of<PenetrateStage>,
       .check =
           [](const StageConfig& c, const std::string& prefix) {
+            if (c.field_interval % c.record_interval != 0) {
+              throw ConfigError(
+                  bad_value(prefix + ".field_interval", std::to_string(c.field_interval),
+                            "a multiple of record_interval (" + std::to_string(c.record_interval) +
+                                " steps), so that the field is taken at a record"));
+            }
             if (c.unload && !(c.stroke > 0.0 && c.pause > 0.0)) {
               throw ConfigError(bad_value(prefix + ".unload", "true",
                                           "false without strokes: unloading between strokes "
