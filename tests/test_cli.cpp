@@ -446,13 +446,34 @@ TEST_F(Branch, ChangesBeforeTheBranchAreRefusedNamingTheKey) {
   const Outcome friction = cli({"run", write("f.toml", staged_config(data_, 2000, 0.5)), "--out",
                                 (base_ / "f").string(), "--quiet", "--from", orig + ":1"});
   EXPECT_EQ(friction.rc, 2);
-  EXPECT_TRUE(has(friction.err, "material.friction")) << friction.err;
+  // The key, its value here and the original's.
+  EXPECT_TRUE(has(friction.err, "material.friction = 0.5 (the original run's: 0.275)"))
+      << friction.err;
   std::string text = staged_config(data_, 2000);
   text.replace(text.find("stress = 1e6"), 12, "stress = 2e6");
   const Outcome stage0 = cli({"run", write("s.toml", text), "--out", (base_ / "s").string(),
                               "--quiet", "--from", orig + ":hold"});
   EXPECT_EQ(stage0.rc, 2);
-  EXPECT_TRUE(has(stage0.err, "stage[0].stress")) << stage0.err;
+  EXPECT_TRUE(has(stage0.err, "stage[0].stress = ")) << stage0.err;
+  EXPECT_TRUE(has(stage0.err, "(the original run's: ")) << stage0.err;
+  const Outcome huge =
+      cli({"run", write("h.toml", staged_config(data_, 2000)), "--out", (base_ / "h").string(),
+           "--quiet", "--from", orig + ":99999999999999999999999"});
+  EXPECT_EQ(huge.rc, 2);
+  EXPECT_TRUE(has(huge.err, "a stage index below 2")) << huge.err;
+  // A refused branch writes nothing: no folder (which `resume` would start again as a run from
+  // its own sample), and a finished run that --overwrite would replace keeps its files.
+  for (const char* out : {"f", "s", "h"}) EXPECT_FALSE(fs::exists(base_ / out)) << out;
+  const std::string kept = (base_ / "kept").string();
+  ASSERT_EQ(cli({"run", write("k.toml", staged_config(data_, 2000)), "--out", kept, "--quiet"}).rc,
+            0);
+  const std::string summary = slurp(fs::path(kept) / "summary.json");
+  const Outcome over = cli({"run", (base_ / "f.toml").string(), "--out", kept, "--quiet",
+                            "--overwrite", "--from", orig + ":1"});
+  EXPECT_EQ(over.rc, 2);
+  EXPECT_TRUE(has(over.err, "material.friction")) << over.err;
+  EXPECT_EQ(slurp(fs::path(kept) / "summary.json"), summary);
+  EXPECT_TRUE(fs::exists(fs::path(kept) / "timeseries.csv"));
   const Outcome none = cli({"run", write("n.toml", staged_config(data_, 2000)), "--out",
                             (base_ / "n").string(), "--quiet", "--from", orig});
   EXPECT_EQ(none.rc, 2);

@@ -24,10 +24,37 @@ std::string toml_text(const toml::Value& v) {
   return toml::serialize(t);
 }
 
-// The first key under `prefix` where two values differ ("" when they are equal).
+// One value as it is written after `key = ` (for the messages).
+std::string value_text(const toml::Value* v) {
+  if (!v) return "not set";
+  std::string t = toml_text(*v);
+  if (t.rfind("v = ", 0) != 0) return "a table";
+  t = t.substr(4);
+  while (!t.empty() && t.back() == '\n') t.pop_back();
+  return t.size() > 80 ? t.substr(0, 77) + "..." : t;
+}
+
+// The first key under `prefix` where two values differ, with both values ("" when they are
+// equal): "body[0].friction = 0.5 (the original run's: 0.275)". Tables and arrays of tables of
+// one length are compared entry by entry.
 std::string first_difference(const toml::Value* a, const toml::Value* b, const std::string& prefix,
                              const std::set<std::string>& ignored = {}) {
-  if (!a || !b) return prefix;
+  const auto differ = [&]() {
+    if (!b) return prefix + " is not set here (the original run's: " + value_text(a) + ")";
+    if (!a) return prefix + " = " + value_text(b) + " (not set in the original run)";
+    return prefix + " = " + value_text(b) + " (the original run's: " + value_text(a) + ")";
+  };
+  if (!a || !b) return differ();
+  if (a->type == toml::Type::Array && b->type == toml::Type::Array &&
+      a->array.size() == b->array.size()) {
+    for (std::size_t i = 0; i < a->array.size(); ++i) {
+      if (a->array[i].type != toml::Type::Table) break;  // values: compared whole below
+      std::string d =
+          first_difference(&a->array[i], &b->array[i], prefix + "[" + std::to_string(i) + "]");
+      if (!d.empty()) return d;
+      if (i + 1 == a->array.size()) return "";
+    }
+  }
   if (a->type == toml::Type::Table && b->type == toml::Type::Table) {
     std::set<std::string> keys;
     for (const auto& [k, v] : *a->table) keys.insert(k);
@@ -42,7 +69,7 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
     }
     return "";
   }
-  return toml_text(*a) == toml_text(*b) ? "" : prefix;
+  return toml_text(*a) == toml_text(*b) ? "" : differ();
 }
 
 }  // namespace
@@ -262,7 +289,7 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
                         "(--from DIR:STAGE, its index or name)");
     }
   } else if (std::all_of(spec.begin(), spec.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-    k = std::stoul(spec);
+    k = spec.size() > 9 ? sa.size() : std::stoul(spec);  // (too many digits: refused below)
   } else {
     k = sa.size();
     for (std::size_t i = 0; i < old.stages.size(); ++i) {
@@ -279,9 +306,8 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
         bad_value("--from", spec, "a stage index below " + std::to_string(sa.size())));
   }
   for (std::size_t i = 0; i < k; ++i) {
-    const std::string d = i < sb.size()
-                              ? first_difference(&sa[i], &sb[i], "stage[" + std::to_string(i) + "]")
-                              : "stage[" + std::to_string(i) + "]";
+    const std::string d = first_difference(&sa[i], i < sb.size() ? &sb[i] : nullptr,
+                                           "stage[" + std::to_string(i) + "]");
     if (!d.empty()) {
       throw ConfigError(d + ": differs from the original run, but a branch at stage " +
                         std::to_string(k) + " keeps the stages before it as they ran");

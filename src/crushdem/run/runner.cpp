@@ -170,6 +170,7 @@ class Run {
         opt_(opt),
         dir_(opt.out_dir),
         stepper_(make_stepper(opt.backend)),
+        branch_k_(checked_branch(cfg_, opt)),
         lock_(open_directory(opt)),
         manifest_(dir_),
         config_text_(toml::serialize(to_toml(cfg))),
@@ -194,6 +195,9 @@ class Run {
     manifest_.add("vtk");
     create_directory(dir_ / "vtk", opt_.out_dir);
     if (!opt_.resume) {
+      // branch.json first: a branch stopped before its first checkpoint starts again as the
+      // branch (resume_directory), never as a run from its own sample.
+      if (branching_) write_branch_json();
       manifest_.add("config.toml");
       write_text_file((dir_ / "config.toml").string(), config_text_);
     }
@@ -249,7 +253,6 @@ class Run {
   static std::unique_ptr<DirectoryLock> open_directory(const RunOptions& opt) {
     clear_stop_request();
     const fs::path dir(opt.out_dir);
-    if (!opt.branch_dir.empty()) check_branch_directories(dir, opt.branch_dir);
     create_directory(dir, opt.out_dir);
     auto lock = std::make_unique<DirectoryLock>(dir);
     if (!opt.resume) prepare_new_run_directory(dir, opt.overwrite, opt.restart);
@@ -270,17 +273,40 @@ class Run {
     if (f) write_log_line(f.get(), "error: resume refused: " + why);
   }
 
+  // The saved state a branch at stage k of run `from` starts from.
+  static fs::path branch_state(const fs::path& from, std::size_t k) {
+    return from / "stages" / ("stage_" + std::to_string(k) + ".bin");
+  }
+
+  // A branch's stage, checked before its folder is made or cleared: a refused branch writes
+  // nothing and an --overwrite'd folder keeps its files. 0 when not branching.
+  static std::size_t checked_branch(const RunConfig& cfg, const RunOptions& opt) {
+    if (opt.branch_dir.empty()) return 0;
+    check_branch_directories(opt.out_dir, opt.branch_dir);
+    const fs::path from = fs::absolute(opt.branch_dir);
+    const std::size_t k = branch_stage(read_binary_file((from / "config.toml").string()), cfg,
+                                       opt.branch_stage, from);
+    const fs::path state = branch_state(from, k);
+    if (!fs::exists(state)) {
+      throw ConfigError("--from '" + opt.branch_dir + "': no saved state at the start of stage " +
+                        std::to_string(k) + " (" + state.string() +
+                        "; runs keep one per stage they reached)");
+    }
+    return k;
+  }
+
+  void write_branch_json() {
+    JsonObject b;
+    b.string("run", from_.string());
+    b.integer("stage", static_cast<long long>(branch_k_));
+    manifest_.add("branch.json");
+    write_text_file((dir_ / "branch.json").string(), b.dump() + "\n");
+  }
+
   void read_saved_position() {
     std::string path = (dir_ / "checkpoint.bin").string();
     if (branching_) {
-      const std::string original = read_binary_file((from_ / "config.toml").string());
-      branch_k_ = branch_stage(original, cfg_, opt_.branch_stage, from_);
-      path = (from_ / "stages" / ("stage_" + std::to_string(branch_k_) + ".bin")).string();
-      if (!fs::exists(path)) {
-        throw ConfigError("--from '" + opt_.branch_dir +
-                          "': no saved state at the start of stage " + std::to_string(branch_k_) +
-                          " (" + path + "; runs keep one per stage they reached)");
-      }
+      path = branch_state(from_, branch_k_).string();
     } else if (!fs::exists(path)) {
       throw ConfigError("crushdem-sand resume: no checkpoint in '" + opt_.out_dir + "'" +
                         (fs::exists(dir_ / "summary.json") ? " (the run has finished)" : ""));
@@ -297,11 +323,6 @@ class Run {
       pos_.wall_seconds = 0.0;
       pos_.part_seconds = {};
       pos_.particle_steps = 0.0;
-      JsonObject b;
-      b.string("run", from_.string());
-      b.integer("stage", static_cast<long long>(branch_k_));
-      manifest_.add("branch.json");
-      write_text_file((dir_ / "branch.json").string(), b.dump() + "\n");
     }
   }
 
@@ -643,12 +664,12 @@ class Run {
   const RunOptions& opt_;
   const fs::path dir_;
   std::unique_ptr<Stepper> stepper_;  // what advances the simulation (opt.backend)
+  const std::size_t branch_k_;        // the stage a branch starts at (checked_branch)
   std::unique_ptr<DirectoryLock> lock_;
   RunManifest manifest_;  // read after the lock is held and an old run is cleared
   const std::string config_text_;
   const bool branching_, resumed_;
   const fs::path from_;  // the run a branch starts from
-  std::size_t branch_k_ = 0;
   RunPosition pos_;
   std::unique_ptr<StateReader> in_;  // the saved state, read part by part
   LooseCloud cloud_;
