@@ -108,6 +108,14 @@ def plan(config: Mapping[str, Any], path: str = "CONFIG") -> Dict[str, Any]:
         raise ValueError(f"{path}: no \"penetrate\" stage before the first age stage: the pile "
                          "is installed first")
     names = [str(stages[i].get("name") or stages[i]["type"]) for i in range(len(stages))]
+    # The tests' names name their branches' folders and their rows: one name, one test.
+    for j, t in enumerate(tests):
+        for t0 in tests[:j]:
+            if names[t0] == names[t]:
+                raise ValueError(f"{path}: stage[{t}].name = \"{names[t]}\": expected a name "
+                                 f"of its own (stage[{t0}] is a load test named so too; an "
+                                 "unnamed load test is named \"load_test\"), since each test's "
+                                 "branches and rows go by its name")
     main = stages[:last + 1] + [stages[tests[0]]]
     branches = []
     for a_pos, a in enumerate(ages):
@@ -251,7 +259,7 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
 
 def write_results(out: str, p: Mapping[str, Any],
                   log: Callable[[str], None] = print) -> Dict[str, Any]:
-    """pile_capacity.csv, pile_setup.json, pile_setup.png and the figures of DIR/main."""
+    """pile_capacity.csv, pile_setup.png, the figures of DIR/main and, last, pile_setup.json."""
     import pandas as pd
 
     rows = capacity_rows(out, p)
@@ -265,10 +273,6 @@ def write_results(out: str, p: Mapping[str, Any],
         # The shaft's share on its own: set-up is a shaft effect (Axelsson 2000).
         fits[f"{test} (shaft)"] = (fit_setup(sel["ageing_time_s"], sel["shaft_at_capacity_N"])
                                    if len(sel) else fit_setup([], []))
-    with open(os.path.join(out, "pile_setup.json"), "w") as f:
-        json.dump({"model": "Q(t)/Q(t0) = 1 + A log10(t/t0) (Skov and Denver 1988)",
-                   "fits": fits}, f, indent=1, allow_nan=True)
-        f.write("\n")
     from .figures import use_file_backend_without_display
     from .figures.pile import figure_pile_setup
 
@@ -282,6 +286,13 @@ def write_results(out: str, p: Mapping[str, Any],
         from .plot import make_plots
 
         make_plots(main_dir, None)
+    # Last, whole or not at all: a sweep takes it to mean the variant is done, figures included.
+    setup = os.path.join(out, "pile_setup.json")
+    with open(setup + ".part", "w") as f:
+        json.dump({"model": "Q(t)/Q(t0) = 1 + A log10(t/t0) (Skov and Denver 1988)",
+                   "fits": fits}, f, indent=1, allow_nan=True)
+        f.write("\n")
+    os.replace(setup + ".part", setup)
     if len(df):
         with pd.option_context("display.width", 120, "display.max_columns", 20):
             log("capacities:\n" + df[["ageing_time_s", "test", "capacity_N",

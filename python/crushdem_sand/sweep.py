@@ -561,19 +561,24 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
 
 
 def stop_local_runs(log: Callable[[str], None], wait_s: float = STOP_WAIT_S) -> None:
-    """SIGTERM to the runs that this process's local workers started (each saves its checkpoint
-    and stops), and waits for them, before the cluster is closed: closing it kills a busy
-    worker after a few seconds, and its run with it, before the run's checkpoint."""
+    """SIGTERM to the runs and pile experiments that this process's local workers started (each
+    run saves its checkpoint and stops; a pile experiment stops its run so), and waits for them,
+    before the cluster is closed: closing it kills a busy worker after a few seconds, and its run
+    with it, before the run's checkpoint. A run that a pile experiment started is left to it: a
+    second SIGTERM more than a second after the first would end the run at once."""
     import psutil  # a dependency of distributed
 
-    runs = []
+    ours = []  # (process, its command after "-m crushdem_sand", its parent's pid)
     for child in psutil.Process().children(recursive=True):
         try:
-            cmd = child.cmdline()
+            cmd, parent = child.cmdline(), child.ppid()
         except psutil.Error:
             continue
-        if cmd[1:3] == ["-m", "crushdem_sand"] and cmd[3:4] in (["run"], ["resume"]):
-            runs.append(child)
+        if cmd[1:3] == ["-m", "crushdem_sand"]:
+            ours.append((child, cmd[3:4], parent))
+    piles = {c.pid for c, what, _ in ours if what == ["pile"]}
+    runs = [c for c, what, parent in ours
+            if what == ["pile"] or (what in (["run"], ["resume"]) and parent not in piles)]
     if runs:
         log(f"stopping: {len(runs)} run(s) saving their checkpoints")
     for run in runs:

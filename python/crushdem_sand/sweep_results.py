@@ -25,9 +25,15 @@ EXPERIMENTS = ("run", "pile")
 
 def finished(run_dir: str, experiment: str = "run") -> bool:
     """Whether the variant in ``run_dir`` is done: its summary.json (a run), or its
-    pile_setup.json, written after its last load test (a pile experiment)."""
+    pile_setup.json, written after its last load test and its figures (a pile experiment)."""
     return os.path.isfile(os.path.join(run_dir, "pile_setup.json" if experiment == "pile"
                                        else "summary.json"))
+
+
+def ageing_label(t: float) -> str:
+    """An ageing time [s] in a column name: its whole seconds ("3600"), or its digits when it
+    has a fraction ("0.2"), so that two times never share a column."""
+    return f"{t:.0f}" if math.isfinite(t) and t == round(t) else f"{t:.15g}"
 
 
 def pile_figures(out: str) -> Dict[str, float]:
@@ -51,7 +57,7 @@ def pile_figures(out: str) -> Dict[str, float]:
     except OSError:
         rows = []
     for r in rows:
-        at = f"@{as_float(r.get('ageing_time_s')):.0f}s"
+        at = f"@{ageing_label(as_float(r.get('ageing_time_s')))}s"
         out_figs[f"{r.get('test')}.capacity_N{at}"] = as_float(r.get("capacity_N"))
         out_figs[f"{r.get('test')}.shaft_at_capacity_N{at}"] = as_float(
             r.get("shaft_at_capacity_N"))
@@ -71,7 +77,8 @@ def _shaft_sigma_r_end(profile: Optional[Dict[str, Any]], stage: int) -> Optiona
 
 
 def summary_figures(run_dir: str) -> Dict[str, float]:
-    """The summary figures of a finished run: per stage (named by the stage's name) q_max, the
+    """The summary figures of a finished run: per stage (named by the stage's name, with its index
+    where stages share a name: ``age[2].K0_end``) q_max, the
     peak friction angle, K0, and for age stages sigma_v and q at 1 h and 1 day over their value
     at 4 s of ageing and the axial strain at 1 day; for a penetrate stage the cone resistance at
     its end (q_c averaged over the records of the last 10 % of its travel), the largest, the mean
@@ -87,8 +94,11 @@ def summary_figures(run_dir: str) -> Dict[str, float]:
         return out
     ev = read_events(run_dir)
     pen = profile = None
-    for k, st in enumerate(s.get("stages") or []):
-        name = st.get("name") or f"stage{k}"
+    stages = s.get("stages") or []
+    given = [st.get("name") or f"stage{k}" for k, st in enumerate(stages)]
+    for k, st in enumerate(stages):
+        # A name that two stages share gets the stage's index: "age[2]" (no column overwritten).
+        name = given[k] if given.count(given[k]) == 1 else f"{given[k]}[{k}]"
         kind = st.get("type")
         if kind == "load_test":
             for key in ("capacity_N", "shaft_at_capacity_N", "base_at_capacity_N"):

@@ -74,6 +74,9 @@ def test_the_plan_follows_the_stages_and_refuses_them_out_of_order():
         ([install, tests[0]] + ages, "stage[1] is a load test before"),  # none after: this first
         ([install] + ages + tests + [_stage("hold", "h")], "stage[6] (hold) follows"),
         (ages + tests, "no \"penetrate\" stage"),
+        # Two tests of one name (unnamed: both "load_test") would share their branches' folders.
+        ([install] + ages + [_stage("load_test", None), _stage("load_test", None)],
+         "stage[5].name = \"load_test\": expected a name of its own (stage[4]"),
     ]:
         with pytest.raises(ValueError, match=said.replace("[", r"\[").replace("(", r"\(")
                            .replace(")", r"\)")):
@@ -190,6 +193,53 @@ def test_a_stopped_pile_command_lets_its_run_save_its_checkpoint(tmp_path):
     r = pile.pile(str(cfg), str(out), log=lambda s: None)
     assert [row["ageing_time_s"] for row in r["capacity"]] == [3600.0, 86400.0]
     assert json.load(open(out / "main" / "timing.json"))["resumed"] is True
+
+
+def test_each_capacity_and_each_stage_has_a_column_of_its_own(tmp_path):
+    from crushdem_sand import sweep_results
+
+    # Ageing times below a second keep their digits: 0.2 s and 0.4 s are two columns.
+    with open(tmp_path / "pile_capacity.csv", "w") as f:
+        f.write("run,age,ageing_time_s,test,capacity_N,shaft_at_capacity_N,base_at_capacity_N\n"
+                "main,0,0.2,compression,1.0,0.5,0.5\nt1,1,0.4,compression,2.0,1.0,1.0\n"
+                "t2,2,3600,compression,3.0,1.5,1.5\n")
+    figs = sweep_results.pile_figures(str(tmp_path))
+    assert figs["compression.capacity_N@0.2s"] == 1.0
+    assert figs["compression.capacity_N@0.4s"] == 2.0
+    assert figs["compression.capacity_N@3600s"] == 3.0
+    # Two stages of one name: each keeps its figures, under its index.
+    with open(tmp_path / "summary.json", "w") as f:
+        json.dump({"stages": [{"name": "age", "type": "age", "K0_end": 0.9},
+                              {"name": "age", "type": "age", "K0_end": 0.8},
+                              {"name": "test", "type": "load_test", "capacity_N": 4.0}]}, f)
+    figs = sweep_results.summary_figures(str(tmp_path))
+    assert figs["age[0].K0_end"] == 0.9 and figs["age[1].K0_end"] == 0.8
+    assert "age.K0_end" not in figs and figs["test.capacity_N"] == 4.0
+
+
+def test_a_pile_experiment_counts_as_done_only_with_its_figures(tmp_path, monkeypatch):
+    from crushdem_sand import plot, sweep_results
+
+    (tmp_path / "main").mkdir()
+    (tmp_path / "main" / "timeseries.csv").write_text("time_s\n0\n")
+    rows = [{"run": "main", "age": 0, "ageing_time_s": t, "test": "compression",
+             "capacity_N": 1.0 + np.log10(t / 3600.0) * 0.1, "shaft_at_capacity_N": 0.5,
+             "base_at_capacity_N": 0.5} for t in (3600.0, 86400.0, 604800.0)]
+    monkeypatch.setattr(pile, "capacity_rows", lambda out, p: rows)
+
+    def stopped(run_dir, out=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plot, "make_plots", stopped)
+    p = {"test_names": ["compression"]}
+    with pytest.raises(KeyboardInterrupt):
+        pile.write_results(str(tmp_path), p, log=lambda s: None)
+    assert not sweep_results.finished(str(tmp_path), "pile")
+    monkeypatch.setattr(plot, "make_plots", lambda run_dir, out=None: [])
+    pile.write_results(str(tmp_path), p, log=lambda s: None)
+    assert sweep_results.finished(str(tmp_path), "pile")
+    fit = json.loads((tmp_path / "pile_setup.json").read_text())["fits"]["compression"]
+    assert fit["A"] == pytest.approx(0.1, rel=1e-9)
 
 
 def test_the_ring_profile_averages_the_slices_per_event_and_ring():

@@ -479,3 +479,39 @@ def test_a_stopped_sweep_lets_its_runs_save_their_checkpoints(tmp_path):
     log = open(os.path.join(run, "run.log")).read()
     assert "stopped by signal 15" in log, log[-800:]
     assert os.path.isfile(os.path.join(run, "checkpoint.bin"))
+
+
+def test_a_stopped_sweep_signals_a_pile_experiment_and_not_its_run(monkeypatch):
+    """stop_local_runs: SIGTERM to each run and pile experiment the workers started, once, but
+    not to a run that a pile experiment started (the pile stops it; a second SIGTERM more than
+    a second after the first would end that run without its checkpoint)."""
+    import psutil
+
+    class Proc:
+        def __init__(self, pid, ppid, what):
+            self.pid, self._ppid, self.signals = pid, ppid, []
+            self._cmd = [sys.executable, "-m", "crushdem_sand", what, "x.toml"]
+
+        def cmdline(self):
+            return self._cmd
+
+        def ppid(self):
+            return self._ppid
+
+        def send_signal(self, sig):
+            self.signals.append(sig)
+
+    worker = Proc(10, 1, "worker")
+    worker._cmd = [sys.executable, "-c", "worker"]
+    pile = Proc(11, 10, "pile")
+    piles_run = Proc(12, 11, "run")
+    alone = Proc(13, 10, "resume")
+    children = [worker, pile, piles_run, alone]
+    waited = []
+    monkeypatch.setattr(psutil.Process, "children", lambda self, recursive=False: children)
+    monkeypatch.setattr(psutil, "wait_procs", lambda procs, timeout: waited.extend(procs))
+    said = []
+    sweep.stop_local_runs(said.append, wait_s=1.0)
+    assert pile.signals == [signal.SIGTERM] and alone.signals == [signal.SIGTERM]
+    assert piles_run.signals == [] and worker.signals == []
+    assert waited == [pile, alone] and said == ["stopping: 2 run(s) saving their checkpoints"]
