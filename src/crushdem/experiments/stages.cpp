@@ -202,6 +202,25 @@ void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProb
   }
 }
 
+void write_ring_rows(StageOutputs& out, const std::string& file,
+                     const std::vector<RingStress>& rings, const Measurement& lead,
+                     const char* place, double offset) {
+  for (const RingStress& r : rings) {
+    Measurement b = lead;
+    b.emplace_back("ring", static_cast<double>(r.ring));
+    b.emplace_back("bin", static_cast<double>(r.bin));
+    b.emplace_back("r_in_m", r.r_in);
+    b.emplace_back("r_out_m", r.r_out);
+    b.emplace_back(place, r.height + offset);
+    b.emplace_back("sigma_rr_Pa", r.sigma_rr);
+    b.emplace_back("sigma_tt_Pa", r.sigma_tt);
+    b.emplace_back("sigma_zz_Pa", r.sigma_zz);
+    b.emplace_back("tau_rz_Pa", r.tau_rz);
+    b.emplace_back("grains", static_cast<double>(r.grains));
+    out.write(file, b);
+  }
+}
+
 int stage_body_index(const Walls& w, const StageConfig& c) {
   for (int k = kNumWalls; k < w.size(); ++k) {
     if (w.name(k) == c.body) return k;

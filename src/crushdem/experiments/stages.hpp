@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "crushdem/core/params.hpp"
+#include "crushdem/experiments/pile_field.hpp"
 #include "crushdem/experiments/protocol.hpp"
 #include "crushdem/walls/body_probe.hpp"
 
@@ -164,6 +165,12 @@ BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c);
 /// (the bin's middle above the shaft's start), sigma_r_Pa, tau_Pa and contacts.
 void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProbe& p,
                       const Measurement& lead);
+/// A row of `file` per ring and slice (experiments/pile_field.hpp): the columns of `lead`, then
+/// ring, bin, r_in_m, r_out_m, the slice's middle (its height + `offset`, named `place`),
+/// sigma_rr_Pa, sigma_tt_Pa, sigma_zz_Pa, tau_rz_Pa and grains.
+void write_ring_rows(StageOutputs& out, const std::string& file,
+                     const std::vector<RingStress>& rings, const Measurement& lead,
+                     const char* place, double offset);
 /// Index of the body named `name` in `w` (ConfigError naming the stage's body key otherwise).
 int stage_body_index(const Walls& w, const StageConfig& c);
 

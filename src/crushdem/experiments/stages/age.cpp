@@ -177,21 +177,7 @@ class AgeStage final : public Stage {
     Measurement lead;
     head(lead);
     write_shaft_rows(out, "pile_shaft.csv", p, lead);
-    for (const RingStress& r : f.rings) {
-      Measurement b;
-      head(b);
-      b.emplace_back("ring", static_cast<double>(r.ring));
-      b.emplace_back("bin", static_cast<double>(r.bin));
-      b.emplace_back("r_in_m", r.r_in);
-      b.emplace_back("r_out_m", r.r_out);
-      b.emplace_back("height_m", r.height);
-      b.emplace_back("sigma_rr_Pa", r.sigma_rr);
-      b.emplace_back("sigma_tt_Pa", r.sigma_tt);
-      b.emplace_back("sigma_zz_Pa", r.sigma_zz);
-      b.emplace_back("tau_rz_Pa", r.tau_rz);
-      b.emplace_back("grains", static_cast<double>(r.grains));
-      out.write("pile_rings.csv", b);
-    }
+    write_ring_rows(out, "pile_rings.csv", f.rings, lead, "height_m", 0.0);
   }
 
   /// The ageing clock this stage ages to [s].

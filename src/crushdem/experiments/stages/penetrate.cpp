@@ -206,26 +206,14 @@ class PenetrateStage final : public Stage {
   // penetration_field.csv: the stress in rings of grains about the body, platen to platen.
   void record_field(const Simulation& sim, const BodyProbe& p, StageOutputs& out) const {
     const int k = stage_body_index(sim.walls(), cfg_);
-    for (const RingStress& r :
-         measure_body_field(sim, k, static_cast<int>(cfg_.rings), cfg_.field_radius,
-                            static_cast<int>(cfg_.field_bins))) {
-      Measurement b;
-      b.emplace_back("stage", static_cast<double>(index()));
-      b.emplace_back("time_s", sim.time());
-      b.emplace_back("travel_m", travel_);
-      b.emplace_back("tip_z_m", p.tip.z);
-      b.emplace_back("ring", static_cast<double>(r.ring));
-      b.emplace_back("bin", static_cast<double>(r.bin));
-      b.emplace_back("r_in_m", r.r_in);
-      b.emplace_back("r_out_m", r.r_out);
-      b.emplace_back("z_m", sim.walls().position(4) + r.height);
-      b.emplace_back("sigma_rr_Pa", r.sigma_rr);
-      b.emplace_back("sigma_tt_Pa", r.sigma_tt);
-      b.emplace_back("sigma_zz_Pa", r.sigma_zz);
-      b.emplace_back("tau_rz_Pa", r.tau_rz);
-      b.emplace_back("grains", static_cast<double>(r.grains));
-      out.write("penetration_field.csv", b);
-    }
+    write_ring_rows(out, "penetration_field.csv",
+                    measure_body_field(sim, k, static_cast<int>(cfg_.rings), cfg_.field_radius,
+                                       static_cast<int>(cfg_.field_bins)),
+                    {{"stage", static_cast<double>(index())},
+                     {"time_s", sim.time()},
+                     {"travel_m", travel_},
+                     {"tip_z_m", p.tip.z}},
+                    "z_m", sim.walls().position(4));
   }
 
   // The body driven at `velocity` (moving) or held still where it is.
