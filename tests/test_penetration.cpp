@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -77,8 +78,10 @@ void expect_cone_recorded_and_stopped(const std::string& backend) {
   EXPECT_EQ(shaft["bin"].size(), 10 * n);
   // The stress field, every 2500 steps and at the end: 5 rings by 4 slices. Its rings reach
   // past the box's corners, so every grain is in a cell, and the trace of each grain's
-  // Love-Weber term is the same in its cylindrical frame: summed over the cells, the field
-  // gives the sample's Love-Weber mean stress, whatever the frames and the cells' volumes.
+  // Love-Weber term is the same in its cylindrical frame: summed over the cells, times each
+  // cell's volume less the cone's share of it, the field gives the sample's Love-Weber mean
+  // stress. The cone's shares add up to its volume below the top wall (its tip 0.1 mm in radius
+  // and 0.1 / tan 30 mm high, then its shaft), a check of the cells' places.
   auto field = testing::read_csv((temp.path() / "run" / "penetration_field.csv").string());
   const std::vector<double>& t_field = field["time_s"];
   ASSERT_EQ(t_field.size() % 20, 0u);
@@ -94,18 +97,34 @@ void expect_cone_recorded_and_stopped(const std::string& backend) {
     const double H = pen["wall_zmax_position_m"][i] - pen["wall_zmin_position_m"][i];
     const double V = (pen["wall_xmax_position_m"][i] - pen["wall_xmin_position_m"][i]) *
                      (pen["wall_ymax_position_m"][i] - pen["wall_ymin_position_m"][i]) * H;
-    double trace = 0.0, grains = 0.0;
+    double trace = 0.0, grains = 0.0, body = 0.0;
     for (std::size_t c = 20 * f; c < 20 * (f + 1); ++c) {
       EXPECT_EQ(field["time_s"][c], t_field[20 * f]);
       EXPECT_EQ(field["tip_z_m"][c], pen["tip_z_m"][i]);
       const double r0 = field["r_in_m"][c], r1 = field["r_out_m"][c];
       EXPECT_NEAR(r1 - r0, 0.2e-3, 1e-15);
-      trace += (field["sigma_rr_Pa"][c] + field["sigma_tt_Pa"][c] + field["sigma_zz_Pa"][c]) * kPi *
-               (r1 * r1 - r0 * r0) * H / 4.0;
+      EXPECT_NEAR(field["z_m"][c],
+                  pen["wall_zmin_position_m"][i] + (field["bin"][c] + 0.5) * H / 4.0, 1e-15);
+      const double in_cone = field["body_volume_m3"][c];
+      if (field["ring"][c] > 0.0) {
+        EXPECT_EQ(in_cone, 0.0);  // the cone is 0.1 mm across
+      }
+      trace += (field["sigma_rr_Pa"][c] + field["sigma_tt_Pa"][c] + field["sigma_zz_Pa"][c]) *
+               (kPi * (r1 * r1 - r0 * r0) * H / 4.0 - in_cone);
       grains += field["grains"][c];
+      body += in_cone;
     }
     EXPECT_EQ(grains, pen["n_particles"][i]);
     EXPECT_NEAR(trace / (3.0 * pen["love_mean_stress_Pa"][i] * V), 1.0, 1e-9) << "record " << f;
+    const double R = 0.1e-3, h_tip = R / std::tan(kPi / 6.0);
+    const double tip = pen["tip_z_m"][i], top = pen["wall_zmax_position_m"][i];
+    double expected = 0.0;  // the cone's volume below the top wall
+    if (tip < top) {
+      const double in_tip = std::min(top - tip, h_tip);  // the tip's height below the top
+      expected += kPi * R * R * in_tip * in_tip * in_tip / (3.0 * h_tip * h_tip);
+      if (top - tip > h_tip) expected += kPi * R * R * (top - tip - h_tip);
+    }
+    EXPECT_NEAR(body, expected, 1e-3 * kPi * R * R * H) << "record " << f;
   }
   // The cone stays where the stage left it.
   auto ts = testing::read_csv((temp.path() / "run" / "timeseries.csv").string());

@@ -190,9 +190,10 @@ def read_shaft_profile(run_dir: PathLike) -> Optional[Columns]:
 
 def read_penetration_field(run_dir: PathLike) -> Optional[Columns]:
     """DIR/penetration_field.csv (a penetrate stage's ``field_interval``: at each of its records,
-    one row per ring and slice about the body: ``travel_m``, ``tip_z_m``, ``ring``, ``bin``,
-    ``r_in_m``, ``r_out_m``, ``z_m`` (the slice's middle), ``sigma_rr_Pa``, ``sigma_tt_Pa``,
-    ``sigma_zz_Pa``, ``tau_rz_Pa``, ``grains``), or None when missing."""
+    one row per ring and slice about the body: ``stage``, ``time_s``, ``travel_m``, ``tip_z_m``,
+    ``ring``, ``bin``, ``r_in_m``, ``r_out_m``, ``z_m`` (the slice's middle), ``sigma_rr_Pa``,
+    ``sigma_tt_Pa``, ``sigma_zz_Pa``, ``tau_rz_Pa``, ``grains``, ``body_volume_m3``), or None
+    when missing."""
     path = os.path.join(run_dir, "penetration_field.csv")
     return read_csv(path) if os.path.isfile(path) else None
 

@@ -118,12 +118,27 @@ def figure_stress_field(run: Run) -> Optional[Figure]:
     r_edges[rings + 1] = f["r_out_m"][last] * 1e3
     z_mid = np.zeros(n_z)
     z_mid[bins] = f["z_m"][last] * 1e3
-    dz = (z_mid[-1] - z_mid[0]) / (n_z - 1) if n_z > 1 else 1.0
+    # The slices' height: from the bottom platen at the record (penetration.csv's row then), or
+    # from their spacing.
+    p = run.penetration
+    stage = f["stage"][last][0] if "stage" in f else None
+    rows = np.zeros(0, bool)
+    if p is not None and "time_s" in p:
+        rows = p["time_s"] == f["time_s"][-1]
+    if rows.any() and "wall_zmin_position_m" in p:
+        dz = 2.0 * (z_mid[0] - p["wall_zmin_position_m"][rows][0] * 1e3)
+    else:
+        dz = (z_mid[-1] - z_mid[0]) / (n_z - 1) if n_z > 1 else 1.0
     z_edges = np.concatenate([z_mid - 0.5 * dz, [z_mid[-1] + 0.5 * dz]])
     empty = np.zeros((n_z, n_r), bool)
     empty[bins, rings] = f["grains"][last] == 0
     tip_z = f["tip_z_m"][last][0] * 1e3
-    p = run.penetration
+    top = z_edges[-1]  # the tip's path from where its stage began
+    if p is not None and "tip_z_m" in p:
+        of_stage = p["stage"] == stage if stage is not None and "stage" in p else \
+            np.ones_like(p["tip_z_m"], bool)
+        if of_stage.any():
+            top = p["tip_z_m"][of_stage][0] * 1e3
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(12, 6), sharey=True)
     for ax, (key, name) in zip(axes, (("sigma_rr_Pa", r"radial $\sigma_{rr}$"),
@@ -134,7 +149,6 @@ def figure_stress_field(run: Run) -> Optional[Figure]:
         mesh = ax.pcolormesh(r_edges, z_edges, np.ma.masked_array(grid, empty), cmap="YlOrRd",
                              shading="flat")
         fig.colorbar(mesh, ax=ax, label=f"{name} [kPa]", orientation="horizontal", pad=0.1)
-        top = p["tip_z_m"][0] * 1e3 if p is not None and "tip_z_m" in p else z_edges[-1]
         ax.plot([0.0, 0.0], [tip_z, max(top, tip_z)], "k-", lw=3, label="the tip's path")
         ax.plot([0.0], [tip_z], "kv", ms=8)
         label_axes(ax, "distance from the axis r [mm]", "z [mm]" if ax is axes[0] else "", name)

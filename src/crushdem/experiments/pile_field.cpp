@@ -189,7 +189,46 @@ std::vector<RingStress> measure_body_field(const Simulation& sim, int k, int rin
     edges[static_cast<std::size_t>(m)] = field_radius * R * m / rings;
   }
   const FieldGrid grid({apex.x, apex.y, w.position(4)}, {0.0, 0.0, 1.0}, std::move(edges), h, bins);
-  return ring_stresses(sim, grid, [](Vec3, const ContactRecord&) {});
+  std::vector<RingStress> cells = ring_stresses(sim, grid, [](Vec3, const ContactRecord&) {});
+  // The body's volume in each cell, taken out of it: the stress is the sand's. The body's
+  // radius at height z is the largest of its solid parts' (cones and shafts along z), integrated
+  // over each slice by the midpoint rule (exact for a shaft).
+  const BodyShape& b = w.shape(k);
+  std::vector<BodyPart> solids;
+  for (int j = 0; j < b.parts; ++j) {
+    const BodyPart s = placed_part(b.part[j], w.position(k), b.motion, b.dilate);
+    if ((s.shape == Shape::Cone || s.shape == Shape::CylinderOutside) &&
+        std::abs(std::abs(s.axis.z) - 1.0) < 1e-12) {
+      solids.push_back(s);
+    }
+  }
+  const auto body_radius = [&solids](double z) {
+    double rho = 0.0;
+    for (const BodyPart& s : solids) {
+      const double a = (z - s.origin.z) * s.axis.z;  // along the part's axis from its start
+      if (!(a >= 0.0 && a <= s.length)) continue;
+      rho = std::max(rho, s.shape == Shape::Cone ? s.radius * a / s.length : s.radius);
+    }
+    return rho;
+  };
+  constexpr int kSamples = 64;  // per slice
+  const double dh = h / bins;
+  for (RingStress& c : cells) {
+    double area = 0.0;  // sum over the samples of the body's section within the ring / pi
+    for (int m = 0; m < kSamples; ++m) {
+      const double z = w.position(4) + (c.bin + (m + 0.5) / kSamples) * dh;
+      const double rho = std::clamp(body_radius(z), c.r_in, c.r_out);
+      area += rho * rho - c.r_in * c.r_in;
+    }
+    c.body_volume = w.sector() * kPi * area * dh / kSamples;
+    const double V = w.sector() * kPi * (c.r_out * c.r_out - c.r_in * c.r_in) * dh;
+    const double scale = V > c.body_volume ? V / (V - c.body_volume) : 0.0;
+    c.sigma_rr *= scale;
+    c.sigma_tt *= scale;
+    c.sigma_zz *= scale;
+    c.tau_rz *= scale;
+  }
+  return cells;
 }
 
 std::vector<RingStress> measure_chamber_profile(const Simulation& sim, double radius, int bins) {

@@ -31,6 +31,7 @@ struct RingStress {
   double height = 0.0;             // the slice's middle above the apex [m]
   double sigma_rr = 0.0, sigma_tt = 0.0, sigma_zz = 0.0, tau_rz = 0.0;  // [Pa]
   std::uint64_t grains = 0;
+  double body_volume = 0.0;  // [m^3] the body's share of the cell (measure_body_field), not in V
 };
 
 struct PileField {
@@ -47,9 +48,9 @@ PileField measure_pile_field(const Simulation& sim, int k, int rings, double fie
 /// The stress field about body k as a penetrate stage drives it (penetration_field.csv): rings of
 /// equal width from the vertical line through its tip (ring 0 from r = 0: the sand under the
 /// tip) out to field_radius R, R its shaft's radius, cut into `bins` slices from the bottom
-/// platen to the top one (height above the bottom platen). Cells the body passes through count
-/// its volume as void. Empty without a positive sample height. rings >= 1, field_radius > 0,
-/// bins >= 1.
+/// platen to the top one (height above the bottom platen). A cell's volume leaves out the
+/// body's share of it (its cones and shafts along z; `body_volume`): the stress is the sand's.
+/// Empty without a positive sample height. rings >= 1, field_radius > 0, bins >= 1.
 std::vector<RingStress> measure_body_field(const Simulation& sim, int k, int rings,
                                            double field_radius, int bins);
 

@@ -204,7 +204,7 @@ void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProb
 
 void write_ring_rows(StageOutputs& out, const std::string& file,
                      const std::vector<RingStress>& rings, const Measurement& lead,
-                     const char* place, double offset) {
+                     const char* place, double offset, bool body_volume) {
   for (const RingStress& r : rings) {
     Measurement b = lead;
     b.emplace_back("ring", static_cast<double>(r.ring));
@@ -217,6 +217,7 @@ void write_ring_rows(StageOutputs& out, const std::string& file,
     b.emplace_back("sigma_zz_Pa", r.sigma_zz);
     b.emplace_back("tau_rz_Pa", r.tau_rz);
     b.emplace_back("grains", static_cast<double>(r.grains));
+    if (body_volume) b.emplace_back("body_volume_m3", r.body_volume);
     out.write(file, b);
   }
 }

@@ -167,10 +167,11 @@ void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProb
                       const Measurement& lead);
 /// A row of `file` per ring and slice (experiments/pile_field.hpp): the columns of `lead`, then
 /// ring, bin, r_in_m, r_out_m, the slice's middle (its height + `offset`, named `place`),
-/// sigma_rr_Pa, sigma_tt_Pa, sigma_zz_Pa, tau_rz_Pa and grains.
+/// sigma_rr_Pa, sigma_tt_Pa, sigma_zz_Pa, tau_rz_Pa, grains and, with `body_volume`, the body's
+/// share of the cell (body_volume_m3).
 void write_ring_rows(StageOutputs& out, const std::string& file,
                      const std::vector<RingStress>& rings, const Measurement& lead,
-                     const char* place, double offset);
+                     const char* place, double offset, bool body_volume = false);
 /// Index of the body named `name` in `w` (ConfigError naming the stage's body key otherwise).
 int stage_body_index(const Walls& w, const StageConfig& c);
 

@@ -21,7 +21,7 @@ const ParamTable<TimestepConfig>& timestep_params() {
        "automatic: dt <= safety x min_i sqrt(m_i / sum of k_n + k_t of its contacts)",
        [](double v) { return v > 0.0 && v <= 1.0; }, "a value in (0, 1]"},
       {"update_interval", &T::update_interval, "", "automatic: steps between re-evaluations",
-       [](double v) { return v > 0.0; }, "a positive number of steps"},
+       [](double v) { return v > 0.0; }, "a number of steps >= 1"},
   };
   return table;
 }

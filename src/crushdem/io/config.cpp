@@ -485,7 +485,7 @@ const ParamTable<OutputConfig>& output_params() {
   using O = OutputConfig;
   static const ParamTable<O> table = {
       {"interval", &O::interval, "", "steps between rows of `timeseries.csv`",
-       [](double v) { return v > 0.0; }, "a positive number of steps"},
+       [](double v) { return v > 0.0; }, "a number of steps >= 1"},
       {"vtk_interval", &O::vtk_interval, "",
        "steps between ParaView snapshots (counted from step 0); 0 = none between the frames "
        "always written: the first state (a prepared sample once prepared), each stage's start, "

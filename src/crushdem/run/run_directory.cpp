@@ -27,6 +27,10 @@ std::string toml_text(const toml::Value& v) {
 // One value as it is written after `key = ` (for the messages).
 std::string value_text(const toml::Value* v) {
   if (!v) return "not set";
+  if (v->type == toml::Type::Array && !v->array.empty() &&
+      v->array.front().type == toml::Type::Table) {
+    return std::to_string(v->array.size()) + (v->array.size() == 1 ? " entry" : " entries");
+  }
   std::string t = toml_text(*v);
   if (t.rfind("v = ", 0) != 0) return "a table";
   t = t.substr(4);

@@ -278,8 +278,9 @@ class Run {
     return from / "stages" / ("stage_" + std::to_string(k) + ".bin");
   }
 
-  // A branch's stage, checked before its folder is made or cleared: a refused branch writes
-  // nothing and an --overwrite'd folder keeps its files. 0 when not branching.
+  // A branch's stage, checked before its folder is made or cleared (the configurations key by key,
+  // the saved state's format and checksum): a refused branch writes nothing and an
+  // --overwrite'd folder keeps its files. 0 when not branching.
   static std::size_t checked_branch(const RunConfig& cfg, const RunOptions& opt) {
     if (opt.branch_dir.empty()) return 0;
     check_branch_directories(opt.out_dir, opt.branch_dir);
@@ -292,6 +293,7 @@ class Run {
                         std::to_string(k) + " (" + state.string() +
                         "; runs keep one per stage they reached)");
     }
+    open_checkpoint(state.string());  // its format and checksum (read again when the run starts)
     return k;
   }
 

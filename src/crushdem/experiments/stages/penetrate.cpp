@@ -92,6 +92,15 @@ class PenetrateStage final : public Stage {
                                         show_number(w.position(4)) + " m)"));
       }
     }
+    if (cfg_.field_interval > 0) {  // the field's rings are about a vertical axis
+      const Vec3 m = w.shape(k).motion;
+      if (!(std::abs(m.z) >= norm(m) * (1.0 - 1e-12))) {
+        throw ConfigError(bad_value("stage '" + cfg_.label() + "'.field_interval",
+                                    std::to_string(cfg_.field_interval),
+                                    "0 for this body: the stress field is taken in rings about a "
+                                    "vertical axis, and this body does not move along z"));
+      }
+    }
     q_start_ = w.position(k);
     next_stop_ = cfg_.stroke > 0.0 ? std::min(cfg_.stroke, cfg_.depth) : cfg_.depth;
     move(sim, true);
@@ -213,7 +222,7 @@ class PenetrateStage final : public Stage {
                      {"time_s", sim.time()},
                      {"travel_m", travel_},
                      {"tip_z_m", p.tip.z}},
-                    "z_m", sim.walls().position(4));
+                    "z_m", sim.walls().position(4), true);
   }
 
   // The body driven at `velocity` (moving) or held still where it is.
@@ -387,7 +396,8 @@ const StageKind& penetrate_stage_kind() {
       .name = "penetrate",
       .description =
           "a [[body]] (cone, pile, flat punch) driven at `velocity` for `depth`; q_c, f_s "
-          "and the shaft's radial stress recorded (penetration.csv, shaft_profile.csv)",
+          "and the shaft's radial stress recorded (penetration.csv, shaft_profile.csv; the "
+          "stress field about it in penetration_field.csv)",
       .params = held_walls_stage_table({
           {"body",
            &StageConfig::body,
@@ -437,10 +447,10 @@ const StageKind& penetrate_stage_kind() {
            &StageConfig::field_interval,
            "",
            "steps between records of the stress field about the body (penetration_field.csv: "
-           "rings of grains from its axis, platen to platen), and at the stage's end; a "
-           "multiple of record_interval; 0 = none",
+           "rings of grains from its axis, platen to platen), and when it reaches its depth; a "
+           "multiple of record_interval; a body moving along z; 0 = none",
            nullptr,
-           {},
+           "a number of steps, a multiple of record_interval (0 = none)",
            {},
            [](const StageConfig& c) { return c.field_interval > 0; }},
           {"rings", &StageConfig::rings, "",
