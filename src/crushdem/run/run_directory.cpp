@@ -50,14 +50,14 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
   };
   if (!a || !b) return differ();
   if (a->type == toml::Type::Array && b->type == toml::Type::Array &&
-      a->array.size() == b->array.size()) {
+      a->array.size() == b->array.size() && !a->array.empty() &&
+      a->array.front().type == toml::Type::Table) {  // ([[body]]; arrays of values: whole)
     for (std::size_t i = 0; i < a->array.size(); ++i) {
-      if (a->array[i].type != toml::Type::Table) break;  // values: compared whole below
       std::string d =
           first_difference(&a->array[i], &b->array[i], prefix + "[" + std::to_string(i) + "]");
       if (!d.empty()) return d;
-      if (i + 1 == a->array.size()) return "";
     }
+    return "";
   }
   if (a->type == toml::Type::Table && b->type == toml::Type::Table) {
     std::set<std::string> keys;
