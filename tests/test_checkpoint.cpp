@@ -187,6 +187,25 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
     }
     EXPECT_EQ(read_file(damaged / "checkpoint.bin"), bytes);
   }
+  // A config.toml changed after the checkpoint is refused, naming the key and both values.
+  {
+    const fs::path changed = base / "changed";
+    fs::remove_all(changed);
+    fs::copy(base / "stopped", changed, fs::copy_options::recursive);
+    std::string text = read_file(changed / "config.toml");
+    const std::size_t k = text.find("n_break = 3\n");
+    ASSERT_NE(k, std::string::npos) << text;
+    text.replace(k, 11, "n_break = 4");
+    std::ofstream(changed / "config.toml", std::ios::binary) << text;
+    try {
+      resume_directory(changed.string(), opt);
+      ADD_FAILURE() << "resumed with a changed config.toml";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("stage[1].n_break = 4 (the original run's: 3)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
   // A result file changed after the checkpoint (one byte of a row it had written), or a
   // snapshot deleted: resume refuses (a ConfigError, exit status 2, for either), naming the
   // file, and changes nothing.

@@ -214,6 +214,19 @@ TEST(ParameterTables, EachStageKindHasItsOwnTable) {
   EXPECT_NE(
       message("[[stage]]\ntype = \"hold\"\nsteps = 10\nduration = 1.0\n").find("exactly one of"),
       std::string::npos);
+  // A key whose switch is off is refused, naming it and its value; a switch given as off is not.
+  EXPECT_NE(message("[[stage]]\ntype = \"hold\"\nsteps = 10\naxial_stress = 1e5\n")
+                .find("stage[0].axial_stress' = 100000: expected no 'axial_stress' in this stage"),
+            std::string::npos);
+  EXPECT_NE(message("[[stage]]\ntype = \"hold\"\nsteps = 10\nprofile_radius = 0.3\n")
+                .find("stage[0].profile_radius' = 0.3"),
+            std::string::npos);
+  EXPECT_NE(message("[[stage]]\ntype = \"hold\"\nsteps = 10\nhead = \"load\"\n")
+                .find("stage[0].head' = \"load\""),
+            std::string::npos);
+  EXPECT_EQ(message("[[stage]]\ntype = \"hold\"\nsteps = 10\nsettle = false\nprofile_bins = 0\n"
+                    "head = \"held\"\n"),
+            "no error");
   EXPECT_EQ(make_stage(c.stages[0], 1e-4, nullptr)->result().kind, "triaxial");
   EXPECT_EQ(make_stage(c.stages[1], 1e-4, nullptr)->result().kind, "hold");
   StageConfig age;

@@ -143,6 +143,38 @@ TEST(Penetration, OnTheDeviceTooTheConeRecordsAndStops) {
   expect_cone_recorded_and_stopped("emulated");
 }
 
+// A penetration cut by max_steps between two records (rows every 2500 steps, the cut at the
+// first check from 3700 steps on) ends with a row and a field record of its last step, the
+// grains brought back from the device for them, and no step recorded twice.
+TEST(Penetration, AStageCutByMaxStepsRecordsItsLastStateOnce) {
+  const testing::TempDir temp("penetrate");
+  std::string text =
+      testing::test_data("grains_300.toml") + testing::test_data("penetration_300.toml");
+  const std::string rows = "record_interval = 500\n";
+  text.replace(text.find(rows), rows.size(), "record_interval = 2500\nmax_steps = 3700\n");
+  RunOptions opt;
+  opt.progress = false;
+  opt.backend = "emulated";
+  opt.out_dir = (temp.path() / "run").string();
+  run_to_directory(config(text), opt);
+  auto pen = testing::read_csv((temp.path() / "run" / "penetration.csv").string());
+  const std::vector<double>& step = pen["step"];
+  ASSERT_EQ(step.size(), 3u);  // the start, 2500 steps in, the cut
+  EXPECT_EQ(step[1] - step[0], 2500.0);
+  EXPECT_GE(step[2] - step[0], 3700.0);  // the first check at or past max_steps
+  EXPECT_LT(step[2] - step[0], 4000.0 + 1.0);
+  EXPECT_EQ(pen["moving"].back(), 1.0);  // cut on its way down
+  auto field = testing::read_csv((temp.path() / "run" / "penetration_field.csv").string());
+  ASSERT_EQ(field["time_s"].size(), 3u * 20u);  // at 0, 2500 and the cut
+  EXPECT_EQ(field["time_s"].back(), pen["time_s"].back());
+  EXPECT_EQ(field["tip_z_m"].back(), pen["tip_z_m"].back());
+  double grains = 0.0;
+  for (std::size_t c = 40; c < 60; ++c) grains += field["grains"][c];
+  EXPECT_EQ(grains, pen["n_particles"].back());
+  const std::string summary = testing::read_file(temp.path() / "run" / "summary.json");
+  EXPECT_NE(summary.find("\"max_steps\""), std::string::npos) << summary;
+}
+
 TEST(Penetration, AStoppedPenetrationResumedWritesTheFilesOfAnUninterruptedOne) {
   const testing::TempDir temp("penetrate");
   const fs::path& base = temp.path();
@@ -293,6 +325,15 @@ TEST(Penetration, BadPenetrationsAreRefusedNamingTheKey) {
       // Unloading between strokes without strokes, or without a pause to unload in.
       {cone + stage + "body = \"cone\"\nunload = true\n", "stage[0].unload"},
       {cone + stage + "body = \"cone\"\nstroke = 1e-5\nunload = true\n", "stage[0].unload"},
+      // A field without its interval; a field about a body that does not move along z; a
+      // field interval that is not a multiple of the record interval.
+      {cone + stage + "body = \"cone\"\nrings = 4\n", "stage[0].rings' = 4"},
+      {cone + stage + "body = \"cone\"\nfield_radius = 3.0\nfield_bins = 5\n",
+       "stage[0].field_radius' = 3"},
+      {cone + "direction = [1, 0, 0]\n" + stage + "body = \"cone\"\nfield_interval = 2000\n",
+       "stage[0].field_interval' = 2000: expected 0 for this body"},
+      {cone + stage + "body = \"cone\"\nrecord_interval = 30\nfield_interval = 100\n",
+       "stage[0].field_interval"},
       // A pile through the grains.
       {"[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0.6e-3, 0.6e-3, 0.1e-3]\n"
        "radius = 1e-4\nlength = 2e-3\n" +

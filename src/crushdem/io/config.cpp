@@ -53,14 +53,10 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
       WallConfig& w = c.walls[static_cast<std::size_t>(k)];
       read_params(s, w, wall_params());
       // A key that the chosen mode does not use is almost always a forgotten `mode` line.
-      for (const Param<WallConfig>& p : wall_params()) {
-        const std::string key(p.key);
-        if (p.applies && !p.applies(w) && s.has(key)) {
-          throw ConfigError(bad_value(s.key(key), "given",
-                                      "no '" + key + "' for a wall in mode \"" + to_string(w.mode) +
-                                          "\" (set mode or remove the key)"));
-        }
-      }
+      param_io::refuse_unused_keys(s, w, wall_params(), nullptr, [&](const Param<WallConfig>& p) {
+        return "no '" + std::string(p.key) + "' for a wall in mode \"" + to_string(w.mode) +
+               "\" (set mode or remove the key)";
+      });
       s.finish();
     }
     walls.finish();
@@ -69,15 +65,9 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     BodyConfig b;
     read_params(s, b, body_params());
     // The motion keys apply as a wall's do: a key the mode does not use is a forgotten `mode`.
-    for (const Param<BodyConfig>& p : body_params()) {
-      const std::string key(p.key);
-      if (p.applies && !p.applies(b) && s.has(key)) {
-        throw ConfigError(bad_value(s.key(key), "given",
-                                    "no '" + key +
-                                        "' for this body (its mode or shape does not "
-                                        "use it)"));
-      }
-    }
+    param_io::refuse_unused_keys(s, b, body_params(), nullptr, [](const Param<BodyConfig>& p) {
+      return "no '" + std::string(p.key) + "' for this body (its mode or shape does not use it)";
+    });
     s.finish();
     c.bodies.push_back(b);
   }
@@ -181,6 +171,13 @@ void read_stage(Section& s, StageConfig& c) {
   }
   read_params(s, c, own);
   s.finish();
+  // A key whose switch is off (a field's rings without field_interval, a servo target for a
+  // fixed wall) would be dropped without a word: the run would lack what it asked for.
+  const StageConfig defaults;
+  param_io::refuse_unused_keys(s, c, own, &defaults, [](const Param<StageConfig>& p) {
+    return "no '" + std::string(p.key) + "' in this stage as set: the key is \"" +
+           std::string(p.doc) + "\" (set what it goes with, or remove the key)";
+  });
 }
 
 // A sample's box: a cube of its side, or a cylinder's about the z axis with the box's side

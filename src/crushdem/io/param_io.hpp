@@ -11,6 +11,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -130,6 +131,12 @@ class Section {
     return Section(v ? v->table.get() : nullptr, key(k), source_);
   }
   bool has(const std::string& k) const { return t_ && t_->count(k); }
+  /// The value of key `k` as written in the file ("given" where it is not there).
+  std::string shown(const std::string& k) const {
+    if (!t_) return "given";
+    auto it = t_->find(k);
+    return it == t_->end() ? "given" : show(it->second);
+  }
   /// Throws for any key that no reader asked for.
   void finish() const {
     if (!t_) return;
@@ -204,6 +211,48 @@ Table write_params(const S& obj, const ParamTable<S>& table) {
     }
   }
   return t;
+}
+
+/// Whether `a` and `b` hold the same value for row `p`.
+template <class S>
+bool same_value(const S& a, const S& b, const Param<S>& p) {
+  if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
+    return a.*(*num) == b.*(*num);
+  }
+  if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
+    return a.*(*cnt) == b.*(*cnt);
+  }
+  if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
+    return a.*(*flag) == b.*(*flag);
+  }
+  if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
+    return a.*(*text) == b.*(*text);
+  }
+  if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
+    return choice->get(a) == choice->get(b);
+  }
+  if constexpr (kMayHoldTriple<S>) {
+    const Vec3 u = a.*std::get<typename Param<S>::Triple>(p.member);
+    const Vec3 v = b.*std::get<typename Param<S>::Triple>(p.member);
+    return u.x == v.x && u.y == v.y && u.z == v.z;
+  }
+  return true;
+}
+
+/// Refuses a key the section gives where its row does not apply to `obj` (a servo target for a
+/// fixed wall, a field's rings without its interval): almost always a forgotten switch, and a
+/// silent run without what the key asked for otherwise. With `defaults`, a key given at its
+/// default value passes (a switch given as off: `unload = false`). `why(key)` says what was
+/// expected instead.
+template <class S, class Why>
+void refuse_unused_keys(const Section& s, const S& obj, const ParamTable<S>& table,
+                        const std::type_identity_t<S>* defaults, Why why) {
+  for (const Param<S>& p : table) {
+    const std::string k(p.key);
+    if (!p.applies || p.applies(obj) || !s.has(k)) continue;
+    if (defaults && same_value(obj, *defaults, p)) continue;
+    throw ConfigError(bad_value(s.key(k), s.shown(k), why(p)));
+  }
 }
 
 /// The shortest form that reads back exactly, with a plain exponent (2650, 3.2e10, 6e-7).

@@ -8,6 +8,7 @@
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/run/driver.hpp"
+#include "crushdem/run/run_directory.hpp"
 
 namespace crushdem {
 
@@ -119,16 +120,21 @@ OpenCheckpoint open_checkpoint(const std::string& path) {
   return c;
 }
 
-bool same_resolved_config(const std::string& saved, const std::string& current,
-                          const std::filesystem::path& dir) {
+std::string saved_config_difference(const std::string& saved, const std::string& current,
+                                    const std::filesystem::path& dir) {
+  if (saved == current) return "";
+  const std::string source = (dir / "checkpoint.bin").string();
+  toml::Table again;
   try {
-    const std::string source = (dir / "checkpoint.bin").string();
-    const RunConfig again =
-        saved_run_config_from_toml(toml::parse(saved, source), source, dir.string());
-    return toml::serialize(to_toml(again)) == current;
-  } catch (const std::exception&) {
-    return false;  // not readable as a configuration any more: certainly not the same run
+    again = to_toml(saved_run_config_from_toml(toml::parse(saved, source), source, dir.string()));
+  } catch (const std::exception& e) {
+    // Not readable as a configuration any more: certainly not the same run.
+    return std::string("its saved configuration no longer reads (") + e.what() + ")";
   }
+  if (toml::serialize(again) == current) return "";
+  const std::string d =
+      config_difference(again, toml::parse(current, (dir / "config.toml").string()));
+  return d.empty() ? "the two differ once resolved" : d;
 }
 
 }  // namespace crushdem

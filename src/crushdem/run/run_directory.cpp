@@ -78,6 +78,23 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
 
 }  // namespace
 
+std::string config_difference(const toml::Table& a, const toml::Table& b,
+                              const std::set<std::string>& skip, const std::string& partly,
+                              const std::set<std::string>& ignored) {
+  std::set<std::string> sections;
+  for (const auto& [key, v] : a) sections.insert(key);
+  for (const auto& [key, v] : b) sections.insert(key);
+  for (const std::string& key : sections) {
+    if (skip.count(key)) continue;
+    const auto ia = a.find(key), ib = b.find(key);
+    const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
+                                           ib == b.end() ? nullptr : &ib->second, key,
+                                           key == partly ? ignored : std::set<std::string>{});
+    if (!d.empty()) return d;
+  }
+  return "";
+}
+
 RunManifest::RunManifest(std::filesystem::path dir) : dir_(std::move(dir)) {
   const std::filesystem::path path = dir_ / kName;
   if (!std::filesystem::exists(path)) return;
@@ -320,23 +337,15 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
   // Crushing keys that act at run time only (the strengths and cracks already drawn stay).
   const std::set<std::string> runtime = {"crack_growth", "v0",       "n",
                                          "r_prime",      "interval", "density_scaling"};
-  std::set<std::string> sections;
-  for (const auto& [key, v] : a) sections.insert(key);
-  for (const auto& [key, v] : b) sections.insert(key);
-  for (const std::string& key : sections) {
-    // `parameters` names where the keys came from; their values are compared in their sections.
-    if (key == "stage" || key == "output" || key == "parameters") continue;
-    const auto ia = a.find(key), ib = b.find(key);
-    const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
-                                           ib == b.end() ? nullptr : &ib->second, key,
-                                           key == "crushing" ? runtime : std::set<std::string>{});
-    if (!d.empty()) {
-      throw ConfigError(d +
-                        ": cannot change in a branch (it sets the grains, the material or a "
-                        "state drawn before the branch; a branch may change the stages from its "
-                        "own on, [output] and crushing's " +
-                        "crack_growth, v0, n, r_prime, interval, density_scaling)");
-    }
+  // `parameters` names where the keys came from; their values are compared in their sections.
+  const std::string d =
+      config_difference(a, b, {"stage", "output", "parameters"}, "crushing", runtime);
+  if (!d.empty()) {
+    throw ConfigError(d +
+                      ": cannot change in a branch (it sets the grains, the material or a "
+                      "state drawn before the branch; a branch may change the stages from its "
+                      "own on, [output] and crushing's " +
+                      "crack_growth, v0, n, r_prime, interval, density_scaling)");
   }
   return k;
 }

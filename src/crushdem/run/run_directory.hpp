@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,14 @@ class DirectoryLock {
  private:
   int fd_ = -1;
 };
+
+/// The first key where two resolved configurations differ, with both values ("" when they are
+/// the same): "body[0].friction = 0.5 (the original run's: 0.275)". The top-level sections in
+/// `skip` are left out, and the keys `ignored` of section `partly`.
+std::string config_difference(const toml::Table& original, const toml::Table& current,
+                              const std::set<std::string>& skip = {},
+                              const std::string& partly = {},
+                              const std::set<std::string>& ignored = {});
 
 /// Where a branch starts (the stage index, from `spec`: an index, a name, or empty for the first
 /// stage that differs) and whether its configuration may start there: the stages before it, the

@@ -315,10 +315,12 @@ class Run {
     }
     OpenCheckpoint saved = open_checkpoint(path);
     in_ = std::move(saved.reader);
-    if (!branching_ && saved.config_text != config_text_ &&
-        !same_resolved_config(saved.config_text, config_text_, dir_)) {
-      throw ConfigError("crushdem-sand resume: " + (dir_ / "config.toml").string() +
-                        " differs from the configuration the checkpoint was taken with");
+    if (!branching_) {
+      const std::string d = saved_config_difference(saved.config_text, config_text_, dir_);
+      if (!d.empty()) {
+        throw ConfigError("crushdem-sand resume: " + (dir_ / "config.toml").string() +
+                          " differs from the configuration the checkpoint was taken with: " + d);
+      }
     }
     load_state(pos_, *in_);
     if (branching_) {  // timing.json describes the branch's own work

@@ -46,6 +46,16 @@ void check_driven_body(const StageConfig& c, const std::vector<BodyConfig>& bodi
                                   "(this one is a bare cylinder_outside, which grains under it "
                                   "would pass into; a pile is a shaft on a tip)"));
     }
+    // The field's rings are about the vertical line through the tip (measure_body_field).
+    if (b.name == c.body && c.field_interval > 0) {
+      const Vec3 m = b.make(0.0).shape.motion;
+      if (!(std::abs(m.z) >= norm(m) * (1.0 - 1e-12))) {
+        throw ConfigError(bad_value(prefix + ".field_interval", std::to_string(c.field_interval),
+                                    "0 for this body: the stress field is taken in rings about a "
+                                    "vertical axis, and body \"" +
+                                        c.body + "\" does not move along z"));
+      }
+    }
   }
 }
 
@@ -92,15 +102,6 @@ class PenetrateStage final : public Stage {
                                         show_number(w.position(4)) + " m)"));
       }
     }
-    if (cfg_.field_interval > 0) {  // the field's rings are about a vertical axis
-      const Vec3 m = w.shape(k).motion;
-      if (!(std::abs(m.z) >= norm(m) * (1.0 - 1e-12))) {
-        throw ConfigError(bad_value("stage '" + cfg_.label() + "'.field_interval",
-                                    std::to_string(cfg_.field_interval),
-                                    "0 for this body: the stress field is taken in rings about a "
-                                    "vertical axis, and this body does not move along z"));
-      }
-    }
     q_start_ = w.position(k);
     next_stop_ = cfg_.stroke > 0.0 ? std::min(cfg_.stroke, cfg_.depth) : cfg_.depth;
     move(sim, true);
@@ -113,17 +114,14 @@ class PenetrateStage final : public Stage {
     return b;
   }
 
-  double fraction(const Simulation& sim) const override {
-    return (sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_) / cfg_.depth;
-  }
+  double fraction(const Simulation& sim) const override { return travel_now(sim) / cfg_.depth; }
 
   /// A record reads the grains' positions and their contacts with the body.
   bool reads_grains(const Simulation& sim) const override {
-    const Walls& w = sim.walls();
-    // (at every record, at a stroke's end, at a pause's end and at the depth)
-    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
-           (!pausing_ &&
-            w.position(stage_body_index(w, cfg_)) - q_start_ >= next_stop_ * (1.0 - 1e-12)) ||
+    // (at every record, at a stroke's end, at a pause's end, at the depth and at max_steps)
+    const std::uint64_t done = sim.step_count() - start_step_;
+    return done % cfg_.record_interval == 0 || done >= cfg_.max_steps ||
+           (!pausing_ && travel_now(sim) >= next_stop_ * (1.0 - 1e-12)) ||
            (pausing_ && sim.time() >= pause_end_ * (1.0 - 1e-15));
   }
 
@@ -165,6 +163,7 @@ class PenetrateStage final : public Stage {
   }
 
   void stop_early(Simulation& sim) override {
+    record(sim, true);  // the stage's last state, as at its depth
     pausing_ = false;
     move(sim, false);
   }
@@ -179,8 +178,14 @@ class PenetrateStage final : public Stage {
   }
 
  private:
-  void record(const Simulation& sim) {
-    travel_ = sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_;
+  // A row of penetration.csv and shaft_profile.csv, and the field when it is due or `last`;
+  // each at most once a step (a stage cut by max_steps records again after end_reason).
+  void record(const Simulation& sim, bool last = false) {
+    last = last || travel_now(sim) >= cfg_.depth * (1.0 - 1e-12);
+    const bool field = cfg_.field_interval > 0 && field_step_ != sim.step_count() &&
+                       ((sim.step_count() - start_step_) % cfg_.field_interval == 0 || last);
+    if (row_step_ == sim.step_count() && !field) return;
+    travel_ = travel_now(sim);
     const BodyProbe p = probe_stage_body(sim, cfg_);
     q_c_ = p.q_c();
     StageOutputs* out = outputs();
@@ -200,16 +205,22 @@ class PenetrateStage final : public Stage {
     m.emplace_back("shaft_contacts", static_cast<double>(p.shaft_contacts));
     m.emplace_back("moving", pausing_ || travel_ >= cfg_.depth * (1.0 - 1e-12) ? 0.0 : 1.0);
     m.emplace_back("strokes", static_cast<double>(strokes_));
-    for (auto& kv : out->measure(sim)) m.push_back(kv);  // time_s, step, the walls, crushing
-    out->write("penetration.csv", m);
-    write_shaft_rows(
-        *out, "shaft_profile.csv", p,
-        {{"stage", static_cast<double>(index())}, {"time_s", sim.time()}, {"travel_m", travel_}});
-    const bool last = travel_ >= cfg_.depth * (1.0 - 1e-12);
-    if (cfg_.field_interval > 0 &&
-        ((sim.step_count() - start_step_) % cfg_.field_interval == 0 || last)) {
+    if (row_step_ != sim.step_count()) {
+      row_step_ = sim.step_count();
+      for (auto& kv : out->measure(sim)) m.push_back(kv);  // time_s, step, the walls, crushing
+      out->write("penetration.csv", m);
+      write_shaft_rows(
+          *out, "shaft_profile.csv", p,
+          {{"stage", static_cast<double>(index())}, {"time_s", sim.time()}, {"travel_m", travel_}});
+    }
+    if (field) {
+      field_step_ = sim.step_count();
       record_field(sim, p, *out);
     }
+  }
+
+  double travel_now(const Simulation& sim) const {
+    return sim.walls().position(stage_body_index(sim.walls(), cfg_)) - q_start_;
   }
 
   // penetration_field.csv: the stress in rings of grains about the body, platen to platen.
@@ -243,6 +254,8 @@ class PenetrateStage final : public Stage {
   std::uint64_t strokes_ = 0;  // strokes completed
   double travel_ = 0.0;        // since the start [m]
   double q_c_ = 0.0;           // at the last record [Pa]
+  // The steps of the last row and field record (within one update only: not saved).
+  std::uint64_t row_step_ = ~std::uint64_t{0}, field_step_ = ~std::uint64_t{0};
 };
 
 // The load test (docs/pile.md): the pile driven at `velocity` on into the grains (compression)
@@ -447,7 +460,7 @@ const StageKind& penetrate_stage_kind() {
            &StageConfig::field_interval,
            "",
            "steps between records of the stress field about the body (penetration_field.csv: "
-           "rings of grains from its axis, platen to platen), and when it reaches its depth; a "
+           "rings of grains from its axis, platen to platen), and at the stage's last step; a "
            "multiple of record_interval; a body moving along z; 0 = none",
            nullptr,
            "a number of steps, a multiple of record_interval (0 = none)",
