@@ -248,7 +248,7 @@ int bench_main(const BenchArgs& a) {
   // The boundary's mean stress as a run measures it (mean_stress_Pa): in a chamber the cylinder
   // stands for both lateral axes, and the unused x and y box walls do not count.
   const auto& walls = sim.walls();
-  const double p_wall = mean_wall_stress(walls);
+  const double p_wall = walls.mean_stress();
   const auto s = sim.love_weber_stress();
   std::printf("N=%.0f steps=%ld warm=%ld threads=%d law=%s dt_s=%.6e skin_m=%.6e backend=%s\n", N,
               steps, warm, current_threads(), law.c_str(), sim.dt(), sim.skin(), backend.c_str());

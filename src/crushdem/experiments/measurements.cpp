@@ -75,10 +75,8 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
     m.emplace_back(b + "force_z_N", s.force.z);
     m.emplace_back(b + "stress_Pa", w.stress(k));
   }
-  const double p_wall = (w.axis_stress(0) + w.axis_stress(1) + w.axis_stress(2)) / 3.0;
-  const double q_wall = w.axial_stress() - w.lateral_stress();
-  m.emplace_back("mean_stress_Pa", p_wall);
-  m.emplace_back("deviator_stress_Pa", q_wall);
+  m.emplace_back("mean_stress_Pa", w.mean_stress());
+  m.emplace_back("deviator_stress_Pa", w.axial_stress() - w.lateral_stress());
   const auto lw = sim.love_weber_stress();
   const char* comp[6] = {"xx", "yy", "zz", "xy", "yz", "xz"};
   const int idx[6] = {0, 4, 8, 1, 5, 2};

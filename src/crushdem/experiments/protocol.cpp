@@ -277,13 +277,6 @@ std::vector<BodyConfig> file_chamber_bodies(double radius, double sector_degrees
 
 // ---------------------------------------------------------------------------------------------
 
-double mean_wall_stress(const Walls& w) {
-  if (w.chamber() >= 0) return (2.0 * w.lateral_stress() + w.axial_stress()) / 3.0;
-  double p = 0.0;
-  for (int k = 0; k < kNumWalls; ++k) p += w.stress(k) / kNumWalls;
-  return p;
-}
-
 namespace {
 
 // The walls' homogeneous deformation along one axis: v(q) = v_lo + rate (q - lo), the velocity
@@ -327,7 +320,7 @@ void follow_walls(Simulation& sim) {
 double inertial_number(const Walls& w, double d50, double density) {
   double rate = 0.0;
   for (const AxisMotion& ax : wall_motion(w)) rate = std::max(rate, std::abs(ax.rate));
-  const double p = mean_wall_stress(w);
+  const double p = w.mean_stress();
   if (!(p > 0.0)) return std::numeric_limits<double>::quiet_NaN();
   return rate * d50 * std::sqrt(density / p);
 }
@@ -372,7 +365,7 @@ bool PreparationController::update(Simulation& sim) {
     case Phase::Affine:
       // The cloud contracts evenly until it carries load (or reaches the target), then the
       // walls alone compact it as in the walls' compaction.
-      if (mean_wall_stress(sim.walls()) >= cfg_.affine_release * cfg_.stress ||
+      if (sim.walls().mean_stress() >= cfg_.affine_release * cfg_.stress ||
           e_ <= e_target + 0.5 * cfg_.tolerance) {
         phase_ = Phase::Compact;
       } else {

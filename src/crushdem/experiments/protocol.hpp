@@ -77,10 +77,6 @@ const ParamTable<SampleConfig>& sample_params();
 // Controllers
 // ---------------------------------------------------------------------------------------------
 
-/// The mean normal stress on the sample's walls [Pa]: of the six box walls, or in a chamber
-/// (2 sigma_r + sigma_z) / 3 from the chamber's wall and the platens.
-double mean_wall_stress(const Walls& w);
-
 /// Inertial number I = eps_dot d50 sqrt(rho / p) (docs/model.md 1.4), from the wall velocities
 /// (largest strain rate of the three axes) and the mean wall stress; NaN when p <= 0.
 double inertial_number(const Walls& w, double d50, double density);
