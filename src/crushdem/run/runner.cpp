@@ -170,7 +170,7 @@ class Run {
         opt_(opt),
         dir_(opt.out_dir),
         stepper_(make_stepper(opt.backend)),
-        branch_k_(checked_branch(cfg_, opt)),
+        branch_(checked_branch(cfg_, opt)),
         lock_(open_directory(opt)),
         manifest_(dir_),
         config_text_(toml::serialize(to_toml(cfg))),
@@ -278,11 +278,16 @@ class Run {
     return from / "stages" / ("stage_" + std::to_string(k) + ".bin");
   }
 
-  // A branch's stage, checked before its folder is made or cleared (the configurations key by key,
-  // the saved state's format and checksum): a refused branch writes nothing and an
-  // --overwrite'd folder keeps its files. 0 when not branching.
-  static std::size_t checked_branch(const RunConfig& cfg, const RunOptions& opt) {
-    if (opt.branch_dir.empty()) return 0;
+  // A branch's stage and the saved state it starts from, checked before its folder is made or
+  // cleared (the configurations key by key, the saved state's format and checksum): a refused
+  // branch writes nothing and an --overwrite'd folder keeps its files. Stage 0 and no state when
+  // not branching.
+  struct Branch {
+    std::size_t k = 0;
+    OpenCheckpoint state;
+  };
+  static Branch checked_branch(const RunConfig& cfg, const RunOptions& opt) {
+    if (opt.branch_dir.empty()) return {};
     check_branch_directories(opt.out_dir, opt.branch_dir);
     const fs::path from = fs::absolute(opt.branch_dir);
     const std::size_t k = branch_stage(read_binary_file((from / "config.toml").string()), cfg,
@@ -293,27 +298,25 @@ class Run {
                         std::to_string(k) + " (" + state.string() +
                         "; runs keep one per stage they reached)");
     }
-    open_checkpoint(state.string());  // its format and checksum (read again when the run starts)
-    return k;
+    return {k, open_checkpoint(state.string())};
   }
 
   void write_branch_json() {
     JsonObject b;
     b.string("run", from_.string());
-    b.integer("stage", static_cast<long long>(branch_k_));
+    b.integer("stage", static_cast<long long>(branch_.k));
     manifest_.add("branch.json");
     write_text_file((dir_ / "branch.json").string(), b.dump() + "\n");
   }
 
   void read_saved_position() {
-    std::string path = (dir_ / "checkpoint.bin").string();
-    if (branching_) {
-      path = branch_state(from_, branch_k_).string();
-    } else if (!fs::exists(path)) {
+    const std::string path = (dir_ / "checkpoint.bin").string();
+    if (!branching_ && !fs::exists(path)) {
       throw ConfigError("crushdem-sand resume: no checkpoint in '" + opt_.out_dir + "'" +
                         (fs::exists(dir_ / "summary.json") ? " (the run has finished)" : ""));
     }
-    OpenCheckpoint saved = open_checkpoint(path);
+    // A branch's state was read and checked before its folder was touched.
+    OpenCheckpoint saved = branching_ ? std::move(branch_.state) : open_checkpoint(path);
     in_ = std::move(saved.reader);
     if (!branching_) {
       const std::string d = saved_config_difference(saved.config_text, config_text_, dir_);
@@ -358,7 +361,7 @@ class Run {
       for (const KeptFile& k : driver_->kept_files()) {
         manifest_.add(fs::path(k.path).begin()->string());
       }
-      keep_branch_files(from_, dir_, *driver_, branch_k_, copied);
+      keep_branch_files(from_, dir_, *driver_, branch_.k, copied);
     } else {
       driver_->check_kept_files();
     }
@@ -668,7 +671,7 @@ class Run {
   const RunOptions& opt_;
   const fs::path dir_;
   std::unique_ptr<Stepper> stepper_;  // what advances the simulation (opt.backend)
-  const std::size_t branch_k_;        // the stage a branch starts at (checked_branch)
+  Branch branch_;  // the stage a branch starts at, its state until read (checked_branch)
   std::unique_ptr<DirectoryLock> lock_;
   RunManifest manifest_;  // read after the lock is held and an old run is cleared
   const std::string config_text_;
