@@ -155,9 +155,15 @@ class Walls {
   }
   double axial_stress() const { return axis_stress(2); }
   double lateral_stress() const { return 0.5 * (axis_stress(0) + axis_stress(1)); }
-  /// The mean normal stress on the sample's boundary (mean_stress_Pa): of the six box walls, or
-  /// in a chamber (2 sigma_r + sigma_z) / 3 from the chamber's wall and the platens.
-  double mean_stress() const { return (axis_stress(0) + axis_stress(1) + axis_stress(2)) / 3.0; }
+  /// The mean normal stress on the sample's boundary (mean_stress_Pa, the preparation's
+  /// decisions): of the six box walls, or in a chamber (2 sigma_r + sigma_z) / 3 from the
+  /// chamber's wall and the platens.
+  double mean_stress() const {
+    if (chamber_ >= 0) return (2.0 * lateral_stress() + axial_stress()) / 3.0;
+    double p = 0.0;
+    for (int k = 0; k < kNumWalls; ++k) p += stress(k) / kNumWalls;
+    return p;
+  }
   /// Outward unit normal of box wall k (from the sample into the wall).
   Vec3 outward_normal(int k) const { return wall_outward_normal(k); }
   /// Body k's nearest surface to a grain centred at c (walls/body_geometry.hpp).
