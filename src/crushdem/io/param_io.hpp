@@ -242,7 +242,7 @@ bool same_value(const S& a, const S& b, const Param<S>& p) {
 /// Refuses a key the section gives where its row does not apply to `obj` (a servo target for a
 /// fixed wall, a field's rings without its interval): almost always a forgotten switch, and a
 /// silent run without what the key asked for otherwise. With `defaults`, a key given at its
-/// default value passes (a switch given as off: `unload = false`). `why(key)` says what was
+/// default value passes (a switch given as off: `unload = false`). `why(row)` says what was
 /// expected instead.
 template <class S, class Why>
 void refuse_unused_keys(const Section& s, const S& obj, const ParamTable<S>& table,
