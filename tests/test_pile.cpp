@@ -243,8 +243,9 @@ TEST(Pile, ABodyTheStagesCannotDriveIsRefusedWithTheConfiguration) {
 }
 
 // A stage cut short at max_steps stops the body it drives, as its own end does: the next stage
-// finds the pile still. A load test of fewer rows than capacity_window takes the median of those
-// it has (not a capacity of 0), with a warning.
+// finds the pile still; a load test cut between two of its rows takes a row of its last step. A
+// load test of fewer rows than capacity_window takes the median of those it has (not a capacity of
+// 0), with a warning.
 TEST(Pile, AStageEndedAtMaxStepsStopsItsBodyAndAShortLoadTestHasACapacity) {
   const testing::TempDir temp("max_steps");
   std::string text = without_stage(without_stage(pile_text(), "age_1h"), "age_1d");
@@ -252,8 +253,11 @@ TEST(Pile, AStageEndedAtMaxStepsStopsItsBodyAndAShortLoadTestHasACapacity) {
   text.replace(text.find("max_strain_rate = 100.0\n"), 24,
                "max_strain_rate = 100.0\nmax_steps = 2000\n[[stage]]\ntype = \"hold\"\n"
                "name = \"still\"\nsteps = 1000\n");
+  // The load test cut too, between two rows (every 300 steps, checks every 250, the cut at the
+  // check at 750): it takes a last row of its own.
   text.replace(text.find("record_interval = 200"), 21,
-               "record_interval = 200\ncapacity_window = 50");
+               "record_interval = 300\ncapacity_window = 50\nmax_steps = 700\n"
+               "check_interval = 250");
   text.replace(text.find("interval = 2000"), 15, "interval = 100");
   run_to_directory(config(text), options(temp.path() / "run"));
   const std::string summary = testing::read_file(temp.path() / "run" / "summary.json");
@@ -270,6 +274,9 @@ TEST(Pile, AStageEndedAtMaxStepsStopsItsBodyAndAShortLoadTestHasACapacity) {
   auto load = testing::read_csv((temp.path() / "run" / "load_test.csv").string());
   const std::vector<double>& Q = load["head_load_N"];
   ASSERT_LT(Q.size(), 50U);
+  ASSERT_EQ(Q.size(), 4U);  // at 0, 300, 600 and 750 steps
+  EXPECT_EQ(load["step"].back() - load["step"].front(), 750.0);
+  EXPECT_EQ(load["step"][2] - load["step"].front(), 600.0);
   const double capacity = testing::json_number(summary, "capacity_N");
   EXPECT_GT(capacity, 0.0);
   EXPECT_LT(capacity, *std::max_element(Q.begin(), Q.end()));

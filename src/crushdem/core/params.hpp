@@ -104,6 +104,9 @@ struct Param {
   // warning, not an error (a deliberate numerical experiment may want it). None when null.
   bool (*plausible)(double) = nullptr;
   std::string_view plausible_range = {};
+  // The key whose value `applies` reads (a field's rings: field_interval), where that is
+  // another key: given without it where the row does not apply, the key is refused naming it.
+  std::string_view needs = {};
 };
 
 template <class S>
@@ -135,6 +138,7 @@ void append_rows(ParamTable<S>& out, const ParamTable<Part>& rows) {
     q.default_doc = p.default_doc;
     q.plausible = p.plausible;
     q.plausible_range = p.plausible_range;
+    q.needs = p.needs;
     if (p.applies) q.applies = [f = p.applies](const S& s) { return f(s); };
     std::visit(
         [&q](const auto& m) {

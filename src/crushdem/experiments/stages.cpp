@@ -87,7 +87,10 @@ const Row kAxialStress{"axial_stress",
                        positive,
                        "a positive stress in Pa",
                        "-",
-                       [](const StageConfig& c) { return c.axial == WallControl::Servo; }};
+                       [](const StageConfig& c) { return c.axial == WallControl::Servo; },
+                       nullptr,
+                       {},
+                       "axial"};
 const Row kLateralStress{"lateral_stress",
                          &StageConfig::lateral_stress,
                          "Pa",
@@ -95,7 +98,10 @@ const Row kLateralStress{"lateral_stress",
                          positive,
                          "a positive stress in Pa",
                          "-",
-                         [](const StageConfig& c) { return c.lateral == WallControl::Servo; }};
+                         [](const StageConfig& c) { return c.lateral == WallControl::Servo; },
+                         nullptr,
+                         {},
+                         "lateral"};
 
 }  // namespace
 
@@ -134,12 +140,22 @@ ParamTable<StageConfig> pile_head_rows() {
        nullptr,
        {},
        "",
-       [](const StageConfig& c) { return !c.body.empty(); }},
-      {"head_load", &StageConfig::head_load, "N",
+       [](const StageConfig& c) { return !c.body.empty(); },
+       nullptr,
+       {},
+       "body"},
+      {"head_load",
+       &StageConfig::head_load,
+       "N",
        "the whole pile's head load with head = \"load\" (a quarter chamber's pile carries its "
        "quarter)",
-       [](double v) { return v >= 0.0; }, "a load >= 0 in N", "",
-       [](const StageConfig& c) { return c.head == HeadControl::Load; }},
+       [](double v) { return v >= 0.0; },
+       "a load >= 0 in N",
+       "",
+       [](const StageConfig& c) { return c.head == HeadControl::Load; },
+       nullptr,
+       {},
+       "head"},
   };
 }
 

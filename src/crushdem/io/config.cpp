@@ -53,7 +53,7 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
       WallConfig& w = c.walls[static_cast<std::size_t>(k)];
       read_params(s, w, wall_params());
       // A key that the chosen mode does not use is almost always a forgotten `mode` line.
-      param_io::refuse_unused_keys(s, w, wall_params(), nullptr, [&](const Param<WallConfig>& p) {
+      param_io::refuse_unused_keys(s, w, wall_params(), true, [&](const Param<WallConfig>& p) {
         return "no '" + std::string(p.key) + "' for a wall in mode \"" + to_string(w.mode) +
                "\" (set mode or remove the key)";
       });
@@ -65,7 +65,7 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     BodyConfig b;
     read_params(s, b, body_params());
     // The motion keys apply as a wall's do: a key the mode does not use is a forgotten `mode`.
-    param_io::refuse_unused_keys(s, b, body_params(), nullptr, [](const Param<BodyConfig>& p) {
+    param_io::refuse_unused_keys(s, b, body_params(), true, [](const Param<BodyConfig>& p) {
       return "no '" + std::string(p.key) + "' for this body (its mode or shape does not use it)";
     });
     s.finish();
@@ -171,12 +171,12 @@ void read_stage(Section& s, StageConfig& c) {
   }
   read_params(s, c, own);
   s.finish();
-  // A key whose switch is off (a field's rings without field_interval, a servo target for a
-  // fixed wall) would be dropped without a word: the run would lack what it asked for.
-  const StageConfig defaults;
-  param_io::refuse_unused_keys(s, c, own, &defaults, [](const Param<StageConfig>& p) {
-    return "no '" + std::string(p.key) + "' in this stage as set: the key is \"" +
-           std::string(p.doc) + "\" (set what it goes with, or remove the key)";
+  // A key without its switch (a field's rings without field_interval, a pile's head without
+  // its body) would be dropped without a word: the run would lack what it asked for.
+  param_io::refuse_unused_keys(s, c, own, false, [](const Param<StageConfig>& p) {
+    const std::string k(p.key), needs(p.needs);
+    return "no '" + k + "' without '" + needs + "' (" + k + ": " + std::string(p.doc) + "); give " +
+           needs + " or remove " + k;
   });
 }
 

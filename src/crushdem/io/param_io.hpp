@@ -11,7 +11,6 @@
 #include <set>
 #include <string>
 #include <string_view>
-#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -213,44 +212,20 @@ Table write_params(const S& obj, const ParamTable<S>& table) {
   return t;
 }
 
-/// Whether `a` and `b` hold the same value for row `p`.
-template <class S>
-bool same_value(const S& a, const S& b, const Param<S>& p) {
-  if (const auto* num = std::get_if<typename Param<S>::Number>(&p.member)) {
-    return a.*(*num) == b.*(*num);
-  }
-  if (const auto* cnt = std::get_if<typename Param<S>::Count>(&p.member)) {
-    return a.*(*cnt) == b.*(*cnt);
-  }
-  if (const auto* flag = std::get_if<typename Param<S>::Flag>(&p.member)) {
-    return a.*(*flag) == b.*(*flag);
-  }
-  if (const auto* text = std::get_if<typename Param<S>::Text>(&p.member)) {
-    return a.*(*text) == b.*(*text);
-  }
-  if (const auto* choice = std::get_if<ParamChoice<S>>(&p.member)) {
-    return choice->get(a) == choice->get(b);
-  }
-  if constexpr (kMayHoldTriple<S>) {
-    const Vec3 u = a.*std::get<typename Param<S>::Triple>(p.member);
-    const Vec3 v = b.*std::get<typename Param<S>::Triple>(p.member);
-    return u.x == v.x && u.y == v.y && u.z == v.z;
-  }
-  return true;
-}
-
 /// Refuses a key the section gives where its row does not apply to `obj` (a servo target for a
 /// fixed wall, a field's rings without its interval): almost always a forgotten switch, and a
-/// silent run without what the key asked for otherwise. With `defaults`, a key given at its
-/// default value passes (a switch given as off: `unload = false`). `why(row)` says what was
-/// expected instead.
+/// silent run without what the key asked for otherwise. A row that names its switch (`needs`)
+/// passes when the switch is given too, as off (a sweep's variant that turns it off and keeps
+/// its keys); with `every_row`, a row without one is refused as well (a wall's and a body's
+/// keys, which their mode and shape switch), else it passes (a stage's own switches, `steps`,
+/// `unload`: their values are checked by the stage). `why(row)` says what was expected instead.
 template <class S, class Why>
-void refuse_unused_keys(const Section& s, const S& obj, const ParamTable<S>& table,
-                        const std::type_identity_t<S>* defaults, Why why) {
+void refuse_unused_keys(const Section& s, const S& obj, const ParamTable<S>& table, bool every_row,
+                        Why why) {
   for (const Param<S>& p : table) {
     const std::string k(p.key);
     if (!p.applies || p.applies(obj) || !s.has(k)) continue;
-    if (defaults && same_value(obj, *defaults, p)) continue;
+    if (p.needs.empty() ? !every_row : s.has(std::string(p.needs))) continue;
     throw ConfigError(bad_value(s.key(k), s.shown(k), why(p)));
   }
 }

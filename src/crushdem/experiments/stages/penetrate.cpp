@@ -290,7 +290,8 @@ class LoadTestStage final : public Stage {
   }
 
   bool reads_grains(const Simulation& sim) const override {
-    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 ||
+    const std::uint64_t done = sim.step_count() - start_step_;
+    return done % cfg_.record_interval == 0 || done >= cfg_.max_steps ||
            head_travel(sim) >= cfg_.displacement * (1.0 - 1e-12);
   }
 
@@ -315,6 +316,7 @@ class LoadTestStage final : public Stage {
   }
 
   void stop_early(Simulation& sim) override {
+    if (row_step_ != sim.step_count()) record(sim);  // the test's last state
     drive_body(sim, cfg_, 0.0);
     finish_capacity();
   }
@@ -334,6 +336,7 @@ class LoadTestStage final : public Stage {
   }
 
   void record(const Simulation& sim) {
+    row_step_ = sim.step_count();
     travel_ = head_travel(sim);
     const BodyProbe p = probe_stage_body(sim, cfg_);
     const double whole = sign() / p.sector;  // the whole pile's, in the test's direction
@@ -400,6 +403,7 @@ class LoadTestStage final : public Stage {
   double travel_ = 0.0;         // the head's, in the test's direction [m]
   double load_ = 0.0;           // the head load at the last record [N]
   std::vector<double> recent_;  // the last rows: head, shaft and base load, displacement
+  std::uint64_t row_step_ = ~std::uint64_t{0};  // the last row's step (within one update)
 };
 
 }  // namespace
@@ -466,19 +470,40 @@ const StageKind& penetrate_stage_kind() {
            "a number of steps, a multiple of record_interval (0 = none)",
            {},
            [](const StageConfig& c) { return c.field_interval > 0; }},
-          {"rings", &StageConfig::rings, "",
+          {"rings",
+           &StageConfig::rings,
+           "",
            "with field_interval: rings of equal width from the body's axis (ring 0 holds the "
            "sand under the tip)",
-           [](double v) { return v >= 1.0 && v <= 1e3; }, "a number of rings in [1, 1000]", "",
-           [](const StageConfig& c) { return c.field_interval > 0; }},
-          {"field_radius", &StageConfig::field_radius, "-",
+           [](double v) { return v >= 1.0 && v <= 1e3; },
+           "a number of rings in [1, 1000]",
+           "",
+           [](const StageConfig& c) { return c.field_interval > 0; },
+           nullptr,
+           {},
+           "field_interval"},
+          {"field_radius",
+           &StageConfig::field_radius,
+           "-",
            "with field_interval: the outer ring's radius in shaft radii",
-           [](double v) { return v > 0.0 && v <= 1e3; }, "a radius in (0, 1000] shaft radii", "",
-           [](const StageConfig& c) { return c.field_interval > 0; }},
-          {"field_bins", &StageConfig::field_bins, "",
+           [](double v) { return v > 0.0 && v <= 1e3; },
+           "a radius in (0, 1000] shaft radii",
+           "",
+           [](const StageConfig& c) { return c.field_interval > 0; },
+           nullptr,
+           {},
+           "field_interval"},
+          {"field_bins",
+           &StageConfig::field_bins,
+           "",
            "with field_interval: slices of the field from the bottom platen to the top one",
-           [](double v) { return v >= 1.0 && v <= 1e4; }, "a number of slices in [1, 10000]", "",
-           [](const StageConfig& c) { return c.field_interval > 0; }},
+           [](double v) { return v >= 1.0 && v <= 1e4; },
+           "a number of slices in [1, 10000]",
+           "",
+           [](const StageConfig& c) { return c.field_interval > 0; },
+           nullptr,
+           {},
+           "field_interval"},
       }),
       .make = make_stage_of<PenetrateStage>,
       .check =
