@@ -87,9 +87,9 @@ std::string config_difference(const toml::Table& a, const toml::Table& b,
   for (const std::string& key : sections) {
     if (skip.count(key)) continue;
     const auto ia = a.find(key), ib = b.find(key);
-    const std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
-                                           ib == b.end() ? nullptr : &ib->second, key,
-                                           key == partly ? ignored : std::set<std::string>{});
+    std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
+                                     ib == b.end() ? nullptr : &ib->second, key,
+                                     key == partly ? ignored : std::set<std::string>{});
     if (!d.empty()) return d;
   }
   return "";
