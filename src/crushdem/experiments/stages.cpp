@@ -378,7 +378,7 @@ bool Stage::update(Simulation& sim) {
     res_.end_reason = why;
     return true;
   }
-  if (res_.steps >= cfg_.max_steps) {
+  if (at_max_steps(sim)) {
     const std::string why =
         "stopped at max_steps = " + std::to_string(cfg_.max_steps) + " before its end condition";
     add_warning(why);

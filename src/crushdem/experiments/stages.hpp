@@ -252,6 +252,11 @@ class Stage : public Controller {
   /// The stage ends at max_steps, before its own end condition: a kind that drives a body stops
   /// it here, so that the next stage finds it still, as after the kind's own end.
   virtual void stop_early(Simulation&) {}
+  /// Whether this check is the one that ends the stage at max_steps (a kind that records its
+  /// last state in stop_early reads the grains then).
+  bool at_max_steps(const Simulation& sim) const {
+    return sim.step_count() - start_step_ >= cfg_.max_steps;
+  }
   /// The steps to the next check, at most n.
   virtual std::uint64_t limit_steps(Simulation&, std::uint64_t n) const { return n; }
   /// The servo speed limit as a strain rate when max_strain_rate = 0 [1/s] (10 /s: I ~ 3e-4 at

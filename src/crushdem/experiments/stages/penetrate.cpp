@@ -119,8 +119,7 @@ class PenetrateStage final : public Stage {
   /// A record reads the grains' positions and their contacts with the body.
   bool reads_grains(const Simulation& sim) const override {
     // (at every record, at a stroke's end, at a pause's end, at the depth and at max_steps)
-    const std::uint64_t done = sim.step_count() - start_step_;
-    return done % cfg_.record_interval == 0 || done >= cfg_.max_steps ||
+    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 || at_max_steps(sim) ||
            (!pausing_ && travel_now(sim) >= next_stop_ * (1.0 - 1e-12)) ||
            (pausing_ && sim.time() >= pause_end_ * (1.0 - 1e-15));
   }
@@ -290,8 +289,7 @@ class LoadTestStage final : public Stage {
   }
 
   bool reads_grains(const Simulation& sim) const override {
-    const std::uint64_t done = sim.step_count() - start_step_;
-    return done % cfg_.record_interval == 0 || done >= cfg_.max_steps ||
+    return (sim.step_count() - start_step_) % cfg_.record_interval == 0 || at_max_steps(sim) ||
            head_travel(sim) >= cfg_.displacement * (1.0 - 1e-12);
   }
 
