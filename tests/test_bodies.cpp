@@ -8,6 +8,7 @@
 #include <cmath>
 #include <string>
 
+#include "crushdem/experiments/measurements.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/walls/body_probe.hpp"
@@ -255,6 +256,71 @@ TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {
   const WallState& st = sim.walls().state(pile);
   EXPECT_NEAR(p.tip_load + p.shaft_load,
               body_load(sim.walls().shape(pile), st.normal_force, st.force), 1e-12 * F_n[0]);
+}
+
+TEST(Bodies, ThePilesMomentIsTheGrainsForcesAtTheirContactPointsAboutItsTip) {
+  // The pile above, with friction, driven 0.4 um down: a grain on the tip off its centre, one
+  // on the shaft sliding up it (a moment about y), one sliding sideways along it (about z).
+  // Each entry's force on the body acts at its contact point on the surface, found here from
+  // the shape; the moment is about the pile's origin (its tip's centre) where q put it.
+  const double R = 1e-3, r = 0.1e-3, delta = 2e-7, q = 4e-7;
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"pile\"\nshape = \"pile\"\norigin = [0, 0, -5e-3]\naxis = [0, 0, 1]\n"
+      "radius = 1e-3\nlength = 8e-3\ntip = \"flat\"\nfriction = 0.5\n");
+  const Vec3 O{0.0, 0.0, -5e-3 - q};  // moved along -axis
+  const Vec3 x_c[3] = {{0.4e-3, -0.2e-3, O.z}, {R, 0.0, O.z + 1.3e-3}, {-R, 0.0, O.z + 5.1e-3}};
+  Simulation sim(cfg);
+  const int pile = kNumWalls;
+  sim.walls().state(pile).position = q;
+  sim.add_particle(x_c[0] - Vec3{0.0, 0.0, r - delta}, r, {0.01, 0.0, 0.0});
+  sim.add_particle(x_c[1] + Vec3{r - delta, 0.0, 0.0}, r, {0.0, 0.0, 0.01});
+  sim.add_particle(x_c[2] - Vec3{r - delta, 0.0, 0.0}, r, {0.0, 0.01, 0.0});
+  sim.set_dt(1e-9);
+  sim.step(1);  // the friction's first increment
+  // Where each grain now touches: below it on the tip, radially out from the axis on the shaft.
+  const ParticleStore& g = sim.particles();
+  Vec3 contact_point[3];
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const double rho = std::hypot(g.x[i], g.y[i]);
+    contact_point[g.id[i]] =
+        g.id[i] == 0 ? Vec3{g.x[i], g.y[i], O.z} : Vec3{R * g.x[i] / rho, R * g.y[i] / rho, g.z[i]};
+  }
+  const Vec3 O_body = body_reference_point(sim.walls(), pile);
+  EXPECT_NEAR(norm(O_body - O), 0.0, 1e-18);
+  const WallContacts& wc = sim.wall_contacts();
+  Vec3 expected;
+  double scale = 0.0;
+  int touching = 0;
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    if (wc.wall[e] != pile) continue;
+    const Vec3 F_body{-wc.fx[e], -wc.fy[e], -wc.fz[e]};
+    expected += cross(contact_point[g.id[wc.particle[e]]] - O, F_body);
+    scale = std::max(scale, norm(F_body) * 5.1e-3);
+    touching += wc.F_n[e] > 0.0 ? 1 : 0;
+  }
+  ASSERT_EQ(touching, 3);
+  const std::vector<Vec3> M = body_moments(sim.walls(), wc, sim.particles());
+  ASSERT_EQ(M.size(), static_cast<std::size_t>(sim.walls().size()));
+  EXPECT_NEAR(M[pile].x, expected.x, 1e-12 * scale);
+  EXPECT_NEAR(M[pile].y, expected.y, 1e-12 * scale);
+  EXPECT_NEAR(M[pile].z, expected.z, 1e-12 * scale);
+  // The sliding grains' friction turns the pile about y (up the shaft at +x) and z (sideways
+  // at -x) by far more than the check above resolves.
+  EXPECT_GT(std::abs(M[pile].y), 1e-6 * scale);
+  EXPECT_GT(std::abs(M[pile].z), 1e-6 * scale);
+  // The box's walls have no reference point: zero; the time series carries the body's.
+  for (int k = 0; k < kNumWalls; ++k) EXPECT_EQ(norm(M[static_cast<std::size_t>(k)]), 0.0);
+  const Measurement row = measure(sim, StrainReference::from(sim.walls()));
+  const auto column = [&](const std::string& name) {
+    for (const auto& [key, value] : row) {
+      if (key == name) return value;
+    }
+    ADD_FAILURE() << "no column " << name;
+    return 0.0;
+  };
+  EXPECT_EQ(column("body_pile_moment_x_Nm"), M[pile].x);
+  EXPECT_EQ(column("body_pile_moment_y_Nm"), M[pile].y);
+  EXPECT_EQ(column("body_pile_moment_z_Nm"), M[pile].z);
 }
 
 TEST(Bodies, ACylinderShrunkPastZeroStopsTheRunNamingIt) {

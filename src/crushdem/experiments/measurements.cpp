@@ -8,6 +8,7 @@
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/particles/grading.hpp"
+#include "crushdem/walls/body_probe.hpp"
 
 namespace crushdem {
 
@@ -65,14 +66,21 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   for (int k = 0; k < kNumWalls; ++k) {
     m.emplace_back(std::string("wall_") + wall_name(k) + "_stress_Pa", w.stress(k));
   }
-  // The bodies beyond the box: degree of freedom, the grains' force on it, its stress.
+  // The bodies beyond the box: degree of freedom, the grains' force on it and their moment
+  // about its reference point, its stress.
+  const std::vector<Vec3> moments =
+      w.size() > kNumWalls ? body_moments(w, sim.wall_contacts(), p) : std::vector<Vec3>{};
   for (int k = kNumWalls; k < w.size(); ++k) {
     const std::string b = "body_" + w.name(k) + "_";
     const WallState& s = w.state(k);
+    const Vec3& M = moments[static_cast<std::size_t>(k)];
     m.emplace_back(b + "position_m", s.position);
     m.emplace_back(b + "force_x_N", s.force.x);
     m.emplace_back(b + "force_y_N", s.force.y);
     m.emplace_back(b + "force_z_N", s.force.z);
+    m.emplace_back(b + "moment_x_Nm", M.x);
+    m.emplace_back(b + "moment_y_Nm", M.y);
+    m.emplace_back(b + "moment_z_Nm", M.z);
     m.emplace_back(b + "stress_Pa", w.stress(k));
   }
   m.emplace_back("mean_stress_Pa", w.mean_stress());

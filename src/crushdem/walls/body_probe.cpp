@@ -146,4 +146,26 @@ BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const Pa
   return out;
 }
 
+Vec3 body_reference_point(const Walls& walls, int k) {
+  const BodyShape& b = walls.shape(k);
+  return placed_part(b.part[0], walls.position(k), b.motion, b.dilate).origin;
+}
+
+std::vector<Vec3> body_moments(const Walls& walls, const WallContacts& wc, const ParticleStore& p) {
+  std::vector<Vec3> M(static_cast<std::size_t>(walls.size()));
+  std::vector<Vec3> O(M.size());
+  for (int k = kNumWalls; k < walls.size(); ++k) {
+    O[static_cast<std::size_t>(k)] = body_reference_point(walls, k);
+  }
+  // In entry order, as the body totals: the same bits on every backend and thread count.
+  for (std::size_t e = 0; e < wc.size(); ++e) {
+    const std::size_t k = wc.wall[e];
+    if (k < static_cast<std::size_t>(kNumWalls)) continue;
+    const std::uint32_t i = wc.particle[e];
+    const Vec3 arm = Vec3{p.x[i], p.y[i], p.z[i]} - O[k];
+    M[k] -= cross(arm, Vec3{wc.fx[e], wc.fy[e], wc.fz[e]}) + Vec3{wc.tx[e], wc.ty[e], wc.tz[e]};
+  }
+  return M;
+}
+
 }  // namespace crushdem

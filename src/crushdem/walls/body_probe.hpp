@@ -13,6 +13,16 @@
 //                                                                          along the shaft)
 //   shear stress  tau(bin)     = -sum of F_body . m in the bin / (2 pi R dh)
 //
+// and of every body beyond the box, the moment of the grains' forces about its reference point
+// O (its `origin` where its degree of freedom has put it: a pile's or cone's tip, a cylinder's
+// axis start, a plane's point):
+//
+//   M = sum over its contacts of (x_c - O) x F_body = -sum of ((x_i - O) x F + T)
+//
+// F and T: the entry's force on the grain and its torque about the grain's centre x_i (the
+// contact point x_c = x_i + d n; T = d n x F_t, since the grains' wall law has no rolling
+// couple), so the moment needs no contact point of its own.
+//
 // F_body is the force of the grain on the body (minus the entry's force on the grain). A
 // contact's height on the shaft is its grain centre's axial coordinate from the shaft's start
 // (the normal of a cylinder is radial, so the contact point has the same height). These are the
@@ -69,5 +79,14 @@ void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies =
 /// grains touch that sector of it: every area above is taken over the sector.
 BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
                      double sleeve_length, int bins);
+
+/// The reference point of body k (beyond the box): its first part's origin placed by its degree
+/// of freedom (a translation moves it, a dilation keeps it).
+Vec3 body_reference_point(const Walls& walls, int k);
+
+/// The moment of the grains' forces on every body about its reference point, as the last force
+/// evaluation left them [N m], indexed as `walls` (the box's six walls, which have no reference
+/// point, get zero). In a chamber sample of a sector it is the sector's grains' moment.
+std::vector<Vec3> body_moments(const Walls& walls, const WallContacts& wc, const ParticleStore& p);
 
 }  // namespace crushdem
