@@ -201,7 +201,7 @@ void expect_stopped_run_resumes_exactly(const std::string& backend) {
       resume_directory(changed.string(), opt);
       ADD_FAILURE() << "resumed with a changed config.toml";
     } catch (const ConfigError& e) {
-      EXPECT_NE(std::string(e.what()).find("stage[1].n_break = 4 (the original run's: 3)"),
+      EXPECT_NE(std::string(e.what()).find("stage[1].n_break = 4 (the checkpoint's: 3)"),
                 std::string::npos)
           << e.what();
     }

@@ -132,8 +132,8 @@ std::string saved_config_difference(const std::string& saved, const std::string&
     return std::string("its saved configuration no longer reads (") + e.what() + ")";
   }
   if (toml::serialize(again) == current) return "";
-  const std::string d =
-      config_difference(again, toml::parse(current, (dir / "config.toml").string()));
+  const std::string d = config_difference(
+      again, toml::parse(current, (dir / "config.toml").string()), "the checkpoint");
   return d.empty() ? "the two differ once resolved" : d;
 }
 

@@ -39,22 +39,23 @@ std::string value_text(const toml::Value* v) {
 }
 
 // The first key under `prefix` where two values differ, with both values ("" when they are
-// equal): "body[0].friction = 0.5 (the original run's: 0.275)". Tables and arrays of tables of
-// one length are compared entry by entry.
+// equal): "body[0].friction = 0.5 (the original run's: 0.275)", a naming a's source. Tables and
+// arrays of tables of one length are compared entry by entry.
 std::string first_difference(const toml::Value* a, const toml::Value* b, const std::string& prefix,
+                             const std::string& a_source,
                              const std::set<std::string>& ignored = {}) {
   const auto differ = [&]() {
-    if (!b) return prefix + " is not set here (the original run's: " + value_text(a) + ")";
-    if (!a) return prefix + " = " + value_text(b) + " (not set in the original run)";
-    return prefix + " = " + value_text(b) + " (the original run's: " + value_text(a) + ")";
+    if (!b) return prefix + " is not set here (" + a_source + "'s: " + value_text(a) + ")";
+    if (!a) return prefix + " = " + value_text(b) + " (not set in " + a_source + ")";
+    return prefix + " = " + value_text(b) + " (" + a_source + "'s: " + value_text(a) + ")";
   };
   if (!a || !b) return differ();
   if (a->type == toml::Type::Array && b->type == toml::Type::Array &&
       a->array.size() == b->array.size() && !a->array.empty() &&
       a->array.front().type == toml::Type::Table) {  // ([[body]]; arrays of values: whole)
     for (std::size_t i = 0; i < a->array.size(); ++i) {
-      std::string d =
-          first_difference(&a->array[i], &b->array[i], prefix + "[" + std::to_string(i) + "]");
+      std::string d = first_difference(&a->array[i], &b->array[i],
+                                       prefix + "[" + std::to_string(i) + "]", a_source);
       if (!d.empty()) return d;
     }
     return "";
@@ -66,9 +67,9 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
     for (const std::string& k : keys) {
       if (ignored.count(k)) continue;
       const auto ia = a->table->find(k), ib = b->table->find(k);
-      std::string d =
-          first_difference(ia == a->table->end() ? nullptr : &ia->second,
-                           ib == b->table->end() ? nullptr : &ib->second, prefix + "." + k);
+      std::string d = first_difference(ia == a->table->end() ? nullptr : &ia->second,
+                                       ib == b->table->end() ? nullptr : &ib->second,
+                                       prefix + "." + k, a_source);
       if (!d.empty()) return d;
     }
     return "";
@@ -79,8 +80,8 @@ std::string first_difference(const toml::Value* a, const toml::Value* b, const s
 }  // namespace
 
 std::string config_difference(const toml::Table& a, const toml::Table& b,
-                              const std::set<std::string>& skip, const std::string& partly,
-                              const std::set<std::string>& ignored) {
+                              const std::string& a_source, const std::set<std::string>& skip,
+                              const std::string& partly, const std::set<std::string>& ignored) {
   std::set<std::string> sections;
   for (const auto& [key, v] : a) sections.insert(key);
   for (const auto& [key, v] : b) sections.insert(key);
@@ -88,7 +89,7 @@ std::string config_difference(const toml::Table& a, const toml::Table& b,
     if (skip.count(key)) continue;
     const auto ia = a.find(key), ib = b.find(key);
     std::string d = first_difference(ia == a.end() ? nullptr : &ia->second,
-                                     ib == b.end() ? nullptr : &ib->second, key,
+                                     ib == b.end() ? nullptr : &ib->second, key, a_source,
                                      key == partly ? ignored : std::set<std::string>{});
     if (!d.empty()) return d;
   }
@@ -328,7 +329,7 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
   }
   for (std::size_t i = 0; i < k; ++i) {
     const std::string d = first_difference(&sa[i], i < sb.size() ? &sb[i] : nullptr,
-                                           "stage[" + std::to_string(i) + "]");
+                                           "stage[" + std::to_string(i) + "]", "the original run");
     if (!d.empty()) {
       throw ConfigError(d + ": differs from the original run, but a branch at stage " +
                         std::to_string(k) + " keeps the stages before it as they ran");
@@ -338,8 +339,8 @@ std::size_t branch_stage(const std::string& original_text, const RunConfig& cfg,
   const std::set<std::string> runtime = {"crack_growth", "v0",       "n",
                                          "r_prime",      "interval", "density_scaling"};
   // `parameters` names where the keys came from; their values are compared in their sections.
-  const std::string d =
-      config_difference(a, b, {"stage", "output", "parameters"}, "crushing", runtime);
+  const std::string d = config_difference(a, b, "the original run",
+                                          {"stage", "output", "parameters"}, "crushing", runtime);
   if (!d.empty()) {
     throw ConfigError(d +
                       ": cannot change in a branch (it sets the grains, the material or a "

@@ -65,9 +65,11 @@ class DirectoryLock {
 };
 
 /// The first key where two resolved configurations differ, with both values ("" when they are
-/// the same): "body[0].friction = 0.5 (the original run's: 0.275)". The top-level sections in
+/// the same): "body[0].friction = 0.5 (the original run's: 0.275)", `original_source` naming
+/// where the first came from ("the original run", "the checkpoint"). The top-level sections in
 /// `skip` are left out, and the keys `ignored` of section `partly`.
 std::string config_difference(const toml::Table& original, const toml::Table& current,
+                              const std::string& original_source,
                               const std::set<std::string>& skip = {},
                               const std::string& partly = {},
                               const std::set<std::string>& ignored = {});
