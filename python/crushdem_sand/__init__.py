@@ -145,15 +145,16 @@ def resolved_config(**sections: Any) -> str:
 
 
 class Simulation:
-    """A DEM simulation of spheres in a box of six walls.
+    """A DEM simulation of spheres in a box of six walls, with rigid bodies of any common shape
+    and gravity where configured.
 
     Properties and methods: the scalars the simulation keeps, its counts and clock, are
     properties (``num_particles``, ``num_contacts``, ``time``, ``step_count``, ``dt``; and
     ``core``, the engine object); whatever copies arrays, computes a measure or takes arguments
     is a method (``positions()``, ``contacts()``, ``wall_stresses()``, ``kinetic_energy()``,
     ``step(n)``, ...). Arrays are NumPy copies; editing them does not change the simulation.
-    ``contacts()`` returns columns (1-D arrays of one length) that ``pandas.DataFrame`` takes as
-    they are.
+    ``contacts()`` and ``bodies()`` return columns (1-D arrays of one length) that
+    ``pandas.DataFrame`` takes as they are.
 
     Keyword arguments are the sections of a configuration file, each a dict (SI units). The
     keys of ``material``, ``contact``, ``damping``, ``timestep`` and ``neighbor`` are listed at
@@ -165,6 +166,12 @@ class Simulation:
         a dict keyed by wall name (``xmin`` ... ``zmax``), each with ``mode``
         ("fixed", "velocity", "servo"), ``velocity`` [m/s], ``target_stress`` [Pa],
         ``servo_alpha`` [-], ``max_speed`` [m/s].
+    ``body``
+        a list of dicts, one per rigid body (a plane, disk, cylinder, cone or pile: the
+        ``[[body]]`` keys of docs/configuration.md); read with ``bodies()`` and
+        ``probe_body()``, driven with ``set_wall()`` by its name.
+    ``gravity``
+        ``g``: the gravitational acceleration [m/s^2] as a 3-list.
 
     Alternatively pass one nested dict as ``config`` (sections given as keywords override it).
     Raises :class:`ConfigError` (a :class:`ValueError`) for a bad or unknown key.
@@ -371,23 +378,16 @@ class Simulation:
         dict of 1-D arrays of one length, one entry per contact, so that
         ``pandas.DataFrame(sim.contacts())`` is the table of contacts.
 
-        ``id_i``, ``id_j`` (uint64; for a wall contact ``id_j`` is the wall index 0..5, see
-        WALL_NAMES), ``is_wall`` (bool), ``overlap`` [m], ``normal_force`` [N] (elastic);
+        ``id_i``, ``id_j`` (uint64; for a wall contact ``id_j`` is the wall index: 0..5 for the
+        box's walls, see WALL_NAMES, then the bodies' ``index`` of :meth:`bodies`),
+        ``is_wall`` (bool), ``overlap`` [m], ``normal_force`` [N] (elastic);
         ``normal_x``, ``normal_y``, ``normal_z``: the unit normal from i towards j (or into the
         wall); ``tangential_force_x``, ``_y``, ``_z`` [N] on grain i; ``rolling_moment_x``,
         ``_y``, ``_z`` [N m] on grain i (zero without rolling resistance and at walls). A
         vector as an (n, 3) array: ``np.column_stack([c["normal_x"], c["normal_y"],
         c["normal_z"]])``.
         """
-        columns: Dict[str, np.ndarray] = {}
-        for name, values in self._sim.contacts().items():
-            values = np.asarray(values)
-            if values.ndim == 2:  # a vector per contact: one column per axis
-                for k, axis in enumerate("xyz"):
-                    columns[f"{name}_{axis}"] = np.ascontiguousarray(values[:, k])
-            else:
-                columns[name] = values
-        return columns
+        return _columns(self._sim.contacts())
 
     @property
     def num_contacts(self) -> int:
@@ -411,20 +411,56 @@ class Simulation:
         """Total force of the grains on each wall (6, 3) [N]."""
         return self._sim.wall_forces()
 
+    def bodies(self) -> Dict[str, np.ndarray]:
+        """The rigid bodies beyond the box (the ``body`` section's tables, and a chamber
+        sample's chamber and symmetry planes) as columns, one entry per body, so that
+        ``pandas.DataFrame(sim.bodies())`` is their table; as the last force evaluation left
+        them (``compute_forces()`` brings them up to date without a step).
+
+        ``name``, ``index`` (a wall contact's ``id_j`` in :meth:`contacts`), ``mode`` ("fixed",
+        "velocity", "servo"); ``position`` [m] and ``velocity`` [m/s]: the body's degree of
+        freedom q and dq/dt (a translation along its direction, or a cylinder's change of
+        radius); ``force_x``, ``_y``, ``_z`` [N]: the grains' force on it; ``moment_x``, ``_y``,
+        ``_z`` [N m]: their moment about its reference point (its ``origin`` where q has put
+        it); ``stress`` [Pa]: its load over its area (NaN for a plane given no ``area``). The
+        same values as the time series' ``body_NAME_...`` columns of a run.
+        """
+        return _columns(self._sim.bodies())
+
+    def probe_body(self, name: str, sleeve_length: float = 0.0, bins: int = 1) -> Dict[str, Any]:
+        """What the grains do to the pile, cone or shaft ``name``, by part and along its axis:
+        the measurements of a penetration test (docs/chamber.md), from the last force
+        evaluation.
+
+        ``q_c`` [Pa]: the tip's load over its base area; ``f_s`` [Pa]: the load on the friction
+        sleeve (``sleeve_length`` [m] of shaft above the tip, 0: the standard 3.75 diameters)
+        over its surface; ``tip_load``, ``shaft_load``, ``sleeve_load`` [N]: the forces
+        resisting the advance; ``tip_contacts``, ``shaft_contacts``; ``sigma_r`` and ``tau``
+        [Pa]: the radial and shear stress on the shaft in ``bins`` bins of ``bin_height`` [m]
+        from the shaft's start up, with ``bin_contacts``; ``tip`` [m], ``radius`` [m] and
+        ``sector`` (the fraction of the circumference the grains reach; areas are taken over
+        it). Raises :class:`ConfigError` for a body that is not a translating pile, cone, disk
+        or outer cylinder.
+        """
+        return dict(self._sim.probe_body(name, sleeve_length=sleeve_length, bins=bins))
+
     def set_wall(self, name: str, mode: Optional[str] = None, velocity: Optional[float] = None,
                  target_stress: Optional[float] = None, servo_alpha: Optional[float] = None,
                  max_speed: Optional[float] = None) -> None:
-        """Changes how wall ``name`` (xmin ... zmax) is driven; unspecified settings are kept.
+        """Changes how wall ``name`` (xmin ... zmax) or body ``name`` (a ``body`` table's
+        ``name``) is driven; unspecified settings are kept.
 
-        mode: "fixed", "velocity" or "servo"; velocity [m/s] along the coordinate axis;
-        target_stress [Pa] (compressive); servo_alpha [-]; max_speed [m/s].
+        mode: "fixed", "velocity" or "servo"; velocity [m/s] along the coordinate axis (a
+        body's: dq/dt, along its direction or its radius); target_stress [Pa] (compressive);
+        servo_alpha [-]; max_speed [m/s]. A servo needs an area: a plane body without ``area``
+        cannot be one.
         """
         with self._exclusive("set_wall"):
             self._sim.set_wall(name, mode=mode, velocity=velocity, target_stress=target_stress,
                                servo_alpha=servo_alpha, max_speed=max_speed)
 
     def wall_config(self, name: str) -> Dict[str, Any]:
-        """Current settings of wall ``name`` as a dict."""
+        """Current settings of wall or body ``name`` as a dict."""
         return self._sim.wall_config(name)
 
     def love_weber_stress(self) -> np.ndarray:
@@ -447,6 +483,20 @@ class Simulation:
     def __repr__(self) -> str:
         return (f"<crushdem_sand.Simulation: {self.num_particles} particles, "
                 f"t = {self.time:.6g} s, {self.step_count} steps>")
+
+
+def _columns(table: Mapping[str, Any]) -> Dict[str, Any]:
+    """A table of columns from the engine with each (n, 3) vector split into its ``_x``,
+    ``_y`` and ``_z`` columns, for ``pandas.DataFrame``."""
+    columns: Dict[str, Any] = {}
+    for name, values in table.items():
+        values = np.asarray(values)
+        if values.ndim == 2:  # a vector per row: one column per axis
+            for k, axis in enumerate("xyz"):
+                columns[f"{name}_{axis}"] = np.ascontiguousarray(values[:, k])
+        else:
+            columns[name] = values
+    return columns
 
 
 def parameter_reference() -> Dict[str, str]:

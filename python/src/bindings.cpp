@@ -29,11 +29,13 @@
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
+#include "crushdem/experiments/measurements.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/particles/generate.hpp"
 #include "crushdem/run/runner.hpp"
+#include "crushdem/walls/body_probe.hpp"
 
 #ifdef CRUSHDEM_HAVE_OPENMP
 #include <omp.h>
@@ -219,19 +221,30 @@ void check_shape(const InArray& a, const char* name, std::size_t n, bool vec3) {
 
 // --- walls -------------------------------------------------------------------------------------
 
-int wall_index(const std::string& name) {
-  for (int k = 0; k < kNumWalls; ++k) {
-    if (name == wall_name(k)) return k;
+// A box wall (xmin ... zmax) or a [[body]] by name: its index in Walls.
+int wall_index(const Simulation& sim, const std::string& name) {
+  const Walls& w = sim.walls();
+  std::string bodies;
+  for (int k = 0; k < w.size(); ++k) {
+    if (name == w.name(k)) return k;
+    if (k >= kNumWalls) bodies += ", " + w.name(k);
   }
-  throw ConfigError(
-      bad_value("wall", "'" + name + "'", "one of xmin, xmax, ymin, ymax, zmin, zmax"));
+  throw ConfigError(bad_value(
+      "wall", "'" + name + "'",
+      "one of xmin, xmax, ymin, ymax, zmin, zmax" +
+          (bodies.empty() ? std::string(" (no [[body]] is configured)") : " or a body" + bodies)));
+}
+
+// The configuration key prefix of wall or body k, as the messages name it.
+std::string wall_prefix(const Walls& w, int k) {
+  return k < kNumWalls ? "walls." + w.name(k) : "body[" + std::to_string(k - kNumWalls) + "]";
 }
 
 void set_wall(Simulation& sim, const std::string& name, std::optional<std::string> mode,
               std::optional<double> velocity, std::optional<double> target_stress,
               std::optional<double> servo_alpha, std::optional<double> max_speed) {
-  const int k = wall_index(name);
-  const std::string prefix = std::string("walls.") + name;
+  const int k = wall_index(sim, name);
+  const std::string prefix = wall_prefix(sim.walls(), k);
   WallConfig c = sim.walls().config(k);
   if (mode) c.mode = parse_wall_mode(*mode, prefix + ".mode");
   if (velocity) c.velocity = *velocity;
@@ -239,12 +252,104 @@ void set_wall(Simulation& sim, const std::string& name, std::optional<std::strin
   if (servo_alpha) c.servo_alpha = *servo_alpha;
   if (max_speed) c.max_speed = *max_speed;
   c.validate(prefix);  // throws before anything changes
+  // A servo holds a stress over the body's area: a plane configured without one has none.
+  if (c.mode == WallMode::Servo && !(sim.walls().area(k) > 0.0)) {
+    throw ConfigError(bad_value(prefix + ".mode", "\"servo\"",
+                                "\"fixed\" or \"velocity\" for body \"" + name +
+                                    "\", which has no area to hold a stress over (give the "
+                                    "plane an `area` in its [[body]] table)"));
+  }
   sim.walls().config(k) = c;
   // Fixed and prescribed velocities apply from the next step on; a servo wall keeps its current
   // velocity until the end of the next step, where the controller chooses a new one.
   WallState& s = sim.walls().state(k);
   if (c.mode == WallMode::Fixed) s.velocity = 0.0;
   if (c.mode == WallMode::Velocity) s.velocity = c.velocity;
+}
+
+// Every body beyond the box as columns: its name, index (a wall contact's id_j), degree of
+// freedom, how it moves, the grains' force and moment on it and its stress.
+nb::dict body_columns(const Simulation& sim) {
+  const Walls& w = sim.walls();
+  const auto n = static_cast<std::size_t>(w.size() - kNumWalls);
+  const std::vector<Vec3> M = body_moments(sim);
+  nb::list names, modes;
+  std::int64_t* index;
+  double *q, *v, *stress, *force, *moment;
+  nb::dict out;
+  auto index_array = new_array<std::int64_t>({n}, &index);
+  auto q_array = new_array<double>({n}, &q);
+  auto v_array = new_array<double>({n}, &v);
+  auto force_array = new_array<double>({n, 3}, &force);
+  auto moment_array = new_array<double>({n, 3}, &moment);
+  auto stress_array = new_array<double>({n}, &stress);
+  for (std::size_t b = 0; b < n; ++b) {
+    const int k = kNumWalls + static_cast<int>(b);
+    const WallState& st = w.state(k);
+    const Vec3& m = M[static_cast<std::size_t>(k)];
+    names.append(w.name(k));
+    modes.append(to_string(w.config(k).mode));
+    index[b] = k;
+    q[b] = st.position;
+    v[b] = st.velocity;
+    const double f3[3] = {st.force.x, st.force.y, st.force.z}, m3[3] = {m.x, m.y, m.z};
+    std::copy(f3, f3 + 3, force + 3 * b);
+    std::copy(m3, m3 + 3, moment + 3 * b);
+    stress[b] = w.stress(k);
+  }
+  out["name"] = names;
+  out["index"] = index_array;
+  out["mode"] = modes;
+  out["position"] = q_array;
+  out["velocity"] = v_array;
+  out["force"] = force_array;
+  out["moment"] = moment_array;
+  out["stress"] = stress_array;
+  return out;
+}
+
+// The penetration probe of body `name` (walls/body_probe.hpp) as a dict.
+nb::dict probe_columns(const Simulation& sim, const std::string& name, double sleeve_length,
+                       int bins) {
+  const Walls& w = sim.walls();
+  const int k = wall_index(sim, name);
+  if (k < kNumWalls || !probe_supports(w.shape(k))) {
+    throw ConfigError(bad_value("name", "'" + name + "'",
+                                "a body that translates with a tip or a shaft (a pile, a cone, a "
+                                "disk or the outside of a cylinder)"));
+  }
+  if (!(sleeve_length >= 0.0) || !std::isfinite(sleeve_length)) {
+    throw ConfigError(bad_value("sleeve_length", show_number(sleeve_length),
+                                "a length >= 0 in m (0: the standard sleeve, 3.75 diameters)"));
+  }
+  if (bins < 1 || bins > 100000) {
+    throw ConfigError(bad_value("bins", std::to_string(bins), "a number of bins in [1, 100000]"));
+  }
+  const double R = w.shape(k).part[0].radius;
+  const BodyProbe p =
+      probe_body(w, k, sim.wall_contacts(), sim.particles(),
+                 sleeve_length > 0.0 ? sleeve_length : standard_sleeve_length(R), bins);
+  nb::dict out;
+  double* tip;
+  out["tip"] = new_array<double>({3}, &tip);
+  tip[0] = p.tip.x;
+  tip[1] = p.tip.y;
+  tip[2] = p.tip.z;
+  out["radius"] = p.radius;
+  out["sector"] = p.sector;
+  out["q_c"] = p.q_c();
+  out["f_s"] = p.f_s();
+  out["tip_load"] = p.tip_load;
+  out["shaft_load"] = p.shaft_load;
+  out["sleeve_load"] = p.sleeve_load;
+  out["sleeve_length"] = p.sleeve_length;
+  out["tip_contacts"] = p.tip_contacts;
+  out["shaft_contacts"] = p.shaft_contacts;
+  out["bin_height"] = p.bin_height;
+  out["sigma_r"] = column(p.sigma_r);
+  out["tau"] = column(p.tau);
+  out["bin_contacts"] = id_column(p.bin_contacts);
+  return out;
 }
 
 // --- the module --------------------------------------------------------------------------------
@@ -617,12 +722,13 @@ NB_MODULE(_core, m) {
           "Total force of the grains on each wall (6,3) [N].")
       .def("set_wall", &set_wall, "name"_a, "mode"_a = nb::none(), "velocity"_a = nb::none(),
            "target_stress"_a = nb::none(), "servo_alpha"_a = nb::none(), "max_speed"_a = nb::none(),
-           "Changes the control of wall `name` (xmin..zmax): mode 'fixed'|'velocity'|'servo', "
+           "Changes the control of wall or body `name` (xmin..zmax or a [[body]]'s name): mode "
+           "'fixed'|'velocity'|'servo', "
            "velocity [m/s] along the axis, target_stress [Pa], servo_alpha [-], max_speed [m/s].")
       .def(
           "wall_config",
           [](const Simulation& sim, const std::string& name) {
-            const WallConfig& c = sim.walls().config(wall_index(name));
+            const WallConfig& c = sim.walls().config(wall_index(sim, name));
             nb::dict d;
             d["mode"] = to_string(c.mode);
             d["velocity"] = c.velocity;
@@ -631,7 +737,16 @@ NB_MODULE(_core, m) {
             d["max_speed"] = c.max_speed;
             return d;
           },
-          "name"_a, "The current control settings of one wall as a dict.")
+          "name"_a, "The current control settings of one wall or body as a dict.")
+      .def("bodies", &body_columns,
+           "The bodies beyond the box as columns: name, index (a wall contact's id_j), mode, "
+           "position (their degree of freedom q) [m], velocity (dq/dt) [m/s], force (n,3) and "
+           "moment (n,3) of the grains on each (the moment about its reference point) [N, N m], "
+           "stress [Pa]; as the last force evaluation left them.")
+      .def("probe_body", &probe_columns, "name"_a, "sleeve_length"_a = 0.0, "bins"_a = 1,
+           "The penetration probe of a pile, cone or shaft (docs/chamber.md): tip, radius, "
+           "sector, q_c, f_s, tip_load, shaft_load, sleeve_load, sleeve_length, tip_contacts, "
+           "shaft_contacts, bin_height, sigma_r, tau and bin_contacts by bin along the shaft.")
 
       .def(
           "love_weber_stress",

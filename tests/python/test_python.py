@@ -282,6 +282,92 @@ def test_set_wall_moves_it():
     assert sim.wall_positions()[5] == z
 
 
+PILE = {"name": "pile", "shape": "pile", "origin": [0.0, 0.0, -5e-3], "axis": [0.0, 0.0, 1.0],
+        "radius": 1e-3, "length": 8e-3, "tip": "flat"}
+PLANE = {"name": "floor", "shape": "plane", "origin": [0.0, 0.0, -9e-3], "axis": [0.0, 0.0, -1.0]}
+
+
+def body_sim():
+    return hertz_sim(box={"min": [-0.02] * 3, "max": [0.02] * 3}, body=[PILE, PLANE])
+
+
+def test_bodies_read_as_a_table_with_their_force_and_moment():
+    pd = pytest.importorskip("pandas")
+    sim = body_sim()
+    R, r, delta, h = 1e-3, 1e-4, 2e-7, 3e-3
+    # One grain pressed on the shaft's +x side, h above the pile's origin (its flat tip).
+    sim.add_particles(np.array([[R + r - delta, 0.0, -5e-3 + h]]), np.array([r]))
+    sim.compute_forces()
+    table = pd.DataFrame(sim.bodies())
+    assert list(table["name"]) == ["pile", "floor"]
+    assert list(table["index"]) == [6, 7]
+    assert list(table["mode"]) == ["fixed", "fixed"]
+    assert {"position", "velocity", "force_x", "moment_z", "stress"} <= set(table.columns)
+    pile = table.iloc[0]
+    # The grain pushes the shaft towards -x at (R, 0, h) from the origin: M = (R, 0, h) x F.
+    F = pile["force_x"]
+    assert F < 0.0
+    assert pile["force_y"] == pytest.approx(0.0, abs=1e-12 * abs(F))
+    assert pile["moment_y"] == pytest.approx(h * F, rel=1e-9)
+    assert pile["moment_x"] == pytest.approx(0.0, abs=1e-12 * abs(F))
+    assert pile["moment_z"] == pytest.approx(0.0, abs=1e-12 * abs(F))
+    # Its contact is a wall contact whose id_j is the body's index.
+    c = sim.contacts()
+    assert list(c["id_j"][c["is_wall"]]) == [6]
+    assert -F == pytest.approx(c["normal_force"][c["is_wall"]][0], rel=1e-12)
+    # A plane given no area has no stress; nothing touches it.
+    assert math.isnan(table.iloc[1]["stress"])
+    assert table.iloc[1]["force_z"] == 0.0
+
+
+def test_a_pile_is_probed_and_driven_by_its_name():
+    sim = body_sim()
+    R, r, delta = 1e-3, 1e-4, 2e-7
+    # A grain under the tip, one on the shaft 1.3 mm up (of 8 mm in 4 bins: bin 0).
+    sim.add_particles(np.array([[0.0, 0.0, -5e-3 - r + delta], [R + r - delta, 0.0, -3.7e-3]]),
+                      np.array([r, r]))
+    sim.compute_forces()
+    p = sim.probe_body("pile", bins=4)
+    c = sim.contacts()
+    on_wall = dict(zip(c["id_i"][c["is_wall"]], c["normal_force"][c["is_wall"]]))
+    assert p["tip_contacts"] == 1 and p["shaft_contacts"] == 1
+    assert p["q_c"] == pytest.approx(on_wall[0] / (math.pi * R * R), rel=1e-12)
+    assert p["bin_height"] == pytest.approx(2e-3, rel=1e-12)
+    assert p["sigma_r"][0] == pytest.approx(on_wall[1] / (2 * math.pi * R * 2e-3), rel=1e-12)
+    assert list(p["sigma_r"][1:]) == [0.0, 0.0, 0.0]
+    assert list(p["bin_contacts"]) == [1, 0, 0, 0]
+    assert p["sleeve_length"] == pytest.approx(0.1337 / 0.0357 * 2 * R, rel=1e-12)
+    np.testing.assert_allclose(p["tip"], [0.0, 0.0, -5e-3], atol=1e-15)
+    # Driven down at 1 mm/s: its degree of freedom and its tip follow.
+    sim.set_dt(1e-8)
+    sim.set_wall("pile", mode="velocity", velocity=1e-3)
+    assert sim.wall_config("pile")["mode"] == "velocity"
+    sim.step(100)
+    assert sim.bodies()["position"][0] == pytest.approx(1e-3 * 100 * 1e-8, rel=1e-9)
+    assert sim.probe_body("pile")["tip"][2] == pytest.approx(-5e-3 - 1e-9, rel=1e-9)
+
+
+def test_bad_body_requests_are_refused_naming_what_is_wrong():
+    sim = body_sim()
+    with pytest.raises(crushdem_sand.ConfigError, match="or a body, pile, floor"):
+        sim.set_wall("pipe", mode="fixed")
+    with pytest.raises(crushdem_sand.ConfigError, match=r"body\[1\]\.mode.*no area"):
+        sim.set_wall("floor", mode="servo", target_stress=1e5)
+    assert sim.wall_config("floor")["mode"] == "fixed"  # unchanged
+    with pytest.raises(crushdem_sand.ConfigError, match=r"body\[0\]\.mode"):
+        sim.set_wall("pile", mode="spinning")
+    with pytest.raises(crushdem_sand.ConfigError, match="translates with a tip or a shaft"):
+        sim.probe_body("floor")
+    with pytest.raises(crushdem_sand.ConfigError, match="translates with a tip or a shaft"):
+        sim.probe_body("zmax")
+    with pytest.raises(crushdem_sand.ConfigError, match="bins"):
+        sim.probe_body("pile", bins=0)
+    with pytest.raises(crushdem_sand.ConfigError, match="sleeve_length"):
+        sim.probe_body("pile", sleeve_length=-1.0)
+    with pytest.raises(crushdem_sand.ConfigError, match="no \\[\\[body\\]\\] is configured"):
+        hertz_sim().set_wall("pile", mode="fixed")
+
+
 def test_step_releases_gil():
     """While one thread steps, another runs Python code at about its own speed: the GIL is
     released for the stepping (held, the other thread would only run between chunks)."""

@@ -196,12 +196,10 @@ void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodi
 }
 
 BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c) {
-  // The standard friction sleeve: 150 cm^2 on a 35.7 mm cone (ISO 22476-1), 133.7 mm long.
-  constexpr double kSleeveDiameters = 0.1337 / 0.0357;
   const Walls& w = sim.walls();
   const int k = stage_body_index(w, c);
-  const double R = w.shape(k).part[0].radius;
-  const double sleeve = c.sleeve_length > 0.0 ? c.sleeve_length : kSleeveDiameters * 2 * R;
+  const double sleeve =
+      c.sleeve_length > 0.0 ? c.sleeve_length : standard_sleeve_length(w.shape(k).part[0].radius);
   return probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(c.bins));
 }
 

@@ -68,8 +68,8 @@ OpenCheckpoint open_checkpoint(const std::string& path);
 
 /// What stands between a checkpoint's configuration and the run directory's: "" when they
 /// describe the same run, else the first key that differs ("stage[1].depth = 0.2 (the
-/// checkpoint's: 0.1)"). A later crushdem writes keys added since (at their defaults) into the resolved
-/// configuration as well, so the saved text is resolved again before it is compared.
+/// checkpoint's: 0.1)"). A later crushdem writes keys added since (at their defaults) into the
+/// resolved configuration as well, so the saved text is resolved again before it is compared.
 std::string saved_config_difference(const std::string& saved, const std::string& current,
                                     const std::filesystem::path& dir);
 

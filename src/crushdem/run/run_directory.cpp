@@ -39,8 +39,8 @@ std::string value_text(const toml::Value* v) {
 }
 
 // The first key under `prefix` where two values differ, with both values ("" when they are
-// equal): "body[0].friction = 0.5 (the original run's: 0.275)", a naming a's source. Tables and
-// arrays of tables of one length are compared entry by entry.
+// equal): "body[0].friction = 0.5 (the original run's: 0.275)", `a_source` naming where a came
+// from. Tables and arrays of tables of one length are compared entry by entry.
 std::string first_difference(const toml::Value* a, const toml::Value* b, const std::string& prefix,
                              const std::string& a_source,
                              const std::set<std::string>& ignored = {}) {
