@@ -212,6 +212,30 @@ TEST(Bodies, APrescribedVelocityMovesTheBodyAndAServoHoldsItsStress) {
   EXPECT_NEAR(sim.walls().state(platen).force.z / (2e3 * kPi * 1e-6), 1.0, 1e-3);
 }
 
+TEST(Bodies, AServoOnALoadHoldsTheForceWhateverTheBodysArea) {
+  // The platen above, servo-controlled to a load of 5 mN from the start: held over its own
+  // area as a stress (5 mN / pi mm^2), and written back as the load, not as a stress.
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"platen\"\nshape = \"disk\"\norigin = [0, 0, 1.02e-4]\n"
+      "axis = [0, 0, 1]\nradius = 1e-3\nmode = \"servo\"\ntarget_force = 5e-3\n"
+      "max_speed = 0.01\n");
+  for (int k = 0; k < kNumWalls; ++k) {
+    cfg.walls[static_cast<std::size_t>(k)].position = wall_is_low(k) ? -1e-3 : 1e-3;
+  }
+  cfg.walls[4].position = -1e-4;
+  cfg.damping.local_alpha = 0.7;
+  const std::string text = toml::serialize(to_toml(cfg));
+  EXPECT_NE(text.find("target_force = 0.005"), std::string::npos) << text;
+  EXPECT_EQ(text.find("target_stress"), std::string::npos) << text;
+  Simulation sim(cfg);
+  const int platen = kNumWalls;
+  EXPECT_NEAR(sim.walls().config(platen).target_stress * kPi * 1e-6 / 5e-3, 1.0, 1e-12);
+  sim.add_particle({0.0, 0.0, 0.0}, 1e-4);
+  sim.set_dt(1e-8);
+  sim.step(200000);
+  EXPECT_NEAR(sim.walls().state(platen).force.z / 5e-3, 1.0, 1e-3);
+}
+
 TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {
   // A flat-ended pile of radius 1 mm, its tip at z = -5 mm, driven down (-axis); one grain
   // pressed on the tip from below, two on the shaft at heights 1.3 and 5.1 mm, one sliding
@@ -374,6 +398,19 @@ TEST(Bodies, BadBodiesAreRefusedNamingTheKey) {
        "body[0].length"},
       {"[[body]]\nname = \"a\"\nshape = \"plane\"\ntarget_stress = 1e5\n", "body[0].target_stress"},
       {"[[body]]\nname = \"a\"\nshape = \"sphere\"\n", "body[0].shape"},
+      // A load servo on a dilating cylinder (its area changes), with a stress target too, and
+      // without a servo.
+      {"[[body]]\nname = \"c\"\nshape = \"cylinder_inside\"\nradius = 1e-3\nlength = 1e-3\n"
+       "motion = \"dilate\"\nmode = \"servo\"\ntarget_force = 1.0\n",
+       "body[0].target_force"},
+      {"[[body]]\nname = \"d\"\nshape = \"disk\"\nradius = 1e-3\nmode = \"servo\"\n"
+       "target_force = 1.0\ntarget_stress = 1e5\n",
+       "body[0].target_stress"},
+      {"[[body]]\nname = \"d\"\nshape = \"disk\"\nradius = 1e-3\ntarget_force = 1.0\n",
+       "body[0].target_force"},
+      {"[[body]]\nname = \"d\"\nshape = \"disk\"\nradius = 1e-3\nmode = \"servo\"\n"
+       "target_force = -1.0\n",
+       "body[0].target_force"},
   };
   for (const auto& [bodies, key] : cases) {
     const std::string error = config_error(bodies);

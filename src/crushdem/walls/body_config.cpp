@@ -1,5 +1,6 @@
 #include "crushdem/walls/body_config.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -110,7 +111,26 @@ const ParamTable<BodyConfig>& body_params() {
             "velocity mode: dq/dt, along `direction` for a translating body (positive: into the "
             "grains) or the radius's rate of change for a dilating cylinder";
       }
+      if (p.key == std::string_view("target_stress")) {  // or the load, target_force
+        p.doc = "servo mode: compressive normal stress to hold (or give target_force)";
+        p.applies = [](const B& b) { return b.mode == WallMode::Servo && !(b.target_force > 0.0); };
+      }
     }
+    // Before target_stress, whose check it decides: a bad load is named as itself.
+    const auto stress_row = std::find_if(t.begin(), t.end(), [](const Param<B>& p) {
+      return p.key == std::string_view("target_stress");
+    });
+    t.insert(stress_row,
+             Param<B>{"target_force",
+                      &B::target_force,
+                      "N",
+                      "servo mode: the load to hold instead of a stress, the force resisting the "
+                      "body's advance (a translating body; in a chamber's sector the whole body's, "
+                      "as a pile stage's head_load); 0: hold target_stress",
+                      [](double v) { return v >= 0.0; },
+                      "a load >= 0 in N",
+                      {},
+                      [](const B& b) { return b.mode == WallMode::Servo; }});
     return t;
   }();
   return table;
@@ -151,6 +171,10 @@ void BodyConfig::validate(const std::string& prefix) const {
     fail("motion", "\"dilate\"",
          "\"translate\" for a " + std::string(to_string(kind)) + " (only a cylinder dilates)");
   }
+  if (target_force > 0.0 && motion == BodyMotion::Dilate) {
+    fail("target_force", show_number(target_force),
+         "0 for a dilating cylinder, whose area changes with its radius: give target_stress");
+  }
   if (mode == WallMode::Servo && kind == BodyKind::Plane && !(area > 0.0)) {
     fail("area", show_number(area), "an area > 0 in m^2 for a servo-controlled plane");
   }
@@ -162,6 +186,7 @@ Body BodyConfig::make(double wall_friction) const {
   b.motion = *this;
   b.motion.position = 0.0;
   b.area = area;
+  b.target_force = target_force;
   b.chamber = chamber;
   b.sector = sector;
   b.symmetry = symmetry;

@@ -41,12 +41,13 @@ struct BodyConfig : WallConfig {
   double half_angle = 30.0;         // [degrees]: the standard penetrometer's 60 degree apex
   PileTip tip = PileTip::Cone;
   BodyMotion motion = BodyMotion::Translate;
-  Vec3 direction;          // translate: where q advances; zero: -axis
-  double friction = -1.0;  // grain-body friction; negative: contact.wall_friction
-  double area = 0.0;       // [m^2] a servo's area; 0: the shape's own surface
-  bool chamber = false;    // a chamber sample's lateral boundary (set by [sample], not a key)
-  double sector = 1.0;     // the chamber's: the fraction of the circle the sample fills
-  bool symmetry = false;   // a plane of symmetry of a chamber's sector (set by [sample])
+  Vec3 direction;             // translate: where q advances; zero: -axis
+  double friction = -1.0;     // grain-body friction; negative: contact.wall_friction
+  double area = 0.0;          // [m^2] a servo's area; 0: the shape's own surface
+  double target_force = 0.0;  // [N] servo: the load to hold instead of target_stress (0: none)
+  bool chamber = false;       // a chamber sample's lateral boundary (set by [sample], not a key)
+  double sector = 1.0;        // the chamber's: the fraction of the circle the sample fills
+  bool symmetry = false;      // a plane of symmetry of a chamber's sector (set by [sample])
   /// Range checks and the checks joining keys; errors name prefix.key.
   void validate(const std::string& prefix) const;
   /// The body (its geometry at q = 0, its motion), with `wall_friction` where none is given.

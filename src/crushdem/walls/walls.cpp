@@ -102,6 +102,13 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
   }
   st_.resize(cfg_.size());
   for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
+  // A servo on a load holds it as a stress over the body's area, which a translation does not
+  // change; in a sector the grains carry the sector's share of the whole body's load.
+  for (std::size_t b = 0; b < bodies.size(); ++b) {
+    if (!(bodies[b].target_force > 0.0)) continue;
+    const int k = kNumWalls + static_cast<int>(b);
+    cfg_[static_cast<std::size_t>(k)].target_stress = bodies[b].target_force * sector() / area(k);
+  }
   update_velocities(0.0);
 }
 

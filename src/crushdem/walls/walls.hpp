@@ -73,6 +73,9 @@ struct Body {
   BodyShape shape;
   WallConfig motion;
   double area = 0.0;  // [m^2]; 0: the shape's own (a disk's, a cylinder's lateral surface)
+  /// A servo on a load [N] (the whole body's, in a sector too) rather than on
+  /// motion.target_stress, which Walls sets from it; 0: none.
+  double target_force = 0.0;
   /// The lateral boundary of a chamber sample (a dilating cylinder_inside about z, the box's z
   /// walls its platens): the sample's volume, lateral size and stress are then the chamber's.
   bool chamber = false;
