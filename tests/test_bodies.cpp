@@ -5,6 +5,7 @@
 // configuration's errors naming the key.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <string>
 
@@ -234,6 +235,38 @@ TEST(Bodies, AServoOnALoadHoldsTheForceWhateverTheBodysArea) {
   sim.set_dt(1e-8);
   sim.step(200000);
   EXPECT_NEAR(sim.walls().state(platen).force.z / 5e-3, 1.0, 1e-3);
+}
+
+TEST(Bodies, AServoOnALoadInAQuarterChamberHoldsTheQuarterOfABodyOnItsAxisOnly) {
+  // A quarter chamber of radius 10 mm; a plate 2 mm across on its axis stands for the whole
+  // plate, of which the quarter's grains carry a quarter; one off the axis lies in the quarter.
+  BodyConfig chamber;
+  chamber.name = "chamber";
+  chamber.kind = BodyKind::CylinderInside;
+  chamber.origin = {0.0, 0.0, -0.01};
+  chamber.radius = 0.01;
+  chamber.length = 0.03;
+  chamber.motion = BodyMotion::Dilate;
+  chamber.chamber = true;
+  chamber.sector = 0.25;
+  BodyConfig plate;
+  plate.kind = BodyKind::Disk;
+  plate.radius = 1e-3;
+  plate.mode = WallMode::Servo;
+  plate.target_force = 0.2;
+  BodyConfig on_axis = plate, off_axis = plate;
+  on_axis.name = "on_axis";
+  on_axis.origin = {0.0, 0.0, 5e-3};
+  off_axis.name = "off_axis";
+  off_axis.origin = {4e-3, 4e-3, 5e-3};
+  std::array<WallConfig, kNumWalls> box{};
+  for (int k = 0; k < kNumWalls; ++k) {
+    box[static_cast<std::size_t>(k)].position = wall_is_low(k) ? -0.01 : 0.01;
+  }
+  const Walls w(box, 0.0, {on_axis.make(0.0), off_axis.make(0.0), chamber.make(0.0)});
+  const double A = kPi * 1e-6;
+  EXPECT_NEAR(w.config(kNumWalls).target_stress * A / (0.25 * 0.2), 1.0, 1e-12);
+  EXPECT_NEAR(w.config(kNumWalls + 1).target_stress * A / 0.2, 1.0, 1e-12);
 }
 
 TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {

@@ -422,10 +422,15 @@ class Simulation:
         freedom q and dq/dt (a translation along its direction, or a cylinder's change of
         radius); ``force_x``, ``_y``, ``_z`` [N]: the grains' force on it; ``moment_x``, ``_y``,
         ``_z`` [N m]: their moment about its reference point (its ``origin`` where q has put
-        it); ``stress`` [Pa]: its load over its area (NaN for a plane given no ``area``). The
-        same values as the time series' ``body_NAME_...`` columns of a run.
+        it; NaN when grains were added or moved since the last force evaluation, as the wall
+        contacts then no longer match them); ``stress`` [Pa]: its load over its area (NaN for a
+        plane given no ``area``). The same values as the time series' ``body_NAME_...``
+        columns of a run.
         """
-        return _columns(self._sim.bodies())
+        columns = _columns(self._sim.bodies())
+        for name in ("name", "mode"):  # text, also when there is no body
+            columns[name] = np.asarray(columns[name], dtype=object)
+        return columns
 
     def probe_body(self, name: str, sleeve_length: float = 0.0, bins: int = 1) -> Dict[str, Any]:
         """What the grains do to the pile, cone or shaft ``name``, by part and along its axis:
@@ -440,7 +445,8 @@ class Simulation:
         from the shaft's start up, with ``bin_contacts``; ``tip`` [m], ``radius`` [m] and
         ``sector`` (the fraction of the circumference the grains reach; areas are taken over
         it). Raises :class:`ConfigError` for a body that is not a translating pile, cone, disk
-        or outer cylinder.
+        or outer cylinder, and :class:`RuntimeFailure` when grains were added or moved since
+        the last force evaluation (``compute_forces()`` first).
         """
         return dict(self._sim.probe_body(name, sleeve_length=sleeve_length, bins=bins))
 

@@ -272,6 +272,9 @@ void set_wall(Simulation& sim, const std::string& name, std::optional<std::strin
 nb::dict body_columns(const Simulation& sim) {
   const Walls& w = sim.walls();
   const auto n = static_cast<std::size_t>(w.size() - kNumWalls);
+  // Not current (grains added or moved since the last evaluation): the wall entries may not
+  // match the grains, so the moment is unknown, not zero.
+  const bool current = sim.forces_current();
   const std::vector<Vec3> M = body_moments(sim);
   nb::list names, modes;
   std::int64_t* index;
@@ -295,6 +298,7 @@ nb::dict body_columns(const Simulation& sim) {
     const double f3[3] = {st.force.x, st.force.y, st.force.z}, m3[3] = {m.x, m.y, m.z};
     std::copy(f3, f3 + 3, force + 3 * b);
     std::copy(m3, m3 + 3, moment + 3 * b);
+    if (!current) std::fill(moment + 3 * b, moment + 3 * b + 3, std::nan(""));
     stress[b] = w.stress(k);
   }
   out["name"] = names;
@@ -310,13 +314,21 @@ nb::dict body_columns(const Simulation& sim) {
 
 // The penetration probe of body `name` (walls/body_probe.hpp) as a dict.
 nb::dict probe_columns(const Simulation& sim, const std::string& name, double sleeve_length,
-                       int bins) {
+                       std::int64_t bins) {
   const Walls& w = sim.walls();
-  const int k = wall_index(sim, name);
-  if (k < kNumWalls || !probe_supports(w.shape(k))) {
-    throw ConfigError(bad_value("name", "'" + name + "'",
-                                "a body that translates with a tip or a shaft (a pile, a cone, a "
-                                "disk or the outside of a cylinder)"));
+  int k = -1;
+  std::string probed;  // the bodies probe_body takes, for the message
+  for (int j = kNumWalls; j < w.size(); ++j) {
+    if (!probe_supports(w.shape(j))) continue;
+    if (w.name(j) == name) k = j;
+    probed += (probed.empty() ? "" : ", ") + w.name(j);
+  }
+  if (k < 0) {
+    throw ConfigError(bad_value(
+        "name", "'" + name + "'",
+        "a body that translates with a tip or a shaft (a pile, a cone, a disk or the outside of "
+        "a cylinder): " +
+            (probed.empty() ? std::string("this simulation has none") : "one of " + probed)));
   }
   if (!(sleeve_length >= 0.0) || !std::isfinite(sleeve_length)) {
     throw ConfigError(bad_value("sleeve_length", show_number(sleeve_length),
@@ -325,10 +337,15 @@ nb::dict probe_columns(const Simulation& sim, const std::string& name, double sl
   if (bins < 1 || bins > 100000) {
     throw ConfigError(bad_value("bins", std::to_string(bins), "a number of bins in [1, 100000]"));
   }
+  if (!sim.forces_current()) {
+    throw RuntimeFailure(
+        "probe_body: the forces are not current (grains added or moved since "
+        "the last evaluation): call compute_forces() or step() first");
+  }
   const double R = w.shape(k).part[0].radius;
-  const BodyProbe p =
-      probe_body(w, k, sim.wall_contacts(), sim.particles(),
-                 sleeve_length > 0.0 ? sleeve_length : standard_sleeve_length(R), bins);
+  const BodyProbe p = probe_body(w, k, sim.wall_contacts(), sim.particles(),
+                                 sleeve_length > 0.0 ? sleeve_length : standard_sleeve_length(R),
+                                 static_cast<int>(bins));
   nb::dict out;
   double* tip;
   out["tip"] = new_array<double>({3}, &tip);

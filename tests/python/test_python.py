@@ -356,16 +356,38 @@ def test_bad_body_requests_are_refused_naming_what_is_wrong():
     assert sim.wall_config("floor")["mode"] == "fixed"  # unchanged
     with pytest.raises(crushdem_sand.ConfigError, match=r"body\[0\]\.mode"):
         sim.set_wall("pile", mode="spinning")
-    with pytest.raises(crushdem_sand.ConfigError, match="translates with a tip or a shaft"):
+    with pytest.raises(crushdem_sand.ConfigError, match="tip or a shaft.*one of pile$"):
         sim.probe_body("floor")
     with pytest.raises(crushdem_sand.ConfigError, match="translates with a tip or a shaft"):
         sim.probe_body("zmax")
+    with pytest.raises(crushdem_sand.ConfigError, match="bins"):
+        sim.probe_body("pile", bins=2**40)
     with pytest.raises(crushdem_sand.ConfigError, match="bins"):
         sim.probe_body("pile", bins=0)
     with pytest.raises(crushdem_sand.ConfigError, match="sleeve_length"):
         sim.probe_body("pile", sleeve_length=-1.0)
     with pytest.raises(crushdem_sand.ConfigError, match="no \\[\\[body\\]\\] is configured"):
         hertz_sim().set_wall("pile", mode="fixed")
+    empty = hertz_sim().bodies()
+    assert len(empty["name"]) == 0 and empty["name"].dtype == object
+    # Grains added after the last force evaluation: the wall entries no longer match them.
+    sim.add_particles(np.array([[1e-3 + 1e-4 - 2e-7, 0.0, -2e-3]]), np.array([1e-4]))
+    sim.compute_forces()
+    assert not math.isnan(sim.bodies()["moment_y"][0])
+    sim.add_particles(np.array([[0.01, 0.01, 0.01]]), np.array([1e-4]))
+    assert math.isnan(sim.bodies()["moment_y"][0])
+    with pytest.raises(crushdem_sand.RuntimeFailure, match="compute_forces"):
+        sim.probe_body("pile")
+
+
+def test_a_servo_on_a_load_is_a_body_key():
+    sim = hertz_sim(box={"min": [-0.02] * 3, "max": [0.02] * 3},
+                    body=[{"name": "plate", "shape": "disk", "origin": [0.0, 0.0, 1e-3],
+                           "radius": 1e-3, "mode": "servo", "target_force": 2e-3}])
+    assert sim.wall_config("plate")["target_stress"] == pytest.approx(2e-3 / (math.pi * 1e-6))
+    with pytest.raises(crushdem_sand.ConfigError, match="beside target_force"):
+        hertz_sim(body=[{"name": "plate", "shape": "disk", "radius": 1e-3, "mode": "servo",
+                         "target_force": 2e-3, "target_stress": 1e5}])
 
 
 def test_step_releases_gil():

@@ -65,8 +65,18 @@ void read_simulation(Section& root, SimulationConfig& c, bool box_required = tru
     BodyConfig b;
     read_params(s, b, body_params());
     // The motion keys apply as a wall's do: a key the mode does not use is a forgotten `mode`.
-    param_io::refuse_unused_keys(s, b, body_params(), true, [](const Param<BodyConfig>& p) {
-      return "no '" + std::string(p.key) + "' for this body (its mode or shape does not use it)";
+    param_io::refuse_unused_keys(s, b, body_params(), true, [&b](const Param<BodyConfig>& p) {
+      const std::string key(p.key);
+      if (key == "target_stress" && b.mode == WallMode::Servo) {  // so target_force is given
+        return std::string(
+            "no 'target_stress' beside target_force (the servo holds one of "
+            "them: give either)");
+      }
+      if (key == "tip") {
+        return "no 'tip' for a " + std::string(to_string(b.kind)) + " (only a pile has one)";
+      }
+      return "no '" + key + "' for a body in mode \"" + to_string(b.mode) +
+             "\" (set mode or remove the key)";
     });
     s.finish();
     c.bodies.push_back(b);

@@ -125,8 +125,8 @@ const ParamTable<BodyConfig>& body_params() {
                       &B::target_force,
                       "N",
                       "servo mode: the load to hold instead of a stress, the force resisting the "
-                      "body's advance (a translating body; in a chamber's sector the whole body's, "
-                      "as a pile stage's head_load); 0: hold target_stress",
+                      "body's advance (a translating body; one on a chamber sector's axis: the "
+                      "whole body's, as a pile stage's head_load); 0: hold target_stress",
                       [](double v) { return v >= 0.0; },
                       "a load >= 0 in N",
                       {},

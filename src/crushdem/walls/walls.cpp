@@ -103,11 +103,16 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
   st_.resize(cfg_.size());
   for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
   // A servo on a load holds it as a stress over the body's area, which a translation does not
-  // change; in a sector the grains carry the sector's share of the whole body's load.
+  // change. A body on a sector's axis (a pile, a plate about it) stands for the whole body and
+  // its grains carry the sector's share of the load; one off the axis is wholly in the sector.
   for (std::size_t b = 0; b < bodies.size(); ++b) {
     if (!(bodies[b].target_force > 0.0)) continue;
     const int k = kNumWalls + static_cast<int>(b);
-    cfg_[static_cast<std::size_t>(k)].target_stress = bodies[b].target_force * sector() / area(k);
+    const BodyPart& s = shape(k).part[0];
+    const bool on_axis = chamber_ >= 0 && s.origin.x == 0.0 && s.origin.y == 0.0 &&
+                         s.axis.x == 0.0 && s.axis.y == 0.0;
+    cfg_[static_cast<std::size_t>(k)].target_stress =
+        bodies[b].target_force * (on_axis ? sector() : 1.0) / area(k);
   }
   update_velocities(0.0);
 }
