@@ -320,6 +320,9 @@ TEST(Penetration, BadPenetrationsAreRefusedNamingTheKey) {
        "stage[0].body"},  // a chamber's wall is not driven in
       {cone + "[[stage]]\ntype = \"penetrate\"\nbody = \"cone\"\nvelocity = 0.0\ndepth = 1e-4\n",
        "stage[0].velocity"},
+      // A motion of its own for a body the stages drive.
+      {cone + "mode = \"servo\"\ntarget_force = 0.1\n" + stage + "body = \"cone\"\n",
+       "body[0].mode' = \"servo\": expected \"fixed\" for a body a stage drives (stage[0]"},
       {cone + "[[stage]]\ntype = \"penetrate\"\nbody = \"cone\"\nvelocity = 1.0\n",
        "stage[0].depth"},
       // Unloading between strokes without strokes, or without a pause to unload in.

@@ -175,8 +175,17 @@ void check_pile_head(const StageConfig& c, const std::string& prefix) {
 void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodies,
                        const std::string& prefix) {
   if (c.body.empty()) return;
-  for (const BodyConfig& b : bodies) {
+  for (std::size_t j = 0; j < bodies.size(); ++j) {
+    const BodyConfig& b = bodies[j];
     if (b.name != c.body) continue;
+    // The stages set its motion; one of its own would move it before them (a servo would push
+    // a parked pile into the grains) and be lost at the first.
+    if (b.mode != WallMode::Fixed) {
+      throw ConfigError(bad_value("body[" + std::to_string(j) + "].mode",
+                                  "\"" + std::string(to_string(b.mode)) + "\"",
+                                  "\"fixed\" for a body a stage drives (" + prefix +
+                                      " names it; its stages set how it moves)"));
+    }
     const Body made = b.make(0.0);
     if (!probe_supports(made.shape)) {
       throw ConfigError(
