@@ -264,9 +264,13 @@ TEST(Bodies, AServoOnALoadInAQuarterChamberHoldsTheQuarterOfABodyOnItsAxisOnly) 
     box[static_cast<std::size_t>(k)].position = wall_is_low(k) ? -0.01 : 0.01;
   }
   const Walls w(box, 0.0, {on_axis.make(0.0), off_axis.make(0.0), chamber.make(0.0)});
+  // The grains reach a quarter of the plate on the axis: its area is that quarter, and the
+  // servo holds the load target_stress x area on them.
   const double A = kPi * 1e-6;
-  EXPECT_NEAR(w.config(kNumWalls).target_stress * A / (0.25 * 0.2), 1.0, 1e-12);
-  EXPECT_NEAR(w.config(kNumWalls + 1).target_stress * A / 0.2, 1.0, 1e-12);
+  EXPECT_NEAR(w.area(kNumWalls) / (0.25 * A), 1.0, 1e-15);
+  EXPECT_NEAR(w.area(kNumWalls + 1) / A, 1.0, 1e-15);
+  EXPECT_NEAR(w.config(kNumWalls).target_stress * w.area(kNumWalls) / (0.25 * 0.2), 1.0, 1e-12);
+  EXPECT_NEAR(w.config(kNumWalls + 1).target_stress * w.area(kNumWalls + 1) / 0.2, 1.0, 1e-12);
 }
 
 TEST(Bodies, AProbeSplitsAPilesLoadIntoTipShaftAndBinsAlongTheShaft) {

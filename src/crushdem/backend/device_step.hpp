@@ -396,7 +396,8 @@ CD_HD inline void wall_store_and_servo(const View& v, int k, const WallSum& sum)
       area = (W[2 * a1 + 1].position - W[2 * a1].position) *
              (W[2 * a2 + 1].position - W[2 * a2].position);
     } else {
-      area = v.body_area[k] > 0.0 ? v.body_area[k] : body_own_area(v.shape[k], s.position);
+      area = v.body_area[k] > 0.0 ? v.body_area[k]
+                                  : v.shape[k].sector * body_own_area(v.shape[k], s.position);
     }
     const double load = body_load(v.shape[k], s.normal_force, Vec3{s.fx, s.fy, s.fz});
     s.velocity = servo_velocity(v.shape[k].outward_sign, load, area, s.stiffness, v.ctrl->h,

@@ -229,7 +229,8 @@ struct BodyShape {
   /// the servo area of the cylinder itself and of the platens (the box's z walls); -1: none.
   std::int32_t chamber = -1;
   /// The fraction of the circle a chamber sample fills (1; a half or a quarter between
-  /// symmetry planes): it scales the chamber's servo areas.
+  /// symmetry planes): it scales the chamber's servo areas, and the own area of a body on the
+  /// sector's axis, of which the grains reach that fraction.
   double sector = 1.0;
 };
 

@@ -99,20 +99,26 @@ Walls::Walls(const std::array<WallConfig, kNumWalls>& box, double wall_friction,
       shape_[static_cast<std::size_t>(k)].chamber = chamber_;
       shape_[static_cast<std::size_t>(k)].sector = chamber_sector;
     }
+    // A body on the sector's axis (a pile, a cone, a plate about it) stands for the whole body,
+    // of which the grains reach the sector: its own area is the sector's too. One off the axis
+    // lies wholly in the sector.
+    for (int k = kNumWalls; k < size(); ++k) {
+      const BodyPart& s = shape_[static_cast<std::size_t>(k)].part[0];
+      if (k == chamber_ || symmetry_[static_cast<std::size_t>(k)]) continue;
+      if (s.origin.x == 0.0 && s.origin.y == 0.0 && s.axis.x == 0.0 && s.axis.y == 0.0) {
+        shape_[static_cast<std::size_t>(k)].sector = chamber_sector;
+      }
+    }
   }
   st_.resize(cfg_.size());
   for (std::size_t k = 0; k < cfg_.size(); ++k) st_[k].position = cfg_[k].position;
   // A servo on a load holds it as a stress over the body's area, which a translation does not
-  // change. A body on a sector's axis (a pile, a plate about it) stands for the whole body and
-  // its grains carry the sector's share of the load; one off the axis is wholly in the sector.
+  // change; a body on a sector's axis holds the sector's share over the sector's area.
   for (std::size_t b = 0; b < bodies.size(); ++b) {
     if (!(bodies[b].target_force > 0.0)) continue;
     const int k = kNumWalls + static_cast<int>(b);
-    const BodyPart& s = shape(k).part[0];
-    const bool on_axis = chamber_ >= 0 && s.origin.x == 0.0 && s.origin.y == 0.0 &&
-                         s.axis.x == 0.0 && s.axis.y == 0.0;
     cfg_[static_cast<std::size_t>(k)].target_stress =
-        bodies[b].target_force * (on_axis ? sector() : 1.0) / area(k);
+        bodies[b].target_force * shape(k).sector / area(k);
   }
   update_velocities(0.0);
 }
@@ -135,7 +141,7 @@ double Walls::area(int k) const {
     return (sector() > 0.25 ? 2.0 : 1.0) * chamber_radius() * length(2);
   }
   const double given = area_[static_cast<std::size_t>(k)];
-  return given > 0.0 ? given : body_own_area(shape(k), position(k));
+  return given > 0.0 ? given : shape(k).sector * body_own_area(shape(k), position(k));
 }
 
 void Walls::update_velocities(double dt) {

@@ -141,7 +141,9 @@ class Walls {
     if (k < kNumWalls) return length(k / 2);
     return k == chamber_ ? 2.0 * chamber_radius() : 0.0;
   }
-  /// Current area of body k: a box wall's cross-section of the box, or the body's own.
+  /// Current area of body k: a box wall's cross-section of the box, a chamber sample's
+  /// chamber and platens and symmetry planes their sector's, or the area the body was given, or
+  /// its own (in a sector, a body on the axis: the sector's part of it).
   double area(int k) const;
   /// Compressive normal stress on body k [Pa]: its load (body_load()) over its area; NaN for a
   /// body without one (a plane given no `area`).
