@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "crushdem/core/error.hpp"
 #include "crushdem/io/output.hpp"
@@ -28,6 +30,42 @@ TEST(Output, AFailedWriteStopsWithTheFileNamed) {
     EXPECT_NE(what.find("checkpoint is kept"), std::string::npos) << what;
   }
   EXPECT_THROW(write_text_file("/dev/full", std::string(100000, 'x')), ConfigError);
+}
+
+TEST(Output, AResumedFileIsRefusedRowsWithOtherColumnsNamingTheFirst) {
+  // A run continued by a crushdem that writes a column more (or another one in a place): its
+  // rows would not line up with the file's header.
+  const testing::TempDir temp("columns");
+  const std::string path = (temp.path() / "timeseries.csv").string();
+  long long size = 0;
+  std::uint64_t digest = 0;
+  {
+    CsvWriter csv(path);
+    csv.write({{"time_s", 1.0}, {"step", 2.0}});
+    size = csv.size();
+    digest = csv.digest();
+  }
+  const std::pair<std::vector<std::pair<std::string, double>>, std::string> cases[] = {
+      {{{"time_s", 2.0}, {"step", 3.0}, {"body_pile_moment_x_Nm", 0.0}},
+       "column 3 is 'body_pile_moment_x_Nm' in this crushdem's rows and nothing in the file"},
+      {{{"time_s", 2.0}, {"steps", 3.0}}, "column 2 is 'steps' in this crushdem's rows and 'step'"},
+  };
+  for (const auto& [row, expected] : cases) {
+    CsvWriter csv(path);
+    csv.resume(size, {"time_s", "step"}, &digest);
+    try {
+      csv.write(row);
+      FAIL() << "a row with other columns was appended";
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(expected), std::string::npos) << what;
+      EXPECT_NE(what.find("the crushdem that started it"), std::string::npos) << what;
+    }
+  }
+  CsvWriter csv(path);  // the same columns still go on
+  csv.resume(size, {"time_s", "step"}, &digest);
+  csv.write({{"time_s", 2.0}, {"step", 3.0}});
+  EXPECT_EQ(testing::read_file(path), "time_s,step\n1,2\n2,3\n");
 }
 
 // With crushing on, the crusher's set-up invalidates the forces; the first row of the test must

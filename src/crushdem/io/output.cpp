@@ -70,9 +70,21 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     for (const auto& kv : row) columns.push_back(kv.first);
     start(columns);
   }
-  if (row.size() != columns_.size()) {
-    throw std::logic_error("CSV row has " + std::to_string(row.size()) + " columns, header " +
-                           std::to_string(columns_.size()));
+  std::size_t same = 0;  // the columns that match the header, from the first
+  while (same < row.size() && same < columns_.size() && row[same].first == columns_[same]) ++same;
+  if (const std::size_t k = same; k < row.size() || k < columns_.size()) {
+    const std::string here = k < row.size() ? "'" + row[k].first + "'" : "nothing";
+    const std::string file = k < columns_.size() ? "'" + columns_[k] + "'" : "nothing";
+    const std::string where = "column " + std::to_string(k + 1) + " is " + here +
+                              " in this crushdem's rows and " + file + " in the file";
+    if (resumed_) {
+      // A crushdem that writes other columns than the one that started the run (a column added
+      // since): its rows would not line up with the file's header.
+      throw ConfigError("cannot resume: '" + path_ + "' was written with other columns (" + where +
+                        "); continue the run with the crushdem that started it (its " +
+                        "version and commit are on the first line of run.log)");
+    }
+    throw std::logic_error("CSV row of '" + path_ + "' does not match its header: " + where);
   }
   std::string line;
   for (std::size_t k = 0; k < row.size(); ++k) {
@@ -94,6 +106,7 @@ void CsvWriter::resume(long long size, const std::vector<std::string>& columns,
   f_ = nullptr;
   columns_.clear();
   digest_ = kFnvOffset;
+  resumed_ = size >= 0;
   std::error_code ec;
   if (size < 0) {
     fs::remove(path_, ec);

@@ -47,6 +47,7 @@ class CsvWriter {
   std::FILE* f_ = nullptr;
   std::vector<std::string> columns_;
   std::uint64_t digest_ = kFnvOffset;
+  bool resumed_ = false;  // its rows so far were written by the run's earlier process
 };
 
 /// A flat JSON object of numbers and strings, written in the order given.
