@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <functional>
 #include <initializer_list>
+#include <limits>
 #include <optional>
 #include <string>
 #include <variant>
@@ -29,7 +30,6 @@
 #include "crushdem/cli/cli.hpp"
 #include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
-#include "crushdem/experiments/measurements.hpp"
 #include "crushdem/integrate/simulation.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
@@ -274,8 +274,11 @@ nb::dict body_columns(const Simulation& sim) {
   const auto n = static_cast<std::size_t>(w.size() - kNumWalls);
   // Not current (grains added or moved since the last evaluation): the wall entries may not
   // match the grains, so the moment is unknown, not zero.
-  const bool current = sim.forces_current();
-  const std::vector<Vec3> M = body_moments(sim);
+  const double unknown = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<Vec3> M =
+      sim.forces_current()
+          ? body_moments(w, sim.wall_contacts(), sim.particles())
+          : std::vector<Vec3>(static_cast<std::size_t>(w.size()), Vec3{unknown, unknown, unknown});
   nb::list names, modes;
   std::int64_t* index;
   double *q, *v, *stress, *force, *moment;
@@ -298,7 +301,6 @@ nb::dict body_columns(const Simulation& sim) {
     const double f3[3] = {st.force.x, st.force.y, st.force.z}, m3[3] = {m.x, m.y, m.z};
     std::copy(f3, f3 + 3, force + 3 * b);
     std::copy(m3, m3 + 3, moment + 3 * b);
-    if (!current) std::fill(moment + 3 * b, moment + 3 * b + 3, std::nan(""));
     stress[b] = w.stress(k);
   }
   out["name"] = names;
@@ -342,10 +344,8 @@ nb::dict probe_columns(const Simulation& sim, const std::string& name, double sl
         "probe_body: the forces are not current (grains added or moved since "
         "the last evaluation): call compute_forces() or step() first");
   }
-  const double R = w.shape(k).part[0].radius;
-  const BodyProbe p = probe_body(w, k, sim.wall_contacts(), sim.particles(),
-                                 sleeve_length > 0.0 ? sleeve_length : standard_sleeve_length(R),
-                                 static_cast<int>(bins));
+  const BodyProbe p =
+      probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve_length, static_cast<int>(bins));
   nb::dict out;
   double* tip;
   out["tip"] = new_array<double>({3}, &tip);

@@ -52,12 +52,6 @@ double unbalanced_force_ratio(const Simulation& sim) {
   return mean_resultant_force(sim) / (sum_fn / static_cast<double>(n));
 }
 
-std::vector<Vec3> body_moments(const Simulation& sim) {
-  const Walls& w = sim.walls();
-  if (!sim.forces_current()) return std::vector<Vec3>(static_cast<std::size_t>(w.size()));
-  return body_moments(w, sim.wall_contacts(), sim.particles());
-}
-
 Measurement measure(const Simulation& sim, const StrainReference& ref) {
   Measurement m;
   const Walls& w = sim.walls();
@@ -74,7 +68,11 @@ Measurement measure(const Simulation& sim, const StrainReference& ref) {
   }
   // The bodies beyond the box: degree of freedom, the grains' force on it and their moment
   // about its reference point, its stress.
-  const std::vector<Vec3> moments = w.size() > kNumWalls ? body_moments(sim) : std::vector<Vec3>{};
+  // Zero while the forces are not current, as the contact columns of such a row (the wall
+  // entries may then not match the grains); none to sum in a box.
+  const std::vector<Vec3> moments = w.size() > kNumWalls && sim.forces_current()
+                                        ? body_moments(w, sim.wall_contacts(), p)
+                                        : std::vector<Vec3>(static_cast<std::size_t>(w.size()));
   for (int k = kNumWalls; k < w.size(); ++k) {
     const std::string b = "body_" + w.name(k) + "_";
     const WallState& s = w.state(k);

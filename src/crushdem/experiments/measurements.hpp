@@ -23,11 +23,6 @@ using Measurement = std::vector<std::pair<std::string, double>>;
 
 Measurement measure(const Simulation& sim, const StrainReference& ref);
 
-/// Every body's moment about its reference point (walls/body_probe.hpp body_moments()), indexed
-/// as sim.walls(); zero while the forces are not current (as the contacts and the Love-Weber
-/// stress are then empty), since the wall entries may not match the grains.
-std::vector<Vec3> body_moments(const Simulation& sim);
-
 /// Mean |resultant force| on a grain before local damping [N]; NaN when not available.
 double mean_resultant_force(const Simulation& sim);
 /// Mean |resultant force| over the mean grain-grain |F_n| (NaN when either is unknown).

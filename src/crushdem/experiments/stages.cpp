@@ -206,10 +206,8 @@ void check_probed_body(const StageConfig& c, const std::vector<BodyConfig>& bodi
 
 BodyProbe probe_stage_body(const Simulation& sim, const StageConfig& c) {
   const Walls& w = sim.walls();
-  const int k = stage_body_index(w, c);
-  const double sleeve =
-      c.sleeve_length > 0.0 ? c.sleeve_length : standard_sleeve_length(w.shape(k).part[0].radius);
-  return probe_body(w, k, sim.wall_contacts(), sim.particles(), sleeve, static_cast<int>(c.bins));
+  return probe_body(w, stage_body_index(w, c), sim.wall_contacts(), sim.particles(),
+                    c.sleeve_length, static_cast<int>(c.bins));
 }
 
 void write_shaft_rows(StageOutputs& out, const std::string& file, const BodyProbe& p,

@@ -70,9 +70,9 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     for (const auto& kv : row) columns.push_back(kv.first);
     start(columns);
   }
-  std::size_t same = 0;  // the columns that match the header, from the first
-  while (same < row.size() && same < columns_.size() && row[same].first == columns_[same]) ++same;
-  if (const std::size_t k = same; k < row.size() || k < columns_.size()) {
+  std::size_t k = 0;  // the first column that differs from the header's
+  while (k < row.size() && k < columns_.size() && row[k].first == columns_[k]) ++k;
+  if (k < row.size() || k < columns_.size()) {
     const std::string here = k < row.size() ? "'" + row[k].first + "'" : "nothing";
     const std::string file = k < columns_.size() ? "'" + columns_[k] + "'" : "nothing";
     const std::string where = "column " + std::to_string(k + 1) + " is " + here +
@@ -87,9 +87,9 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     throw std::logic_error("CSV row of '" + path_ + "' does not match its header: " + where);
   }
   std::string line;
-  for (std::size_t k = 0; k < row.size(); ++k) {
-    if (k) line += ',';
-    line += format_double(row[k].second);
+  for (std::size_t c = 0; c < row.size(); ++c) {
+    if (c) line += ',';
+    line += format_double(row[c].second);
   }
   line += '\n';
   put(line);

@@ -105,7 +105,8 @@ BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const Pa
   double dh = 0.0;
   if (shaft != nullptr) {
     shaft_origin = placed_part(*shaft, q, b.motion, b.dilate).origin;
-    out.sleeve_length = std::min(sleeve_length, shaft->length);
+    const double standard = 0.1337 / 0.0357 * 2.0 * first.radius;  // ISO 22476-1
+    out.sleeve_length = std::min(sleeve_length > 0.0 ? sleeve_length : standard, shaft->length);
     bins = std::max(bins, 1);
     dh = shaft->length / bins;
     out.bin_height = dh;

@@ -73,14 +73,10 @@ struct BodyProbe {
 void check_bodies_clear(const Walls& walls, const ParticleStore& p, int bodies = -1,
                         const std::vector<std::string>& driven = {});
 
-/// The standard friction sleeve's length for a cone of base radius R: 150 cm^2 on a 35.7 mm
-/// cone (ISO 22476-1), 133.7 mm long, so 3.75 cone diameters.
-inline double standard_sleeve_length(double R) {
-  return 0.1337 / 0.0357 * 2.0 * R;
-}
-
 /// Body k of `walls` as the last force evaluation left it (probe_supports() must hold).
-/// sleeve_length: L_s (clamped to the shaft's length); bins: the number of bins along the shaft.
+/// sleeve_length: L_s, clamped to the shaft's length; 0: the standard sleeve, 150 cm^2 on a
+/// 35.7 mm cone (ISO 22476-1), 133.7 mm long, so 3.75 diameters of the tip's base. bins: the
+/// number of bins along the shaft.
 /// In a chamber sample of a sector (Walls::sector() < 1) the body lies on the axis and the
 /// grains touch that sector of it: every area above is taken over the sector.
 BodyProbe probe_body(const Walls& walls, int k, const WallContacts& wc, const ParticleStore& p,
