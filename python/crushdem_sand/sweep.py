@@ -30,7 +30,8 @@ Named variants give their directory names (joined with ``__`` to the other facto
 the other factors give KEY=VALUE, KEY being the key's entry in [names] or the dotted key.
 A dotted key is a section and a key of the base configuration (``crushing.seed``), or a stage
 and a key: ``stage.1.strain_rate`` (by index), ``stage.shear.strain_rate`` (by name) or
-``stage.*.n_break`` (every stage of the base that sets ``n_break``: the age stages of a pile). Each
+``stage.*.n_break`` (every stage of the base that sets ``n_break``: the age stages of a pile), or
+a body and a key, the same way: ``body.pile.friction``, ``body.0.radius``, ``body.*.friction``. Each
 variant is one task: ``crushdem-sand run`` in a subprocess with ``--threads-per-run`` threads, on a
 local Dask cluster of ``--workers`` processes (default: the cores divided by the threads per
 run), or on the cluster at ``--scheduler ADDRESS``. Its configuration is written to
@@ -171,12 +172,13 @@ def read_sweep(path: str) -> Dict[str, Any]:
 
     for k in keys:
         parts = k.split(".")
-        if len(parts) == 3 and parts[:2] == ["stage", "*"]:
-            also = [o for o in keys if o != k and o.startswith("stage.")
+        if len(parts) == 3 and parts[0] in ARRAYS and parts[1] == "*":
+            also = [o for o in keys if o != k and o.startswith(parts[0] + ".")
                     and o.split(".")[-1] == parts[2] and together(k, o)]
             if also:
                 raise ValueError(f"{path}: \"{k}\" and \"{also[0]}\" both set {parts[2]} "
-                                 "(stage.*.KEY sets it in every stage that has it)")
+                                 f"({parts[0]}.*.KEY sets it in each of the {ARRAYS[parts[0]][1]} "
+                                 "that have it)")
     for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
     if experiment == "pile":
@@ -286,7 +288,7 @@ def _named_variants(path: str, named: Any) -> Tuple[List[Dict[str, Any]], List[s
                 continue
             if "." not in key:
                 raise ValueError(f"{path}: variant '{name}': '{key}' is not a dotted key "
-                                 "(SECTION.KEY or stage.INDEX|NAME|*.KEY)")
+                                 "(SECTION.KEY, stage.INDEX|NAME|*.KEY or body.INDEX|NAME|*.KEY)")
             if isinstance(value, (list, dict)):
                 raise ValueError(f"{path}: variant '{name}': \"{key}\" must be one value")
             if key not in keys:
@@ -300,28 +302,39 @@ def _check_values(path: str, table: str, key: str, values: Any) -> None:
         raise ValueError(f"{path}: [{table}] \"{key}\" must be a list of values")
 
 
+# The arrays of tables a dotted key can address by element: ``stage.INDEX|NAME|*.KEY``.
+ARRAYS = {"stage": ("[[stage]]", "stages"), "body": ("[[body]]", "bodies")}
+
+
 def set_dotted(cfg: Dict[str, Any], key: str, value: Any, check_only: bool = False) -> None:
-    """Sets ``section.key``, ``stage.INDEX|NAME.key`` or ``stage.*.key`` (every stage of the
-    base that sets that key) of a configuration dict."""
+    """Sets ``section.key``, or a key of a [[stage]] or [[body]] element: ``stage.INDEX.key``,
+    ``stage.NAME.key`` or ``stage.*.key`` (every stage of the base that sets that key), the same
+    with ``body``."""
     parts = key.split(".")
-    if parts[0] == "stage":
-        stages = cfg.get("stage")
-        if len(parts) != 3 or not isinstance(stages, list):
-            raise ValueError(f"'{key}': a stage key is stage.INDEX.KEY, stage.NAME.KEY or "
-                             "stage.*.KEY, and the base configuration needs [[stage]] tables")
+    if parts[0] in ARRAYS:
+        array = parts[0]
+        tables, plural = ARRAYS[array]
+        elements = cfg.get(array)
+        if len(parts) != 3 or not isinstance(elements, list):
+            raise ValueError(f"'{key}': a key of {tables} is {array}.INDEX.KEY, "
+                             f"{array}.NAME.KEY or {array}.*.KEY, and the base configuration "
+                             f"needs {tables} tables")
         which = parts[1]
-        names = ", ".join(str(st.get("name", i)) for i, st in enumerate(stages))
+        names = ", ".join(str(el.get("name", i)) for i, el in enumerate(elements))
         if which == "*":
-            targets = [st for st in stages if parts[2] in st]
+            targets = [el for el in elements if parts[2] in el]
             if not targets:
-                raise ValueError(f"'{key}': no stage of the base sets {parts[2]} (stages: "
-                                 f"{names}); stage.*.KEY changes the stages that set it")
-        elif which.isdigit() and int(which) < len(stages):
-            targets = [stages[int(which)]]
+                raise ValueError(f"'{key}': no {array} of the base sets {parts[2]} ({plural}: "
+                                 f"{names}); {array}.*.KEY changes the {plural} that set it")
+        elif which.isdigit() and int(which) < len(elements):
+            targets = [elements[int(which)]]
         else:
-            targets = [st for st in stages if st.get("name") == which][:1]
+            targets = [el for el in elements if el.get("name") == which][:1]
             if not targets:
-                raise ValueError(f"'{key}': no stage '{which}' (stages: {names})")
+                raise ValueError(f"'{key}': no {array} '{which}' ({plural}: {names})")
+        if parts[2] == "name":
+            raise ValueError(f"'{key}': a {array}'s name is how stages and results find it; "
+                             "vary its other keys")
         if not check_only:
             for target in targets:
                 target[parts[2]] = value

@@ -24,6 +24,8 @@ from crushdem_sand import lab, sweep  # noqa: E402
 
 DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data")
 BASE = os.path.join(DATA, "isotropic_lattice.toml")
+EXAMPLES = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__)))), "examples")
 # Figures compared between runs (wall-clock is not).
 COMPARED = ("isotropic.K0_end", "final.void_ratio", "final.coordination_number",
             "final.mean_stress_Pa", "steps")
@@ -330,6 +332,44 @@ def test_a_star_stage_key_sets_every_stage_that_has_it(tmp_path):
     with pytest.raises(ValueError, match="both set steps"):
         sweep.read_sweep(_write_sweep(tmp_path, {"material.friction": [0.2]}, base=base, extra=(
             '[[variant]]\nname = "both"\n"stage.*.steps" = 7\n"stage.hold.steps" = 8\n')))
+
+
+def test_a_body_key_is_varied_by_name_index_or_star(tmp_path):
+    """body.NAME|INDEX|*.KEY: a [[body]]'s key, as a stage's (examples/pile_small.toml's pile);
+    the varied configuration is accepted by crushdem with the value in its body; an unknown
+    body, a base without bodies, a body's name and a key set twice are refused by name."""
+    import tomllib
+
+    from crushdem_sand import _core
+
+    base = tmp_path / "pile.toml"
+    text = open(os.path.join(EXAMPLES, "pile_small.toml")).read()
+    base.write_text(text + '\n[[body]]\nname = "lid"\nshape = "disk"\norigin = [0.0, 0.0, 0.04]'
+                    '\naxis = [0.0, 0.0, -1.0]\nradius = 1e-3\nfriction = 0.1\n')
+    listed = sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"body.pile.friction": [0.1, 0.5], "body.0.half_angle": [45.0]},
+        base=str(base))))
+    assert [v["name"] for v in listed] == ["body.pile.friction=0.1__body.0.half_angle=45.0",
+                                           "body.pile.friction=0.5__body.0.half_angle=45.0"]
+    bodies = listed[1]["config"]["body"]
+    assert (bodies[0]["friction"], bodies[0]["half_angle"], bodies[1]["friction"]) == (
+        0.5, 45.0, 0.1)
+    resolved = tomllib.loads(_core.resolved_run_config(listed[1]["config"], str(tmp_path)))
+    assert [(b["name"], b["friction"]) for b in resolved["body"]] == [("pile", 0.5), ("lid", 0.1)]
+    assert resolved["body"][0]["half_angle"] == 45.0
+    every = sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"body.*.friction": [0.4]}, base=str(base))))
+    assert [b["friction"] for b in every[0]["config"]["body"]] == [0.4, 0.4]
+    for vary, message in (({"body.tube.friction": [0.1]}, r"no body 'tube' \(bodies: pile, lid\)"),
+                          ({"body.*.height": [0.1]}, "no body of the base sets height"),
+                          ({"body.pile.name": ["p"]}, "name is how stages"),
+                          ({"body.friction": [0.1]}, "body.INDEX.KEY"),
+                          ({"body.*.friction": [0.1], "body.lid.friction": [0.2]},
+                           "both set friction")):
+        with pytest.raises(ValueError, match=message):
+            sweep.read_sweep(_write_sweep(tmp_path, vary, base=str(base)))
+    with pytest.raises(ValueError, match=r"needs \[\[body\]\] tables"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"body.0.friction": [0.1]}))
 
 
 def test_names_shorten_the_directory_names(tmp_path):
