@@ -31,6 +31,7 @@ read with :class:`crushdem_sand.lab.Result`, each table as a pandas DataFrame.
 from __future__ import annotations
 
 import contextlib
+import functools
 import inspect
 import math
 import numbers
@@ -38,7 +39,8 @@ import operator
 import re
 import threading
 import warnings
-from typing import Any, Callable, Dict, Iterator, Mapping, Optional, Sequence, Tuple
+from typing import (Any, Callable, Dict, Iterator, Mapping, Optional, Sequence, Tuple, TypeVar,
+                    cast)
 
 import numpy as np
 
@@ -144,6 +146,21 @@ def resolved_config(**sections: Any) -> str:
     return _core.resolved_config(_config_dict(sections))
 
 
+_Method = TypeVar("_Method", bound=Callable[..., Any])
+
+
+def _read(method: _Method) -> _Method:
+    """A read of the simulation's state, refused (RuntimeError) while another thread steps it:
+    the arrays would mix grains before and after a step."""
+
+    @functools.wraps(method)
+    def guarded(self: "Simulation", *args: Any, **kwargs: Any) -> Any:
+        with self._exclusive(method.__name__):
+            return method(self, *args, **kwargs)
+
+    return cast(_Method, guarded)
+
+
 class Simulation:
     """A DEM simulation of spheres in a box of six walls, with rigid bodies of any common shape
     and gravity where configured.
@@ -175,14 +192,21 @@ class Simulation:
 
     Alternatively pass one nested dict as ``config`` (sections given as keywords override it).
     Raises :class:`ConfigError` (a :class:`ValueError`) for a bad or unknown key.
+
+    Threads: ``step()`` releases the GIL, and while it runs every other call from another thread
+    raises RuntimeError (a read would mix grains before and after a step, a change would tear
+    it); ``core``, the engine object itself, excepted. A ``progress`` callback runs in the stepping
+    thread between two chunks of steps and may read and drive the simulation.
     """
 
     def __init__(self, config: Optional[Mapping[str, Any]] = None, **sections: Any) -> None:
         merged: Dict[str, Any] = dict(config or {})
         merged.update(sections)
         self._sim = _core.Simulation(_config_dict(merged))
-        # step() releases the GIL: another Python thread must not change the grains meanwhile.
-        self._busy = threading.Lock()
+        # step() releases the GIL: another Python thread must neither change the grains meanwhile
+        # nor read them half-way through a step. Reentrant: step's progress callback, in the
+        # stepping thread between two chunks of steps, may read and drive the simulation.
+        self._busy = threading.RLock()
 
     @contextlib.contextmanager
     def _exclusive(self, what: str) -> Iterator[None]:
@@ -235,42 +259,52 @@ class Simulation:
         return int(ids[0])
 
     @property
+    @_read
     def num_particles(self) -> int:
         """Number of grains."""
         return self._sim.num_particles
 
+    @_read
     def positions(self) -> np.ndarray:
         """Centres, (N, 3) float64 copy [m]."""
         return self._sim.positions()
 
+    @_read
     def velocities(self) -> np.ndarray:
         """Velocities, (N, 3) float64 copy [m/s]."""
         return self._sim.velocities()
 
+    @_read
     def angular_velocities(self) -> np.ndarray:
         """Angular velocities, (N, 3) float64 copy [rad/s]."""
         return self._sim.angular_velocities()
 
+    @_read
     def forces(self) -> np.ndarray:
         """Forces of the last evaluation (after local damping), (N, 3) float64 copy [N]."""
         return self._sim.forces()
 
+    @_read
     def torques(self) -> np.ndarray:
         """Torques of the last evaluation, (N, 3) float64 copy [N m]."""
         return self._sim.torques()
 
+    @_read
     def radii(self) -> np.ndarray:
         """Radii, (N,) float64 copy [m]."""
         return self._sim.radii()
 
+    @_read
     def masses(self) -> np.ndarray:
         """Masses, (N,) float64 copy [kg]."""
         return self._sim.masses()
 
+    @_read
     def ids(self) -> np.ndarray:
         """Stable particle ids, (N,) uint64 (array order changes when particles are sorted)."""
         return self._sim.ids()
 
+    @_read
     def parent_ids(self) -> np.ndarray:
         """Id of the grain each particle came from, (N,) uint64; NO_PARENT if none."""
         return self._sim.parent_ids()
@@ -330,16 +364,19 @@ class Simulation:
             self._sim.compute_forces()
 
     @property
+    @_read
     def time(self) -> float:
         """Simulated time [s]."""
         return self._sim.time
 
     @property
+    @_read
     def step_count(self) -> int:
         """Number of steps taken."""
         return self._sim.step_count
 
     @property
+    @_read
     def dt(self) -> float:
         """Time step [s] the next step uses (computed when automatic). Assigning fixes it."""
         return self._sim.dt
@@ -354,25 +391,25 @@ class Simulation:
         dt = float(dt)
         with self._exclusive("set_dt"):
             self._sim.set_dt(dt)
-        if self.num_particles:
-            automatic = self._sim.automatic_dt()
-            if dt > automatic:
-                import warnings
+            automatic = self._sim.automatic_dt() if self._sim.num_particles else math.inf
+        if dt > automatic:
+            warnings.warn(f"set_dt: {dt:g} s is {dt / automatic:.3g} times the automatic "
+                          f"step {automatic:g} s: the run may be unstable", RuntimeWarning,
+                          stacklevel=2)
 
-                warnings.warn(f"set_dt: {dt:g} s is {dt / automatic:.3g} times the automatic "
-                              f"step {automatic:g} s: the run may be unstable", RuntimeWarning,
-                              stacklevel=2)
-
+    @_read
     def rayleigh_dt(self) -> float:
         """Rayleigh time-step estimate of the smallest grain [s]."""
         return self._sim.rayleigh_dt()
 
+    @_read
     def stiffness_dt(self) -> float:
         """Stiffness (sqrt(m/k)) time-step estimate [s]."""
         return self._sim.stiffness_dt()
 
     # --- contacts, walls, measures ----------------------------------------------------------
 
+    @_read
     def contacts(self) -> Dict[str, np.ndarray]:
         """Touching contacts at the current state, grain-grain then grain-wall, as columns: a
         dict of 1-D arrays of one length, one entry per contact, so that
@@ -390,27 +427,33 @@ class Simulation:
         return _columns(self._sim.contacts())
 
     @property
+    @_read
     def num_contacts(self) -> int:
         """Grain-grain contacts with positive overlap. A property (it was a method:
         ``sim.num_contacts()`` still works until the next release, with a DeprecationWarning)."""
         return _ContactCount(self._sim.num_contacts)
 
+    @_read
     def wall_positions(self) -> np.ndarray:
         """Wall plane coordinates (6,) [m], in WALL_NAMES order."""
         return self._sim.wall_positions()
 
+    @_read
     def wall_velocities(self) -> np.ndarray:
         """Wall velocities along their axes (6,) [m/s]."""
         return self._sim.wall_velocities()
 
+    @_read
     def wall_stresses(self) -> np.ndarray:
         """Compressive normal stress on each wall (6,) [Pa]."""
         return self._sim.wall_stresses()
 
+    @_read
     def wall_forces(self) -> np.ndarray:
         """Total force of the grains on each wall (6, 3) [N]."""
         return self._sim.wall_forces()
 
+    @_read
     def bodies(self) -> Dict[str, np.ndarray]:
         """The rigid bodies beyond the box (the ``body`` section's tables, and a chamber
         sample's chamber and symmetry planes) as columns, one entry per body, so that
@@ -432,6 +475,7 @@ class Simulation:
             columns[name] = np.asarray(columns[name], dtype=object)
         return columns
 
+    @_read
     def probe_body(self, name: str, sleeve_length: float = 0.0, bins: int = 1) -> Dict[str, Any]:
         """What the grains do to the pile, cone or shaft ``name``, by part and along its axis:
         the measurements of a penetration test (docs/chamber.md), from the last force
@@ -465,18 +509,22 @@ class Simulation:
             self._sim.set_wall(name, mode=mode, velocity=velocity, target_stress=target_stress,
                                servo_alpha=servo_alpha, max_speed=max_speed)
 
+    @_read
     def wall_config(self, name: str) -> Dict[str, Any]:
         """Current settings of wall or body ``name`` as a dict."""
         return self._sim.wall_config(name)
 
+    @_read
     def love_weber_stress(self) -> np.ndarray:
         """Love-Weber stress tensor over the box volume (3, 3) [Pa], compression positive."""
         return self._sim.love_weber_stress()
 
+    @_read
     def kinetic_energy(self) -> float:
         """Translational plus rotational kinetic energy [J]."""
         return self._sim.kinetic_energy()
 
+    @_read
     def config_toml(self) -> str:
         """The configuration this simulation was built with (all keys resolved), as TOML."""
         return self._sim.config_toml()
@@ -487,8 +535,11 @@ class Simulation:
         return self._sim
 
     def __repr__(self) -> str:
-        return (f"<crushdem_sand.Simulation: {self.num_particles} particles, "
-                f"t = {self.time:.6g} s, {self.step_count} steps>")
+        try:
+            return (f"<crushdem_sand.Simulation: {self.num_particles} particles, "
+                    f"t = {self.time:.6g} s, {self.step_count} steps>")
+        except RuntimeError:
+            return "<crushdem_sand.Simulation: stepping in another thread>"
 
 
 def _columns(table: Mapping[str, Any]) -> Dict[str, Any]:

@@ -864,6 +864,44 @@ def test_state_changes_wait_for_a_step_in_another_thread():
         t.join()
 
 
+def test_reads_are_refused_while_another_thread_steps_and_the_progress_callback_may_read():
+    """While step() runs in one thread, the arrays, the tables (contacts, bodies, the probe)
+    and the clock are refused to another (they would mix grains before and after a step);
+    the progress callback, in the stepping thread between two chunks, reads them."""
+    import threading
+
+    sim = _rattling_pair()
+    reached, release = threading.Event(), threading.Event()
+    seen = {}
+
+    def progress(done, total):
+        if not reached.is_set():
+            seen["positions"] = sim.positions().shape  # the stepping thread may read
+            seen["step_count"] = sim.step_count
+            sim.set_wall("xmin", velocity=0.0)  # and drive
+            reached.set()
+            release.wait(30)
+
+    t = threading.Thread(target=sim.step, args=(50_000,), kwargs={"progress": progress})
+    t.start()
+    try:
+        assert reached.wait(30), "the progress callback was not called"
+        reads = {"positions": sim.positions, "forces": sim.forces, "contacts": sim.contacts,
+                 "bodies": sim.bodies, "wall_stresses": sim.wall_stresses,
+                 "kinetic_energy": sim.kinetic_energy, "config_toml": sim.config_toml,
+                 "time": lambda: sim.time, "step_count": lambda: sim.step_count,
+                 "num_contacts": lambda: sim.num_contacts}
+        for name, read in reads.items():
+            with pytest.raises(RuntimeError, match=f"Simulation.{name}: .*another thread"):
+                read()
+        assert "stepping in another thread" in repr(sim)
+    finally:
+        release.set()
+        t.join()
+    assert seen["positions"] == (2, 3) and 0 < seen["step_count"] <= 50_000
+    assert sim.step_count == 50_000 and sim.positions().shape == (2, 3)
+
+
 def test_a_deeply_nested_configuration_is_an_error_not_a_crash():
     deep: dict = {}
     inner = deep
