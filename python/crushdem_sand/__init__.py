@@ -150,8 +150,8 @@ _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 
 def _read(method: _Method) -> _Method:
-    """A read of the simulation's state, refused (RuntimeError) while another thread steps it:
-    the arrays would mix grains before and after a step."""
+    """A read of the simulation's state, refused (RuntimeError) while another thread steps it
+    (the arrays would mix grains before and after a step)."""
 
     @functools.wraps(method)
     def guarded(self: "Simulation", *args: Any, **kwargs: Any) -> Any:
@@ -193,10 +193,11 @@ class Simulation:
     Alternatively pass one nested dict as ``config`` (sections given as keywords override it).
     Raises :class:`ConfigError` (a :class:`ValueError`) for a bad or unknown key.
 
-    Threads: ``step()`` releases the GIL, and while it runs every other call from another thread
-    raises RuntimeError (a read would mix grains before and after a step, a change would tear
-    it); ``core``, the engine object itself, excepted. A ``progress`` callback runs in the stepping
-    thread between two chunks of steps and may read and drive the simulation.
+    Threads: ``step()`` and ``run()`` release the GIL, and while one runs every call from another
+    thread raises RuntimeError (a read would mix grains before and after a step, a change would
+    tear it); ``core``, the engine object itself, is not guarded. Other calls from several
+    threads take turns. A ``progress`` callback runs in the stepping thread between two chunks of
+    steps and may read and drive the simulation, but not step it.
     """
 
     def __init__(self, config: Optional[Mapping[str, Any]] = None, **sections: Any) -> None:
@@ -207,14 +208,29 @@ class Simulation:
         # nor read them half-way through a step. Reentrant: step's progress callback, in the
         # stepping thread between two chunks of steps, may read and drive the simulation.
         self._busy = threading.RLock()
+        self._stepping: Optional[int] = None  # the thread whose step() or run() holds _busy
 
     @contextlib.contextmanager
-    def _exclusive(self, what: str) -> Iterator[None]:
-        if not self._busy.acquire(blocking=False):
-            raise RuntimeError(f"Simulation.{what}: the simulation is stepping in another thread; "
-                               "wait for step() to return")
+    def _exclusive(self, what: str, steps: bool = False) -> Iterator[None]:
+        """Holds the simulation for one call. Other calls hold it briefly and are waited for; a
+        step in another thread is refused (RuntimeError), as is a step within a step."""
+        me = threading.get_ident()
+        while not self._busy.acquire(timeout=0.05):
+            if self._stepping not in (None, me):
+                raise RuntimeError(f"Simulation.{what}: the simulation is stepping in another "
+                                   "thread; wait for step() to return")
         try:
-            yield
+            if steps and self._stepping is not None:
+                raise RuntimeError(f"Simulation.{what}: called from step()'s progress callback, "
+                                   "the step in progress would go beyond its count: step after "
+                                   "it returns")
+            if steps:
+                self._stepping = me
+            try:
+                yield
+            finally:
+                if steps:
+                    self._stepping = None
         finally:
             self._busy.release()
 
@@ -323,7 +339,7 @@ class Simulation:
         n = _step_count("step", n)
         if progress is None:
             progress = n >= 10_000 and _interactive()
-        with self._exclusive("step"):
+        with self._exclusive("step", steps=True):
             if progress is True:
                 from tqdm.auto import tqdm
 
@@ -349,7 +365,7 @@ class Simulation:
         if not (math.isfinite(duration) and duration >= 0.0):
             raise ValueError(f"Simulation.run: duration = {duration}: expected a finite time "
                              ">= 0 s")
-        with self._exclusive("run"):
+        with self._exclusive("run", steps=True):
             end = self.time + duration
             while self.time < end:
                 dt = self.dt
@@ -431,7 +447,11 @@ class Simulation:
     def num_contacts(self) -> int:
         """Grain-grain contacts with positive overlap. A property (it was a method:
         ``sim.num_contacts()`` still works until the next release, with a DeprecationWarning)."""
-        return _ContactCount(self._sim.num_contacts)
+        return _ContactCount(self._num_contacts)
+
+    def _num_contacts(self) -> int:
+        with self._exclusive("num_contacts"):
+            return int(self._sim.num_contacts())
 
     @_read
     def wall_positions(self) -> np.ndarray:

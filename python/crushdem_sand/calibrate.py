@@ -32,7 +32,7 @@ import sys
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from ._optional import available, message, require
-from .sweep import (cluster_parser, read_file_and_base, run_variant, set_dotted,
+from .sweep import (cluster_parser, read_file_and_base, refuse_overlaps, run_variant, set_dotted,
                     stop_local_runs, summary_figures, variant_name)
 
 
@@ -57,6 +57,7 @@ def read_calibration(path: str) -> Dict[str, Any]:
             raise ValueError(f"{path}: [parameters] \"{key}\" = {bounds!r}: expected [low, high] "
                              "with low < high")
         set_dotted(copy.deepcopy(base), key, None, check_only=True)
+    refuse_overlaps(path, base, list(params))
     for key, value in targets.items():
         if not isinstance(value, (int, float)) or not math.isfinite(value) or value == 0:
             raise ValueError(f"{path}: [targets] \"{key}\" = {value!r}: expected a non-zero "

@@ -171,16 +171,8 @@ def read_sweep(path: str) -> Dict[str, Any]:
                 or any(a in t and b in t for t in tables))
 
     for k in keys:
-        parts = k.split(".")
-        if len(parts) == 3 and parts[0] in ARRAYS and parts[1] == "*":
-            also = [o for o in keys if o != k and o.startswith(parts[0] + ".")
-                    and o.split(".")[-1] == parts[2] and together(k, o)]
-            if also:
-                raise ValueError(f"{path}: \"{k}\" and \"{also[0]}\" both set {parts[2]} "
-                                 f"({parts[0]}.*.KEY sets it in each of the {ARRAYS[parts[0]][1]} "
-                                 "that have it)")
-    for k in keys:
         set_dotted(copy.deepcopy(base), k, None, check_only=True)
+    refuse_overlaps(path, base, keys, together)
     if experiment == "pile":
         from .pile import plan
 
@@ -306,38 +298,73 @@ def _check_values(path: str, table: str, key: str, values: Any) -> None:
 ARRAYS = {"stage": ("[[stage]]", "stages"), "body": ("[[body]]", "bodies")}
 
 
+def element_targets(cfg: Mapping[str, Any], key: str) -> Optional[Tuple[str, List[int], str]]:
+    """(array, the indices of the elements it sets, KEY) for a key of a [[stage]] or [[body]]
+    element (``stage.INDEX.KEY``, ``stage.NAME.KEY``, ``stage.*.KEY``: every element of the base
+    that sets KEY; the same with ``body``), None for a ``SECTION.KEY``; ValueError naming the key
+    when it reaches no element or could mean two."""
+    parts = key.split(".")
+    if parts[0] not in ARRAYS:
+        return None
+    array = parts[0]
+    tables, plural = ARRAYS[array]
+    form = (f"a key of {tables} is {array}.INDEX.KEY, {array}.NAME.KEY or {array}.*.KEY")
+    if len(parts) != 3 or not parts[1] or not parts[2]:
+        raise ValueError(f"'{key}': {form}")
+    elements = cfg.get(array)
+    if not isinstance(elements, list) or not all(isinstance(el, dict) for el in elements):
+        raise ValueError(f"'{key}': {form}, and the base configuration needs {tables} tables")
+    which, name = parts[1], parts[2]
+    if name == "name":
+        raise ValueError(f"'{key}': a {array}'s name is how stages and results find it; vary "
+                         "its other keys")
+    shown = ", ".join(str(el["name"]) if "name" in el else f"#{i} (unnamed)"
+                      for i, el in enumerate(elements))
+    if which == "*":
+        targets = [i for i, el in enumerate(elements) if name in el]
+        if not targets:
+            raise ValueError(f"'{key}': no {array} of the base sets {name} ({plural}: {shown}); "
+                             f"{array}.*.KEY changes the {plural} that set it")
+        return array, targets, name
+    named = [i for i, el in enumerate(elements) if el.get("name") == which]
+    index = int(which) if which.isascii() and which.isdigit() else None
+    if index is not None and named and named != [index]:
+        raise ValueError(f"'{key}': '{which}' is both {array} {index}'s index and {array} "
+                         f"{named[0]}'s name: rename that {array}")
+    if named:
+        return array, named[:1], name
+    if index is not None and index < len(elements):
+        return array, [index], name
+    raise ValueError(f"'{key}': no {array} '{which}' ({plural}: {shown})")
+
+
+def refuse_overlaps(path: str, base: Mapping[str, Any], keys: Sequence[str],
+                    together: Callable[[str, str], bool] = lambda a, b: True) -> None:
+    """ValueError when two keys that one run may set together reach one key of one element
+    (``body.*.friction`` and ``body.pile.friction``; ``stage.0.steps`` and ``stage.hold.steps``
+    of that stage): the run would keep one of the values, its name would show both."""
+    reached: Dict[Tuple[str, int, str], str] = {}
+    for k in keys:
+        t = element_targets(base, k)
+        for i in t[1] if t else []:
+            slot = (t[0], i, t[2])
+            other = reached.get(slot)
+            if other is not None and together(other, k):
+                raise ValueError(f"{path}: \"{other}\" and \"{k}\" both set {t[2]} of "
+                                 f"{t[0]} {i}: vary it by one key")
+            reached.setdefault(slot, k)
+
+
 def set_dotted(cfg: Dict[str, Any], key: str, value: Any, check_only: bool = False) -> None:
     """Sets ``section.key``, or a key of a [[stage]] or [[body]] element: ``stage.INDEX.key``,
     ``stage.NAME.key`` or ``stage.*.key`` (every stage of the base that sets that key), the same
-    with ``body``."""
+    with ``body`` (element_targets)."""
+    target = element_targets(cfg, key)
     parts = key.split(".")
-    if parts[0] in ARRAYS:
-        array = parts[0]
-        tables, plural = ARRAYS[array]
-        elements = cfg.get(array)
-        if len(parts) != 3 or not isinstance(elements, list):
-            raise ValueError(f"'{key}': a key of {tables} is {array}.INDEX.KEY, "
-                             f"{array}.NAME.KEY or {array}.*.KEY, and the base configuration "
-                             f"needs {tables} tables")
-        which = parts[1]
-        names = ", ".join(str(el.get("name", i)) for i, el in enumerate(elements))
-        if which == "*":
-            targets = [el for el in elements if parts[2] in el]
-            if not targets:
-                raise ValueError(f"'{key}': no {array} of the base sets {parts[2]} ({plural}: "
-                                 f"{names}); {array}.*.KEY changes the {plural} that set it")
-        elif which.isdigit() and int(which) < len(elements):
-            targets = [elements[int(which)]]
-        else:
-            targets = [el for el in elements if el.get("name") == which][:1]
-            if not targets:
-                raise ValueError(f"'{key}': no {array} '{which}' ({plural}: {names})")
-        if parts[2] == "name":
-            raise ValueError(f"'{key}': a {array}'s name is how stages and results find it; "
-                             "vary its other keys")
+    if target is not None:
         if not check_only:
-            for target in targets:
-                target[parts[2]] = value
+            for i in target[1]:
+                cfg[target[0]][i][target[2]] = value
         return
     if len(parts) < 2:
         raise ValueError(f"'{key}': expected SECTION.KEY (e.g. crushing.seed)")

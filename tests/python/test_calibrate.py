@@ -60,3 +60,8 @@ def test_the_file_is_checked(tmp_path):
     with pytest.raises(ValueError, match="low < high"):
         calibrate.read_calibration(_write(tmp_path, '[parameters]\n"material.friction" = [0.5, '
                                                     '0.1]\n[targets]\n"a" = 1.0\n'))
+    # One stage's key by its index and by its name: the second would overwrite the first.
+    with pytest.raises(ValueError, match="both set stress of stage 0"):
+        calibrate.read_calibration(_write(tmp_path, '[parameters]\n"stage.0.stress" = [1e5, 1e6]\n'
+                                                    '"stage.isotropic.stress" = [1e5, 1e6]\n'
+                                                    '[targets]\n"final.void_ratio" = 0.9\n'))

@@ -867,39 +867,70 @@ def test_state_changes_wait_for_a_step_in_another_thread():
 def test_reads_are_refused_while_another_thread_steps_and_the_progress_callback_may_read():
     """While step() runs in one thread, the arrays, the tables (contacts, bodies, the probe)
     and the clock are refused to another (they would mix grains before and after a step);
-    the progress callback, in the stepping thread between two chunks, reads them."""
+    the progress callback, in the stepping thread between two chunks, reads and drives it but
+    may not step it; threads that only read take turns."""
     import threading
+    import time
 
     sim = _rattling_pair()
+    t0 = time.perf_counter()
+    sim.step(20_000, progress=False)
+    n = max(50_000, int(20_000 * 2.0 / max(time.perf_counter() - t0, 1e-6)))  # ~2 s
+    start = sim.step_count
+    stored_count = sim.num_contacts  # the deprecated call form counts again when called
     reached, release = threading.Event(), threading.Event()
     seen = {}
 
     def progress(done, total):
         if not reached.is_set():
             seen["positions"] = sim.positions().shape  # the stepping thread may read
-            seen["step_count"] = sim.step_count
+            seen["done"] = sim.step_count - start
             sim.set_wall("xmin", velocity=0.0)  # and drive
+            try:
+                sim.step(10)
+            except RuntimeError as e:
+                seen["nested"] = str(e)
             reached.set()
             release.wait(30)
 
-    t = threading.Thread(target=sim.step, args=(50_000,), kwargs={"progress": progress})
+    t = threading.Thread(target=sim.step, args=(n,), kwargs={"progress": progress})
     t.start()
     try:
         assert reached.wait(30), "the progress callback was not called"
         reads = {"positions": sim.positions, "forces": sim.forces, "contacts": sim.contacts,
-                 "bodies": sim.bodies, "wall_stresses": sim.wall_stresses,
-                 "kinetic_energy": sim.kinetic_energy, "config_toml": sim.config_toml,
-                 "time": lambda: sim.time, "step_count": lambda: sim.step_count,
-                 "num_contacts": lambda: sim.num_contacts}
+                 "bodies": sim.bodies, "probe_body": lambda: sim.probe_body("pile"),
+                 "wall_stresses": sim.wall_stresses, "kinetic_energy": sim.kinetic_energy,
+                 "config_toml": sim.config_toml, "time": lambda: sim.time,
+                 "step_count": lambda: sim.step_count, "num_contacts": lambda: sim.num_contacts}
         for name, read in reads.items():
             with pytest.raises(RuntimeError, match=f"Simulation.{name}: .*another thread"):
                 read()
+        with pytest.warns(DeprecationWarning), pytest.raises(RuntimeError, match="another"):
+            stored_count()
         assert "stepping in another thread" in repr(sim)
     finally:
         release.set()
         t.join()
-    assert seen["positions"] == (2, 3) and 0 < seen["step_count"] <= 50_000
-    assert sim.step_count == 50_000 and sim.positions().shape == (2, 3)
+    assert seen["positions"] == (2, 3) and 0 < seen["done"] < n  # between two chunks
+    assert "progress callback" in seen["nested"]
+    assert sim.step_count == start + n and sim.positions().shape == (2, 3)
+    # Threads that only read are not refused: they wait for each other.
+    errors = []
+
+    def reader():
+        try:
+            for _ in range(2000):
+                sim.contacts()
+                sim.time
+        except RuntimeError as e:
+            errors.append(str(e))
+
+    readers = [threading.Thread(target=reader) for _ in range(3)]
+    for r in readers:
+        r.start()
+    for r in readers:
+        r.join()
+    assert not errors
 
 
 def test_a_deeply_nested_configuration_is_an_error_not_a_crash():

@@ -370,6 +370,24 @@ def test_a_body_key_is_varied_by_name_index_or_star(tmp_path):
             sweep.read_sweep(_write_sweep(tmp_path, vary, base=str(base)))
     with pytest.raises(ValueError, match=r"needs \[\[body\]\] tables"):
         sweep.read_sweep(_write_sweep(tmp_path, {"body.0.friction": [0.1]}))
+    # One body's key by its index and by its name is one key varied twice.
+    with pytest.raises(ValueError, match="both set friction of body 0"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"body.0.friction": [0.1],
+                                                 "body.pile.friction": [0.5]}, base=str(base)))
+    with pytest.raises(ValueError, match="both set steps of stage 1"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"stage.1.steps": [7], "stage.unload.steps": [8]},
+                                      base=str(base)))
+    for key, message in (("body.lid.friction.x", "body.INDEX.KEY"), ("body.lid.", "body.INDEX.KEY"),
+                         ("body.\u00b2.friction", "no body"), ("stage.*.name", "name is how")):
+        with pytest.raises(ValueError, match=message):
+            sweep.read_sweep(_write_sweep(tmp_path, {key: [0.1]}, base=str(base)))
+    # A body named with another's index is ambiguous, not silently the indexed one.
+    base.write_text(base.read_text().replace('name = "lid"', 'name = "0"'))
+    with pytest.raises(ValueError, match="both body 0's index and body 1's name"):
+        sweep.read_sweep(_write_sweep(tmp_path, {"body.0.friction": [0.1]}, base=str(base)))
+    assert sweep.variants(sweep.read_sweep(_write_sweep(
+        tmp_path, {"body.1.friction": [0.3]}, base=str(base))))[0]["config"]["body"][1][
+            "friction"] == 0.3
 
 
 def test_names_shorten_the_directory_names(tmp_path):
