@@ -127,6 +127,7 @@ def main(argv: List[str]) -> int:
     import pandas as pd
 
     df = pd.DataFrame(table)
+    os.makedirs(out, exist_ok=True)
     df.to_csv(os.path.join(out, "pile_sweep.csv"), index=False)
     figure(table, varied_keys(args.sweep_dir), os.path.join(out, "pile_sweep.png"),
            short_names(args.sweep_dir))
