@@ -213,6 +213,49 @@ TEST(Bodies, APrescribedVelocityMovesTheBodyAndAServoHoldsItsStress) {
   EXPECT_NEAR(sim.walls().state(platen).force.z / (2e3 * kPi * 1e-6), 1.0, 1e-3);
 }
 
+TEST(Bodies, DrivingABodyChecksTheChangeAndRefusesAServoWithoutAnArea) {
+  // A front end's change of a body's drive (Python's set_wall): checked before anything
+  // changes, a servo refused on a plane given no area, a velocity applied at once.
+  SimulationConfig cfg = body_config(
+      "[[body]]\nname = \"floor\"\nshape = \"plane\"\norigin = [0, 0, -1e-2]\n"
+      "axis = [0, 0, -1]\n[[body]]\nname = \"platen\"\nshape = \"disk\"\n"
+      "origin = [0, 0, 1e-2]\naxis = [0, 0, 1]\nradius = 1e-3\n");
+  Simulation sim(cfg);
+  Walls& w = sim.walls();
+  const int floor = kNumWalls, platen = kNumWalls + 1;
+  WallConfig servo = w.config(floor);
+  servo.mode = WallMode::Servo;
+  servo.target_stress = 1e5;
+  try {
+    w.drive(floor, servo, "body[0]");
+    FAIL() << "a servo on a plane without an area was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("body[0].mode"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("body \"floor\", which has no area"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(w.config(floor).mode, WallMode::Fixed);
+  WallConfig bad = servo;
+  bad.servo_alpha = 2.0;
+  try {
+    w.drive(platen, bad, "body[1]");
+    FAIL() << "a servo gain of 2 was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("body[1].servo_alpha"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(w.config(platen).mode, WallMode::Fixed);
+  w.drive(platen, servo, "body[1]");  // a disk has its own area
+  EXPECT_EQ(w.config(platen).mode, WallMode::Servo);
+  WallConfig moving = w.config(platen);
+  moving.mode = WallMode::Velocity;
+  moving.velocity = -0.02;
+  w.drive(platen, moving, "body[1]");
+  EXPECT_EQ(w.state(platen).velocity, -0.02);
+  moving.mode = WallMode::Fixed;
+  w.drive(platen, moving, "body[1]");
+  EXPECT_EQ(w.state(platen).velocity, 0.0);
+}
+
 TEST(Bodies, AServoOnALoadHoldsTheForceWhateverTheBodysArea) {
   // The platen above, servo-controlled to a load of 5 mN from the start: held over its own
   // area as a stress (5 mN / pi mm^2), and written back as the load, not as a stress.

@@ -251,20 +251,7 @@ void set_wall(Simulation& sim, const std::string& name, std::optional<std::strin
   if (target_stress) c.target_stress = *target_stress;
   if (servo_alpha) c.servo_alpha = *servo_alpha;
   if (max_speed) c.max_speed = *max_speed;
-  c.validate(prefix);  // throws before anything changes
-  // A servo holds a stress over the body's area: a plane configured without one has none.
-  if (c.mode == WallMode::Servo && !(sim.walls().area(k) > 0.0)) {
-    throw ConfigError(bad_value(prefix + ".mode", "\"servo\"",
-                                "\"fixed\" or \"velocity\" for body \"" + name +
-                                    "\", which has no area to hold a stress over (give the "
-                                    "plane an `area` in its [[body]] table)"));
-  }
-  sim.walls().config(k) = c;
-  // Fixed and prescribed velocities apply from the next step on; a servo wall keeps its current
-  // velocity until the end of the next step, where the controller chooses a new one.
-  WallState& s = sim.walls().state(k);
-  if (c.mode == WallMode::Fixed) s.velocity = 0.0;
-  if (c.mode == WallMode::Velocity) s.velocity = c.velocity;
+  sim.walls().drive(k, c, prefix);
 }
 
 // Every body beyond the box as columns: its name, index (a wall contact's id_j), degree of

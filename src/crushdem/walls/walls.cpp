@@ -144,6 +144,20 @@ double Walls::area(int k) const {
   return given > 0.0 ? given : shape(k).sector * body_own_area(shape(k), position(k));
 }
 
+void Walls::drive(int k, const WallConfig& c, const std::string& key) {
+  c.validate(key);  // throws before anything changes
+  if (c.mode == WallMode::Servo && !(area(k) > 0.0)) {
+    throw ConfigError(bad_value(key + ".mode", "\"servo\"",
+                                "\"fixed\" or \"velocity\" for body \"" + name(k) + "\"" +
+                                    ", which has no area to hold a stress over (give a plane an "
+                                    "`area` in its [[body]] table)"));
+  }
+  cfg_[static_cast<std::size_t>(k)] = c;
+  WallState& s = st_[static_cast<std::size_t>(k)];
+  if (c.mode == WallMode::Fixed) s.velocity = 0.0;
+  if (c.mode == WallMode::Velocity) s.velocity = c.velocity;
+}
+
 void Walls::update_velocities(double dt) {
   for (int k = 0; k < size(); ++k) {
     const WallConfig& c = cfg_[static_cast<std::size_t>(k)];

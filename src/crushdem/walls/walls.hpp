@@ -177,6 +177,11 @@ class Walls {
     return body_surface(shape(k), position(k), c, part);
   }
 
+  /// Drives body k as `c` from the next step on (a front end's change of mode or target):
+  /// checks `c` (errors name `key`.KEY) and refuses a servo on a body without an area; a fixed
+  /// or prescribed velocity applies at once, a servo keeps the current velocity until its
+  /// controller next chooses one.
+  void drive(int k, const WallConfig& c, const std::string& key);
   /// Sets body velocities for the next step (fixed, prescribed or servo).
   void update_velocities(double dt);
   /// Moves the bodies by their velocities (check_radii() after).
