@@ -78,7 +78,8 @@ def figure(table: List[Dict[str, Any]], keys: List[str], path: str,
     """Capacity and shaft load against ageing time, one line of points per variant, with its
     fitted line Q0 (1 + A log10(t / t0)), t0 the fit's (its first ageing time with a capacity);
     each labelled by the values of ``keys`` that differ between variants (a key by its entry in
-    ``names``, the sweep file's [names], where it has one)."""
+    ``names``, the sweep file's [names], where it has one), or by its directory name where more
+    than two differ (named variants, whose keys the name stands for)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(10, 4))
@@ -87,8 +88,8 @@ def figure(table: List[Dict[str, Any]], keys: List[str], path: str,
     differ = [k for k in keys if len({str(r[k]) for r in table}) > 1]
     for v in variants:
         sel = [r for r in table if r["variant"] == v]
-        label = ", ".join(f"{(names or {}).get(k, k)} = {_show(sel[0][k])}"
-                          for k in differ) or v
+        label = (", ".join(f"{(names or {}).get(k, k)} = {_show(sel[0][k])}" for k in differ)
+                 if 0 < len(differ) <= 2 else v)
         t = np.array([r["ageing_time_s"] for r in sel])
         for ax, col, tag in ((axes[0], "capacity_N", ""), (axes[1], "shaft_at_capacity_N",
                                                            "shaft_")):
