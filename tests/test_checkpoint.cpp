@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -12,14 +13,18 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <string>
 #include <string_view>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "crushdem/core/part_clock.hpp"
 #include "crushdem/fracture/crushing.hpp"
 #include "crushdem/io/config.hpp"
 #include "crushdem/io/toml.hpp"
 #include "crushdem/particles/generate.hpp"
+#include "crushdem/run/checkpoint.hpp"
 #include "crushdem/run/runner.hpp"
 #include "helpers.hpp"
 
@@ -414,6 +419,59 @@ TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
     EXPECT_NE(std::string(e.what()).find("finished"), std::string::npos) << e.what();
   }
   EXPECT_EQ(read_file(base / "done" / "run.log"), log) << "a finished run's log changed";
+}
+
+// The builds that ran a run: listed once per change in the checkpoint and summary.json; a
+// resume or branch by another build says so in run.log and counts as a warning.
+TEST(Checkpoint, ARunContinuedByAnotherBuildSaysSoAndListsEveryBuild) {
+  std::vector<std::string> builds;
+  EXPECT_EQ(note_build(builds, "0.1.0 (a)", "resumed"), "");  // a checkpoint before format 8
+  EXPECT_EQ(note_build(builds, "0.1.0 (a)", "resumed"), "");
+  EXPECT_EQ(builds, std::vector<std::string>{"0.1.0 (a)"});
+  const std::string w = note_build(builds, "0.2.0 (b)", "branched");
+  EXPECT_NE(w.find("branched by crushdem 0.2.0 (b)"), std::string::npos) << w;
+  EXPECT_NE(w.find("run so far by 0.1.0 (a)"), std::string::npos) << w;
+  EXPECT_EQ(builds, (std::vector<std::string>{"0.1.0 (a)", "0.2.0 (b)"}));
+
+  const testing::TempDir temp("builds");
+  const fs::path& base = temp.path();
+  RunConfig cfg = config(base);
+  cfg.stages.resize(1);
+  cfg.stages[0].steps = 200;
+  RunOptions opt;
+  opt.progress = false;
+  opt.out_dir = (base / "first").string();
+  run_to_directory(cfg, opt);
+  const std::string summary = read_file(base / "first" / "summary.json");
+  EXPECT_NE(summary.find("\"crushdem_builds\": [\"" + this_build() + "\"]"), std::string::npos)
+      << summary;
+  // Branched from its first stage by a stand-in for another build, then by this one again.
+  const std::array<std::pair<const char*, const char*>, 2> branches = {
+      {{"other", "first"}, {"again", "other"}}};
+  for (const auto& [out, from] : branches) {
+    RunOptions b = opt;
+    b.out_dir = (base / out).string();
+    b.branch_dir = (base / from).string();
+    b.branch_stage = "0";
+    b.build = std::string(out) == "other" ? "9.9.9 (another)" : "";
+    run_to_directory(cfg, b);
+  }
+  const std::string log = read_file(base / "other" / "run.log");
+  EXPECT_NE(log.find("branch with crushdem 9.9.9 (another)"), std::string::npos) << log;
+  EXPECT_NE(log.find("warning: this run is branched by crushdem 9.9.9 (another); it was run so "
+                     "far by " +
+                     this_build()),
+            std::string::npos)
+      << log;
+  EXPECT_NE(read_file(base / "again" / "summary.json")
+                .find("\"crushdem_builds\": [\"" + this_build() + "\", \"9.9.9 (another)\", \"" +
+                      this_build() + "\"]"),
+            std::string::npos)
+      << read_file(base / "again" / "summary.json");
+  // The branch by this build again with the same state and configuration: the same files but
+  // for the record of the builds.
+  EXPECT_EQ(read_file(base / "first" / "timeseries.csv"),
+            read_file(base / "again" / "timeseries.csv"));
 }
 
 }  // namespace

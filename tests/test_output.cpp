@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,6 +67,49 @@ TEST(Output, AResumedFileIsRefusedRowsWithOtherColumnsNamingTheFirst) {
   csv.resume(size, {"time_s", "step"}, &digest);
   csv.write({{"time_s", 2.0}, {"step", 3.0}});
   EXPECT_EQ(testing::read_file(path), "time_s,step\n1,2\n2,3\n");
+}
+
+TEST(Output, AResumedFileKeepsItsColumnsWhenAskedAndNamesWhatItLeavesOut) {
+  // resume --keep-columns: a newer crushdem's rows go on in the file's own columns, by name;
+  // what the file lacks is left out, and a column it has that the rows lack is still refused.
+  const testing::TempDir temp("keep_columns");
+  const std::string path = (temp.path() / "timeseries.csv").string();
+  long long size = 0;
+  std::uint64_t digest = 0;
+  {
+    CsvWriter csv(path);
+    csv.write({{"time_s", 1.0}, {"step", 2.0}, {"q_Pa", 3.0}});
+    size = csv.size();
+    digest = csv.digest();
+  }
+  {
+    CsvWriter csv(path);
+    csv.keep_columns(true);
+    csv.resume(size, {"time_s", "step", "q_Pa"}, &digest);
+    csv.write({{"time_s", 2.0}, {"moment_Nm", 9.0}, {"step", 3.0}, {"q_Pa", 4.0}});
+    csv.write({{"time_s", 3.0}, {"moment_Nm", 9.0}, {"step", 4.0}, {"q_Pa", 5.0}});
+    csv.write({{"time_s", 4.0}, {"step", 5.0}, {"q_Pa", 6.0}, {"f_Pa", 7.0}});
+    EXPECT_EQ(csv.left_out(), (std::vector<std::string>{"moment_Nm", "f_Pa"}));
+  }
+  EXPECT_EQ(testing::read_file(path), "time_s,step,q_Pa\n1,2,3\n2,3,4\n3,4,5\n4,5,6\n");
+  // Not resumed: a row's layout is the caller's error whatever keep_columns says.
+  {
+    CsvWriter fresh((temp.path() / "fresh.csv").string());
+    fresh.keep_columns(true);
+    fresh.write({{"a", 1.0}});
+    EXPECT_THROW(fresh.write({{"b", 1.0}}), std::logic_error);
+  }
+  CsvWriter csv(path);
+  csv.keep_columns(true);
+  csv.resume(size, {"time_s", "step", "q_Pa"}, &digest);
+  try {
+    csv.write({{"time_s", 2.0}, {"step", 3.0}});
+    FAIL() << "a row without the file's column q_Pa was appended";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("a column 'q_Pa' that this crushdem does not write"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // With crushing on, the crusher's set-up invalidates the forces; the first row of the test must

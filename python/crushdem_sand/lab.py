@@ -208,12 +208,14 @@ def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: st
 
 
 def resume(out: Union[str, os.PathLike], *, progress: bool = False,
-           backend: str = "cpu") -> Result:
+           backend: str = "cpu", keep_columns: bool = False) -> Result:
     """Continues an interrupted run from ``out/checkpoint.bin`` (written at every ageing event,
     between stages and every ``output.checkpoint_seconds``); the files come out as those of an
     uninterrupted run on the same backend. Raises ValueError if ``out`` has no checkpoint (e.g.
-    it has finished)."""
-    _core.resume(os.fspath(out), progress, backend)
+    it has finished). ``keep_columns``: a run started by a crushdem that wrote other columns (a
+    build before this one) goes on with its result files' own columns, this build's new ones
+    left out (run.log names them), as ``crushdem-sand resume --keep-columns``."""
+    _core.resume(os.fspath(out), progress, backend, keep_columns)
     return Result(os.fspath(out))
 
 

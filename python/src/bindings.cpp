@@ -802,18 +802,20 @@ NB_MODULE(_core, m) {
       "build with CUDA) or \"emulated\" (the GPU's step run on the host), as `--backend`.");
   m.def(
       "resume",
-      [](const std::string& out, bool progress, const std::string& backend) {
+      [](const std::string& out, bool progress, const std::string& backend, bool keep_columns) {
         check_backend_name(backend, "backend");
         RunOptions opt;
         opt.progress = progress;
         opt.backend = backend;
+        opt.keep_columns = keep_columns;
         return run_interruptible([&] { return resume_directory(out, opt); });
       },
-      "out"_a, "progress"_a = true, "backend"_a = "cpu",
+      "out"_a, "progress"_a = true, "backend"_a = "cpu", "keep_columns"_a = false,
       "Continues the interrupted run in `out` from its checkpoint.bin, like `crushdem-sand "
       "resume`; "
       "the files come out as those of an uninterrupted run on the same backend. Stops on SIGINT / "
-      "SIGTERM as run() does.");
+      "SIGTERM as run() does. keep_columns: as `--keep-columns`, continue a run started by a "
+      "crushdem that wrote other columns (the files keep theirs).");
   m.def("backends", &stepper_names,
         "The backends this build can run: \"cpu or emulated\", or \"cpu, emulated or cuda\".");
   m.def(

@@ -85,6 +85,10 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
   add_threads(c_resume, resume.threads);
   c_resume->add_option("--backend", resume.backend, kBackendHelp);
   c_resume->add_flag("--quiet", resume.quiet, "no progress lines");
+  c_resume->add_flag("--keep-columns", resume.keep_columns,
+                     "continue with a crushdem that writes other columns than the one that "
+                     "started the run (a newer build): the result files keep their columns and "
+                     "run.log names the ones left out");
 
   std::string check_config;
   CLI::App* c_check = app.add_subcommand("check", "validate a configuration without running it");

@@ -36,6 +36,7 @@ struct ResumeArgs {
   std::string dir, backend = "cpu";
   long threads = 0;
   bool quiet = false;
+  bool keep_columns = false;
 };
 struct BenchArgs {
   std::string packing;  // --packing or PACKING, or

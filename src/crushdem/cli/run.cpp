@@ -66,6 +66,7 @@ int resume_main(const ResumeArgs& a) {
   RunOptions opt;
   opt.progress = !a.quiet;
   opt.backend = a.backend;
+  opt.keep_columns = a.keep_columns;
   return run_or_resume([&]() { return resume_directory(a.dir, opt); }, a.dir);
 }
 

@@ -21,8 +21,9 @@ namespace crushdem {
 /// (fnv1a64), so that a damaged file is refused instead of resumed into other results; 5 lists
 /// the ParaView snapshots by step and time (for the .pvd collections); 6 records a checksum of
 /// each result file's bytes and the size and checksum of every file written whole before it
-/// (sample, snapshots, stage states), which resume and branches check.
-constexpr int kStateVersion = 7;
+/// (sample, snapshots, stage states), which resume and branches check; 7 keeps each ParaView
+/// frame's ageing clock; 8 lists the crushdem builds that ran the run so far.
+constexpr int kStateVersion = 8;
 
 /// The start value of fnv1a64, for a hash continued over pieces.
 inline constexpr std::uint64_t kFnvOffset = 14695981039346656037ULL;

@@ -72,6 +72,10 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
   }
   std::size_t k = 0;  // the first column that differs from the header's
   while (k < row.size() && k < columns_.size() && row[k].first == columns_[k]) ++k;
+  if ((k < row.size() || k < columns_.size()) && resumed_ && keep_columns_) {
+    put(kept_line(row));
+    return;
+  }
   if (k < row.size() || k < columns_.size()) {
     const std::string here = k < row.size() ? "'" + row[k].first + "'" : "nothing";
     const std::string file = k < columns_.size() ? "'" + columns_[k] + "'" : "nothing";
@@ -82,7 +86,9 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
       // since): its rows would not line up with the file's header.
       throw ConfigError("cannot resume: '" + path_ + "' was written with other columns (" + where +
                         "); continue the run with the crushdem that started it (its " +
-                        "version and commit are on the first line of run.log)");
+                        "version and commit are on the first line of run.log), or with this one " +
+                        "and `crushdem-sand resume --keep-columns`, the files keeping their " +
+                        "columns");
     }
     throw std::logic_error("CSV row of '" + path_ + "' does not match its header: " + where);
   }
@@ -93,6 +99,38 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
   }
   line += '\n';
   put(line);
+}
+
+std::string CsvWriter::kept_line(const std::vector<std::pair<std::string, double>>& row) {
+  bool same = row_names_.size() == row.size();
+  for (std::size_t c = 0; same && c < row.size(); ++c) same = row_names_[c] == row[c].first;
+  if (!same) {
+    row_names_.clear();
+    for (const auto& kv : row) row_names_.push_back(kv.first);
+    at_.clear();
+    for (const std::string& name : columns_) {
+      const auto it = std::find(row_names_.begin(), row_names_.end(), name);
+      if (it == row_names_.end()) {
+        throw ConfigError("cannot resume: '" + path_ + "' has a column '" + name +
+                          "' that this crushdem does not write, so its rows cannot go on even "
+                          "with --keep-columns; continue the run with the crushdem that started "
+                          "it (its version and commit are on the first line of run.log)");
+      }
+      at_.push_back(static_cast<std::size_t>(it - row_names_.begin()));
+    }
+    for (const std::string& name : row_names_) {
+      if (std::find(columns_.begin(), columns_.end(), name) == columns_.end() &&
+          std::find(left_out_.begin(), left_out_.end(), name) == left_out_.end()) {
+        left_out_.push_back(name);
+      }
+    }
+  }
+  std::string line;
+  for (std::size_t c = 0; c < at_.size(); ++c) {
+    if (c) line += ',';
+    line += format_double(row[at_[c]].second);
+  }
+  return line + '\n';
 }
 
 long long CsvWriter::size() const {
@@ -177,6 +215,12 @@ void JsonObject::numbers(const std::string& key, const std::vector<double>& v) {
   for (std::size_t k = 0; k < v.size(); ++k) {
     o += (k ? ", " : "") + (std::isfinite(v[k]) ? format_double(v[k]) : std::string("null"));
   }
+  fields.emplace_back(key, o + "]");
+}
+
+void JsonObject::strings(const std::string& key, const std::vector<std::string>& v) {
+  std::string o = "[";
+  for (std::size_t k = 0; k < v.size(); ++k) o += (k ? ", " : "") + json_escape(v[k]);
   fields.emplace_back(key, o + "]");
 }
 

@@ -39,8 +39,17 @@ class CsvWriter {
   /// otherwise the file was changed after the checkpoint and the run is refused, naming it.
   void resume(long long size, const std::vector<std::string>& columns,
               const std::uint64_t* digest = nullptr);
+  /// A resumed file keeps the columns it was started with when this crushdem writes others (a
+  /// resume by a newer build, `resume --keep-columns`): each row gives the header's columns by
+  /// name and leaves the others out; a header column the row lacks is still refused. Without
+  /// it such a resume is refused at the first row.
+  void keep_columns(bool keep) { keep_columns_ = keep; }
+  /// The columns of this crushdem's rows that keep_columns has left out so far, in row order.
+  const std::vector<std::string>& left_out() const { return left_out_; }
 
  private:
+  /// The row's values in the header's columns (keep_columns), noting what it leaves out.
+  std::string kept_line(const std::vector<std::pair<std::string, double>>& row);
   void put(const std::string& text);  // writes, hashes and flushes
   void flush();  // throws RuntimeFailure naming the file when the bytes cannot be written
   std::string path_;
@@ -48,6 +57,10 @@ class CsvWriter {
   std::vector<std::string> columns_;
   std::uint64_t digest_ = kFnvOffset;
   bool resumed_ = false;  // its rows so far were written by the run's earlier process
+  bool keep_columns_ = false;
+  std::vector<std::string> left_out_;
+  std::vector<std::string> row_names_;  // the row layout `at_` maps (rows repeat their layout)
+  std::vector<std::size_t> at_;         // the row's index of each header column
 };
 
 /// A flat JSON object of numbers and strings, written in the order given.
@@ -60,6 +73,7 @@ struct JsonObject {
   void object(const std::string& key, const JsonObject& v);
   void array(const std::string& key, const std::vector<JsonObject>& v);
   void numbers(const std::string& key, const std::vector<double>& v);
+  void strings(const std::string& key, const std::vector<std::string>& v);
   std::string dump(int indent = 0) const;
   /// The number written under `key` (NaN when there is none or it is not a number).
   double number_value(const std::string& key) const;

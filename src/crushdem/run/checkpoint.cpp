@@ -3,6 +3,7 @@
 #include <array>
 #include <cstring>
 
+#include "crushdem/core/build_info.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/experiments/protocol.hpp"
 #include "crushdem/fracture/crushing.hpp"
@@ -65,6 +66,25 @@ void RunPosition::state(StateArchive& a) {
   if (a.loading()) stage_results.assign(n, {});
   for (JsonObject& o : stage_results) json_state(a, o);
   a(warnings, ref0, ref, d50, has_crusher);
+  a.since(8, builds);
+}
+
+std::string this_build() {
+  return std::string(CRUSHDEM_VERSION) + " (" + build_commit() + ")";
+}
+
+std::string note_build(std::vector<std::string>& builds, const std::string& current,
+                       const std::string& what) {
+  std::string warning;
+  if (!builds.empty() && builds.back() != current) {
+    // A change of build may change the physics (the CHANGELOG says which); the steps from here
+    // on are this build's, and the run's results are no longer one build's.
+    warning = "this run is " + what + " by crushdem " + current + "; it was run so far by " +
+              builds.back() + ": its results from here on are this build's (CHANGELOG.md lists " +
+              "what changed between them)";
+  }
+  if (builds.empty() || builds.back() != current) builds.push_back(current);
+  return warning;
 }
 
 std::string checkpoint_tag(int version) {

@@ -45,9 +45,22 @@ struct RunPosition {
   StrainReference ref0, ref;  // strains of the preparation, and of the test
   double d50 = 0.0;           // of the sample at the start of the test
   bool has_crusher = false;
+  /// Each crushdem that ran the run so far, as "VERSION (COMMIT)", in order, once per change of
+  /// build (empty from a checkpoint before format 8): a resume or branch by another build says
+  /// so, and summary.json lists them.
+  std::vector<std::string> builds;
 
   void state(StateArchive& a);
 };
+
+/// "VERSION (COMMIT)" of this build of crushdem.
+std::string this_build();
+
+/// Adds `current` to a run's `builds` and returns the warning the run gives when it differs from
+/// the build that ran the run last (empty otherwise; nothing is known of the builds of a
+/// checkpoint before format 8). `what`: "resumed", "branched".
+std::string note_build(std::vector<std::string>& builds, const std::string& current,
+                       const std::string& what);
 
 /// The format tag of version `version`.
 std::string checkpoint_tag(int version);

@@ -73,6 +73,24 @@ CsvWriter& Driver::file(const std::string& name) {
   return *f;
 }
 
+std::string Driver::resume_command() const {
+  // Files that keep their columns need the option again: this build's rows still differ.
+  return "crushdem-sand resume " + opt_.out_dir + (opt_.keep_columns ? " --keep-columns" : "");
+}
+
+void Driver::report_left_out_columns() {
+  for (auto& [name, f] : files_) {
+    const std::vector<std::string>& out = f->left_out();
+    std::size_t& told = left_out_told_[name];
+    if (out.size() == told) continue;
+    std::string list;
+    for (std::size_t k = told; k < out.size(); ++k) list += (k > told ? ", " : "") + out[k];
+    say(name + " keeps the columns the run started it with (--keep-columns): this crushdem's " +
+        list + " left out");
+    told = out.size();
+  }
+}
+
 void Driver::snapshot() {
   const PartScope timed(sim_.part_clock(), Part::Output);
   const Snapshot now{sim_.step_count(), sim_.time(), ageing_clock_};
@@ -177,10 +195,9 @@ void Driver::drive(Controller& c, CsvWriter& csv, const std::function<Measuremen
       }
       if (stop != 0) {
         say("stopped by signal " + std::to_string(stop) + " at step " +
-                std::to_string(sim_.step_count()) + "; continue with `crushdem-sand resume " +
-                opt_.out_dir + "`",
+                std::to_string(sim_.step_count()) + "; continue with `" + resume_command() + "`",
             false);
-        throw Interrupted(stop, opt_.out_dir);
+        throw Interrupted(stop, opt_.out_dir, resume_command());
       }
     }
   }
@@ -266,7 +283,9 @@ void Driver::state(StateArchive& a) {
       std::uint64_t digest = 0;
       a(name, size, columns);
       a.since(6, digest);
-      file(name).resume(size, columns, a.version() >= 6 ? &digest : nullptr);
+      CsvWriter& f = file(name);
+      f.keep_columns(opt_.keep_columns);
+      f.resume(size, columns, a.version() >= 6 ? &digest : nullptr);
     }
   }
   if (a.version() < 6) return;

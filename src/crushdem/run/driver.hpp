@@ -77,6 +77,11 @@ class Driver {
 
   /// The CSV file `name` in the output directory (opened when its first row is written).
   CsvWriter& file(const std::string& name);
+  /// Says in run.log which columns of this crushdem's rows the result files have left out since
+  /// it last did (a resume with RunOptions::keep_columns).
+  void report_left_out_columns();
+  /// The command that continues this run after a stop.
+  std::string resume_command() const;
   /// Where the run directory's entries are recorded (each CSV as it is first named).
   RunManifest* manifest = nullptr;
 
@@ -160,6 +165,7 @@ class Driver {
   const RunOptions& opt_;
   Crusher* crusher_ = nullptr;
   std::map<std::string, std::unique_ptr<CsvWriter>> files_;  // by name: a fixed save order
+  std::map<std::string, std::size_t> left_out_told_;         // report_left_out_columns()
   std::filesystem::path dir_;
   std::vector<Snapshot> snapshots_;
   double ageing_clock_ = 0.0;

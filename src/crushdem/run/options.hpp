@@ -18,6 +18,11 @@ struct RunOptions {
   /// crushing, ageing, checkpoints and resuming work on each.
   std::string backend = "cpu";
   bool resume = false;  // continue from out_dir/checkpoint.bin
+  /// A resume by a crushdem that writes other columns than the one that started the run (a
+  /// newer build): each result file keeps the columns it has, the new ones are left out (run.log
+  /// names them) and a column the file has that this build does not write is still refused.
+  /// Without it such a resume is refused at its first row.
+  bool keep_columns = false;
   /// A new run refuses a directory that holds files; with overwrite, the entries the manifest of
   /// a crushdem run directory lists are removed first (nothing else; never the current
   /// directory or one that holds it).
@@ -31,6 +36,9 @@ struct RunOptions {
   /// from that one on, the crushing keys that act at run time (crack_growth, v0, n, r_prime,
   /// interval, density_scaling) and [output]; anything else is refused, naming the key.
   std::string branch_dir, branch_stage;
+  /// The crushdem that runs it, as run.log and summary.json name it: empty for this build's
+  /// "VERSION (COMMIT)" (tests stand in another build here).
+  std::string build;
 };
 
 struct RunSummary {

@@ -103,6 +103,8 @@ JsonObject summary_json(const RunPosition& position, const Simulation& sim, std:
   JsonObject summary;
   summary.string("crushdem_version", CRUSHDEM_VERSION);
   summary.string("crushdem_commit", build_commit());
+  // Every build that ran it: more than one when it was resumed or branched by another.
+  if (!position.builds.empty()) summary.strings("crushdem_builds", position.builds);
   if (position.has_sample_json) summary.object("sample", position.sample_json);
   if (!branch_json.empty()) {
     std::string b = branch_json;

@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <memory>
 
-#include "crushdem/core/build_info.hpp"
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 #include "crushdem/core/random.hpp"
@@ -203,11 +202,12 @@ class Run {
     }
     if (branching_) read_saved_position();
     make_simulation();
+    const std::string build = opt_.build.empty() ? this_build() : opt_.build;
     driver_->say(std::string(opt_.resume  ? "resume"
                              : branching_ ? "branch"
                                           : "run") +
-                     " with crushdem " + CRUSHDEM_VERSION + " (" + build_commit() + "), backend " +
-                     opt_.backend + ", " + std::to_string(max_team_size()) +
+                     " with crushdem " + build + ", backend " + opt_.backend + ", " +
+                     std::to_string(max_team_size()) +
                      (max_team_size() == 1 ? " thread" : " threads") +
                      (branching_ ? ", from " + from_.string() + " stage " + opt_.branch_stage
                                  : std::string()),
@@ -215,6 +215,13 @@ class Run {
     for (const std::string& line : parameter_set_report(cfg_.parameters, cfg_.simulation.contact,
                                                         cfg_.crushing, cfg_.crushing.enabled)) {
       driver_->say(line, false);
+    }
+    if (!resumed_) pos_.builds = {build};
+    const std::string other_build =
+        resumed_ ? note_build(pos_.builds, build, branching_ ? "branched" : "resumed") : "";
+    if (!other_build.empty()) {
+      pos_.warnings.push_back(other_build);
+      driver_->say("warning: " + other_build);
     }
     if (!opt_.resume) {  // a branch may change keys that warn (v0, n): its own
       for (const std::string& w : cfg_.warnings()) {
@@ -392,6 +399,7 @@ class Run {
   void save_checkpoint(const Controller* running, std::uint64_t to_check,
                        const std::string& stage_state = "") {
     const PartScope timed(sim_->part_clock(), Part::Output);
+    driver_->report_left_out_columns();
     RunPosition saved = pos_;
     saved.begun = running != nullptr;
     saved.to_check = to_check;
@@ -438,9 +446,9 @@ class Run {
     }
     if (stop_signal() != 0) {
       driver_->say("stopped by signal " + std::to_string(stop_signal()) + " between two parts; " +
-                       "continue with `crushdem-sand resume " + opt_.out_dir + "`",
+                       "continue with `" + driver_->resume_command() + "`",
                    false);
-      throw Interrupted(stop_signal(), opt_.out_dir);
+      throw Interrupted(stop_signal(), opt_.out_dir, driver_->resume_command());
     }
   }
 
@@ -640,6 +648,7 @@ class Run {
 
   RunSummary finish() {
     driver_->snapshot();
+    driver_->report_left_out_columns();
     const double secs = pos_.wall_seconds + driver_->seconds();
     const std::string branch =
         fs::exists(dir_ / "branch.json") ? read_binary_file((dir_ / "branch.json").string()) : "";

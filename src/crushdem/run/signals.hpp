@@ -42,10 +42,11 @@ class StopOnSignals {
 /// out_dir; what() tells the user where the state is and how to go on.
 class Interrupted : public std::runtime_error {
  public:
-  Interrupted(int signal, const std::string& out_dir)
+  /// resume: the command that continues it (crushdem-sand resume DIR with the run's options).
+  Interrupted(int signal, const std::string& out_dir, const std::string& resume)
       : std::runtime_error("stopped by signal " + std::to_string(signal) +
                            "; the state is saved in " + out_dir +
-                           "/checkpoint.bin. Continue with: crushdem-sand resume " + out_dir),
+                           "/checkpoint.bin. Continue with: " + resume),
         signal_(signal),
         out_dir_(out_dir) {}
   int signal() const { return signal_; }
