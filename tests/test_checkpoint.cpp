@@ -425,7 +425,7 @@ TEST(Checkpoint, ResumeRefusesAMissingOrFinishedRun) {
 // resume or branch by another build says so in run.log and counts as a warning.
 TEST(Checkpoint, ARunContinuedByAnotherBuildSaysSoAndListsEveryBuild) {
   std::vector<std::string> builds;
-  EXPECT_EQ(note_build(builds, "0.1.0 (a)", "resumed"), "");  // a checkpoint before format 8
+  EXPECT_EQ(note_build(builds, "0.1.0 (a)", "resumed"), "");  // the run's first build
   EXPECT_EQ(note_build(builds, "0.1.0 (a)", "resumed"), "");
   EXPECT_EQ(builds, std::vector<std::string>{"0.1.0 (a)"});
   const std::string w = note_build(builds, "0.2.0 (b)", "branched");
@@ -463,13 +463,19 @@ TEST(Checkpoint, ARunContinuedByAnotherBuildSaysSoAndListsEveryBuild) {
                      this_build()),
             std::string::npos)
       << log;
-  EXPECT_NE(read_file(base / "again" / "summary.json")
-                .find("\"crushdem_builds\": [\"" + this_build() + "\", \"9.9.9 (another)\", \"" +
-                      this_build() + "\"]"),
+  const std::string other = read_file(base / "other" / "summary.json");
+  EXPECT_NE(other.find("\"crushdem_builds\": [\"" + this_build() + "\", \"9.9.9 (another)\"]"),
             std::string::npos)
-      << read_file(base / "again" / "summary.json");
-  // The branch by this build again with the same state and configuration: the same files but
-  // for the record of the builds.
+      << other;
+  EXPECT_EQ(testing::json_number(other, "warnings"),
+            testing::json_number(summary, "warnings") + 1.0);
+  // The state "again" starts from, "other"'s first stage boundary, was saved before "other"
+  // took a step: it is this build's alone, so "again" is this build's run, as "first" is.
+  EXPECT_EQ(read_file(base / "again" / "run.log").find("warning: this run is branched"),
+            std::string::npos);
+  EXPECT_NE(read_file(base / "again" / "summary.json")
+                .find("\"crushdem_builds\": [\"" + this_build() + "\"]"),
+            std::string::npos);
   EXPECT_EQ(read_file(base / "first" / "timeseries.csv"),
             read_file(base / "again" / "timeseries.csv"));
 }

@@ -194,16 +194,18 @@ def _check_steps(key: str, value: Any) -> None:
 def run(config: Mapping[str, Any], out: Union[str, os.PathLike], *, base_dir: str = ".",
         progress: bool = False, overwrite: bool = False, backend: str = "cpu",
         branch_from: Union[str, os.PathLike, None] = None,
-        branch_stage: Union[int, str, None] = None) -> Result:
+        branch_stage: Union[int, str, None] = None, keep_columns: bool = False) -> Result:
     """Runs a whole configuration dict (the sections of a run file; ``stage`` a list of dicts).
     ``out`` must be new or empty; ``overwrite=True`` replaces a crushdem run already there (every
     laboratory function below takes it too). ``branch_from``: a run directory whose state at the
     start of stage ``branch_stage`` (index or name; default: the first stage ``config``
     changes) this run starts from, as ``crushdem-sand run --from DIR:STAGE`` (the stages before it
-    and the grains must be the original's)."""
+    and the grains must be the original's). ``keep_columns`` (with ``branch_from``): the
+    original's result files, written by a build of other columns, keep theirs, as
+    ``--keep-columns``."""
     _core.run(dict(config), os.fspath(out), base_dir, progress, overwrite,
               os.fspath(branch_from) if branch_from is not None else "",
-              "" if branch_stage is None else str(branch_stage), backend)
+              "" if branch_stage is None else str(branch_stage), backend, keep_columns)
     return Result(os.fspath(out))
 
 

@@ -777,8 +777,13 @@ NB_MODULE(_core, m) {
       "run",
       [](nb::dict config, const std::string& out, const std::string& base_dir, bool progress,
          bool overwrite, const std::string& branch_dir, const std::string& branch_stage,
-         const std::string& backend) {
+         const std::string& backend, bool keep_columns) {
         check_backend_name(backend, "backend");
+        if (keep_columns && branch_dir.empty()) {
+          throw ConfigError(
+              "keep_columns: given without branch_dir; it keeps the columns of the "
+              "result files a branch copies from its original run");
+        }
         const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
         RunOptions opt;
         opt.out_dir = out;
@@ -787,10 +792,11 @@ NB_MODULE(_core, m) {
         opt.branch_dir = branch_dir;
         opt.branch_stage = branch_stage;
         opt.backend = backend;
+        opt.keep_columns = keep_columns;
         return run_interruptible([&] { return run_to_directory(cfg, opt); });
       },
       "config"_a, "out"_a, "base_dir"_a = ".", "progress"_a = true, "overwrite"_a = false,
-      "branch_dir"_a = "", "branch_stage"_a = "", "backend"_a = "cpu",
+      "branch_dir"_a = "", "branch_stage"_a = "", "backend"_a = "cpu", "keep_columns"_a = false,
       "Runs a whole configuration (the sections of a run file: [sample] or [particles], [[stage]] "
       "as a list of dicts, [output], ...) into the directory `out`, like `crushdem-sand run`. "
       "SIGINT or "

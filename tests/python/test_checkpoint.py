@@ -187,6 +187,12 @@ def test_a_format_4_checkpoint_of_release_0_1_0_still_resumes(tmp_path):
         summary = json.load(f)
     assert summary["steps"] == 1_093_600  # isotropic (93,600) + the hold's 1,000,000
     assert [st["name"] for st in summary["stages"]] == ["isotropic", "hold"]
+    # Another build resumed it, and says so: the checkpoint names no build before format 8.
+    build = f"{summary['crushdem_version']} ({summary['crushdem_commit']})"
+    assert summary["crushdem_builds"] == ["a crushdem before checkpoint format 8", build]
+    assert ("warning: this run is resumed by crushdem " + build
+            + "; it was run so far by a crushdem before checkpoint format 8"
+            in (run / "run.log").read_text())
     assert (run / "vtk" / "particles_000000.vtk").is_file()
     assert summary["snapshots"] == 2  # the legacy first one and the final .vtp
     pvd = (run / "vtk" / "particles.pvd").read_text()

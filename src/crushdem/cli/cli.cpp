@@ -75,6 +75,10 @@ int cli_main(const std::vector<std::string>& args, const std::vector<FrontEndCom
       ->type_name("DIR[:STAGE]");
   c_run->add_flag("--overwrite", run.overwrite,
                   "replace the crushdem run already in --out (otherwise refused)");
+  c_run->add_flag("--keep-columns", run.keep_columns,
+                  "with --from: branch from a run whose result files a crushdem of other "
+                  "columns wrote (an older build): they keep their columns and run.log names "
+                  "the ones left out");
 
   ResumeArgs resume;
   CLI::App* c_resume = app.add_subcommand(

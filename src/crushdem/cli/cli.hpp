@@ -30,7 +30,7 @@ int cli_main(const std::vector<std::string>& args,
 struct RunArgs {
   std::string config, out, backend = "cpu", from;
   long threads = 0;
-  bool quiet = false, overwrite = false;
+  bool quiet = false, overwrite = false, keep_columns = false;
 };
 struct ResumeArgs {
   std::string dir, backend = "cpu";

@@ -60,6 +60,16 @@ void CsvWriter::start(const std::vector<std::string>& columns) {
 
 void CsvWriter::write_line(const std::string& line) {
   if (!f_) throw std::logic_error("CsvWriter::write_line before start(): " + path_);
+  // Text rows cannot be mapped by name: a resumed file refuses another count of fields.
+  const auto fields = static_cast<std::size_t>(std::count(line.begin(), line.end(), ',')) + 1;
+  if (resumed_ && fields != columns_.size()) {
+    throw ConfigError("cannot go on with '" + path_ + "': this crushdem writes " +
+                      std::to_string(fields) + " fields to a row and the file has " +
+                      std::to_string(columns_.size()) +
+                      " columns (another build wrote it: run.log names the builds that ran the "
+                      "run); go on with the build that wrote it, --keep-columns cannot map these "
+                      "rows");
+  }
   put(line + "\n");
 }
 
@@ -84,11 +94,11 @@ void CsvWriter::write(const std::vector<std::pair<std::string, double>>& row) {
     if (resumed_) {
       // A crushdem that writes other columns than the one that started the run (a column added
       // since): its rows would not line up with the file's header.
-      throw ConfigError("cannot resume: '" + path_ + "' was written with other columns (" + where +
-                        "); continue the run with the crushdem that started it (its " +
-                        "version and commit are on the first line of run.log), or with this one " +
-                        "and `crushdem-sand resume --keep-columns`, the files keeping their " +
-                        "columns");
+      throw ConfigError("cannot go on with '" + path_ + "': it was written with other columns (" +
+                        where + "), by another build of crushdem (run.log names the builds " +
+                        "that ran the run); go on with that build, or with this one and " +
+                        "--keep-columns (`crushdem-sand resume DIR --keep-columns`, or with " +
+                        "`run --from` for a branch), the files keeping their columns");
     }
     throw std::logic_error("CSV row of '" + path_ + "' does not match its header: " + where);
   }
@@ -111,10 +121,10 @@ std::string CsvWriter::kept_line(const std::vector<std::pair<std::string, double
     for (const std::string& name : columns_) {
       const auto it = std::find(row_names_.begin(), row_names_.end(), name);
       if (it == row_names_.end()) {
-        throw ConfigError("cannot resume: '" + path_ + "' has a column '" + name +
+        throw ConfigError("cannot go on with '" + path_ + "': it has a column '" + name +
                           "' that this crushdem does not write, so its rows cannot go on even "
-                          "with --keep-columns; continue the run with the crushdem that started "
-                          "it (its version and commit are on the first line of run.log)");
+                          "with --keep-columns; go on with the build that wrote it (run.log "
+                          "names the builds that ran the run)");
       }
       at_.push_back(static_cast<std::size_t>(it - row_names_.begin()));
     }

@@ -67,6 +67,8 @@ void RunPosition::state(StateArchive& a) {
   for (JsonObject& o : stage_results) json_state(a, o);
   a(warnings, ref0, ref, d50, has_crusher);
   a.since(8, builds);
+  // An older format is always another build's: its resume is said as one.
+  if (a.loading() && a.version() < 8) builds = {"a crushdem before checkpoint format 8"};
 }
 
 std::string this_build() {

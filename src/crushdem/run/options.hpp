@@ -36,8 +36,9 @@ struct RunOptions {
   /// from that one on, the crushing keys that act at run time (crack_growth, v0, n, r_prime,
   /// interval, density_scaling) and [output]; anything else is refused, naming the key.
   std::string branch_dir, branch_stage;
-  /// The crushdem that runs it, as run.log and summary.json name it: empty for this build's
-  /// "VERSION (COMMIT)" (tests stand in another build here).
+  /// The crushdem that runs it, as run.log and summary.json's crushdem_builds name it: empty for
+  /// this build's "VERSION (COMMIT)" (tests stand in another build here; crushdem_commit stays
+  /// the binary's).
   std::string build;
 };
 

@@ -216,12 +216,15 @@ class Run {
                                                         cfg_.crushing, cfg_.crushing.enabled)) {
       driver_->say(line, false);
     }
-    if (!resumed_) pos_.builds = {build};
-    const std::string other_build =
-        resumed_ ? note_build(pos_.builds, build, branching_ ? "branched" : "resumed") : "";
-    if (!other_build.empty()) {
-      pos_.warnings.push_back(other_build);
-      driver_->say("warning: " + other_build);
+    if (resumed_) {
+      // Said now; recorded once this process has taken a step (take_build()), so that a state
+      // it saves before stepping (a branch's first stage boundary) names only its own builds.
+      std::vector<std::string> builds = pos_.builds;
+      build_warning_ = note_build(builds, build, branching_ ? "branched" : "resumed");
+      if (!build_warning_.empty()) driver_->say("warning: " + build_warning_);
+      build_ = build;
+    } else {
+      pos_.builds = {build};
     }
     if (!opt_.resume) {  // a branch may change keys that warn (v0, n): its own
       for (const std::string& w : cfg_.warnings()) {
@@ -251,9 +254,21 @@ class Run {
       throw;  // the log says so already
     } catch (const std::exception& e) {
       // The log of a run that stops on an error ends with it, for whoever reads it later.
+      try {
+        driver_->report_left_out_columns();
+      } catch (const std::exception&) {  // (the error below is the one to report)
+      }
       driver_->say(std::string("error: ") + e.what(), false);
       throw;
     }
+  }
+
+  /// Records this process's build among the run's once it has stepped (see execute()).
+  void take_build() {
+    if (build_.empty() || sim_->step_count() == steps_at_start_) return;
+    note_build(pos_.builds, build_, "");
+    if (!build_warning_.empty()) pos_.warnings.push_back(build_warning_);
+    build_.clear();
   }
 
  private:
@@ -385,6 +400,7 @@ class Run {
     std::snprintf(b, sizeof b, "resuming at step %llu, t = %.6e s",
                   static_cast<unsigned long long>(sim_->step_count()), sim_->time());
     driver_->say(b);
+    steps_at_start_ = sim_->step_count();
   }
 
   std::string timing_path() {
@@ -400,6 +416,7 @@ class Run {
                        const std::string& stage_state = "") {
     const PartScope timed(sim_->part_clock(), Part::Output);
     driver_->report_left_out_columns();
+    take_build();
     RunPosition saved = pos_;
     saved.begun = running != nullptr;
     saved.to_check = to_check;
@@ -649,6 +666,7 @@ class Run {
   RunSummary finish() {
     driver_->snapshot();
     driver_->report_left_out_columns();
+    take_build();
     const double secs = pos_.wall_seconds + driver_->seconds();
     const std::string branch =
         fs::exists(dir_ / "branch.json") ? read_binary_file((dir_ / "branch.json").string()) : "";
@@ -687,7 +705,9 @@ class Run {
   const bool branching_, resumed_;
   const fs::path from_;  // the run a branch starts from
   RunPosition pos_;
-  std::unique_ptr<StateReader> in_;  // the saved state, read part by part
+  std::string build_, build_warning_;  // a resuming build not yet recorded (take_build())
+  std::uint64_t steps_at_start_ = 0;   // the step this process started at
+  std::unique_ptr<StateReader> in_;    // the saved state, read part by part
   LooseCloud cloud_;
   std::unique_ptr<Simulation> sim_;
   std::unique_ptr<Driver> driver_;
