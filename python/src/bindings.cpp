@@ -779,11 +779,6 @@ NB_MODULE(_core, m) {
          bool overwrite, const std::string& branch_dir, const std::string& branch_stage,
          const std::string& backend, bool keep_columns) {
         check_backend_name(backend, "backend");
-        if (keep_columns && branch_dir.empty()) {
-          throw ConfigError(
-              "keep_columns: given without branch_dir; it keeps the columns of the "
-              "result files a branch copies from its original run");
-        }
         const RunConfig cfg = run_config_from_toml(to_table(config, ""), "<python>", base_dir);
         RunOptions opt;
         opt.out_dir = out;

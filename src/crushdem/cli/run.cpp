@@ -57,11 +57,6 @@ int run_main(const RunArgs& a) {
   opt.backend = a.backend;
   opt.overwrite = a.overwrite;
   if (!a.from.empty()) split_branch(a.from, opt.branch_dir, opt.branch_stage);
-  if (a.keep_columns && a.from.empty()) {
-    throw ConfigError(
-        "--keep-columns: given without --from; it keeps the columns of the result files a run "
-        "continues (a branch's, copied from its original run, or a resume's)");
-  }
   opt.keep_columns = a.keep_columns;
   return run_or_resume([&]() { return run_to_directory(cfg, opt); }, a.out);
 }

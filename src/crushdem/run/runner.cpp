@@ -726,6 +726,13 @@ void check_start(const RunConfig& given) {
 }
 
 RunSummary run_to_directory(const RunConfig& cfg, const RunOptions& opt) {
+  // Only a run that continues result files (a resume's, a branch's copies) has columns to keep.
+  if (opt.keep_columns && !opt.resume && !opt.restart && opt.branch_dir.empty()) {
+    throw ConfigError(
+        "--keep-columns (keep_columns): given for a new run; it keeps the columns of the result "
+        "files a run continues (a branch's, copied from its original run with --from, or a "
+        "resume's)");
+  }
   Run run(cfg, opt);
   return run.execute();
 }
