@@ -12,7 +12,7 @@
 //                 since the neighbour build (a maximum: exact in any order). The last block
 //                 moves the walls and applies the rebuild rule; when a rebuild is due it sets
 //                 `halt` and the rest of the step waits for the host (which rebuilds the list,
-//                 carrying the history by ids, and uploads again);
+//                 carrying the history over, and uploads again);
 //   contacts      one thread per neighbour entry (contact, new history, touching flag, a
 //                 reaction record: force on the owner, torques on owner and partner), then one
 //                 per wall entry;

@@ -9,6 +9,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 
 namespace crushdem {
@@ -407,7 +408,9 @@ struct DeviceStepper::Impl {
       for (std::size_t e = 0; e < M; ++e) r_ent[fill[nl.neighbors[e]]++] = static_cast<Index>(e);
     }
     std::vector<double> rs(M), srs(M), me(M);
-    for (std::size_t e = 0; e < M; ++e) {
+#pragma omp parallel for schedule(static) if (worth_threading(M))
+    for (std::ptrdiff_t ee = 0; ee < static_cast<std::ptrdiff_t>(M); ++ee) {
+      const auto e = static_cast<std::size_t>(ee);
       const std::size_t i = nl.owner[e], j = nl.neighbors[e];
       rs[e] = pair_R_star(p.radius[i], p.radius[j]);
       srs[e] = std::sqrt(rs[e]);
@@ -649,7 +652,7 @@ struct DeviceStepper::Impl {
   }
 
   /// The step the device stopped after its drift: the list rebuilt on the host (history carried
-  /// by ids) and uploaded, then the step finished on the device.
+  /// over) and uploaded, then the step finished on the device.
   void finish_with_rebuild(Simulation& sim) {
     download_all(sim);  // mid-step: no inspection of it
     control_to_host(sim);

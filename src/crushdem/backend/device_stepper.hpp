@@ -13,7 +13,7 @@
 // everything again. Nothing is left for the caller to flag.
 //
 // The host keeps the jobs that change the layout: neighbour rebuilds (when the device's drift
-// finds one due, it stops; the host rebuilds with the history carried by ids and uploads), the
+// finds one due, it stops; the host rebuilds with the history carried over and uploads), the
 // split of a grain that the device's crushing check found failing (Crusher::split, then the
 // forces of the new state, as the CPU driver does). The automatic time step is chosen every
 // timestep.update_interval steps from the contact term the device reduces (the host's

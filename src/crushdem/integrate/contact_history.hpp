@@ -4,11 +4,14 @@
 // neighbour rebuilds and topology changes by particle ids.
 //
 // Entries are indices into lists that change: a rebuild re-sorts the particles and makes a new
-// list, a topology change compacts the store. Before indices change, capture() keeps every
+// list, a topology change compacts the store. Before a topology change, capture() keeps every
 // nonzero vector keyed by (smaller id, larger id) as the vector on the smaller id (or by
 // (particle id, wall)); after the new lists are made, rebuild() sizes the per-entry arrays and
 // puts each kept vector back by binary search, marking the entry touching so that the next force
-// pass clears it if the pair has separated.
+// pass clears it if the pair has separated. A rebuild of the same grains (the common case: every
+// few dozen steps) needs no ids: take() moves the old lists and history out, and carry() looks
+// each new pair up in its grains' old rows (sorted, a few entries long) through the rebuild's
+// permutation. The two give the same bits; carry() sorts nothing and runs in parallel.
 #pragma once
 
 #include <cstddef>
@@ -61,6 +64,24 @@ class ContactHistory {
   /// back on the matching entries (walls into wc).
   void rebuild(const ParticleStore& p, const NeighborList& nl, WallContacts& wc);
   std::size_t memory_bytes() const;
+
+  /// The lists and history of the last build, moved out before the lists are rebuilt for the
+  /// same grains (their rows sorted by partner, as NeighborList::build leaves them).
+  struct Previous {
+    std::vector<NeighborList::Index> offsets, neighbors;
+    std::vector<Vectors> pair;
+    std::vector<std::uint32_t> wall_offsets;
+    std::vector<std::uint8_t> wall;
+    std::vector<double> ft_x, ft_y, ft_z;
+  };
+  /// Moves the current lists' entries and history out (the lists are rebuilt next).
+  Previous take(NeighborList& nl, WallContacts& wc);
+  /// After new lists of the same grains, where new grain k was grain from[k] of `prev` (from
+  /// empty: grain k): the per-entry arrays sized to the new lists, and every nonzero vector on
+  /// the entry of the same pair (or grain and body), touching as rebuild() marks it. The same
+  /// bits as capture() before the change and rebuild() after.
+  void carry(const Previous& prev, const std::vector<std::size_t>& from, const NeighborList& nl,
+             WallContacts& wc);
 
   // What capture() kept, per declared field (saved in checkpoints: a state may be saved between
   // capture() and rebuild()); `kept` until rebuild() has put it back.

@@ -187,7 +187,6 @@ std::string Simulation::left_the_box(std::size_t i, int k) const {
 
 void Simulation::rebuild_neighbors() {
   const PartScope timed(part_clock_, Part::NeighborSearch);
-  if (nl_valid_) history_.capture(p_, nl_, wc_);
   const std::size_t N = p_.size();
   if (skin_ <= 0.0 && N > 0) {
     skin_ = 0.5 * *std::min_element(p_.radius.begin(), p_.radius.end());
@@ -206,11 +205,30 @@ void Simulation::rebuild_neighbors() {
       }
     }
   }
-  if (cfg_.neighbor.sort_particles && N > 1) p_.permute(NeighborList::spatial_order(p_, skin_));
+  // The same grains as at the last build: the history goes over by index (ContactHistory::
+  // carry); after a topology change invalidate() has kept it by ids.
+  const bool same_grains =
+      nl_valid_ && !history_.kept && nl_.num_particles() == N && wc_.offsets.size() == N + 1;
+  ContactHistory::Previous previous;
+  if (same_grains) {
+    previous = history_.take(nl_, wc_);
+  } else if (nl_valid_) {
+    history_.capture(p_, nl_, wc_);
+  }
+  nl_valid_ = false;  // until the new lists stand
+  std::vector<std::size_t> order;
+  if (cfg_.neighbor.sort_particles && N > 1) {
+    order = NeighborList::spatial_order(p_, skin_);
+    p_.permute(order);
+  }
   pair_loop_.mark_stale();  // the packed copies follow the old order
   nl_.build(p_, skin_ > 0.0 ? skin_ : 1.0);
   wc_.build(p_.x, p_.y, p_.z, p_.radius, walls_, skin_);
-  history_.rebuild(p_, nl_, wc_);  // every declared history vector by ids
+  if (same_grains) {
+    history_.carry(previous, order, nl_, wc_);
+  } else {
+    history_.rebuild(p_, nl_, wc_);  // every declared history vector by ids
+  }
   walls_.reset_displacements();
   nl_valid_ = true;
   ++layout_version_;

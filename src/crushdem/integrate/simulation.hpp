@@ -173,7 +173,7 @@ class Simulation {
   void compute_forces();
   /// Whether the forces and the neighbour list are those of the current state.
   bool forces_current() const { return forces_valid_ && nl_valid_; }
-  /// Rebuilds the neighbour list and wall contacts now (history carried by ids), as a step does
+  /// Rebuilds the neighbour list and wall contacts now (history carried over), as a step does
   /// when grains have moved too far; throws RuntimeFailure naming a grain with a non-finite
   /// position or one outside the box.
   void rebuild_neighbors();

@@ -134,9 +134,13 @@ std::vector<ParticleId> ParticleStore::apply(const TopologyChange& change) {
 }
 
 void ParticleStore::permute(const std::vector<std::size_t>& order) {
+  const std::size_t n = order.size();
   for_each_array([&](auto& arr) {
     auto copy = arr;
-    for (std::size_t k = 0; k < order.size(); ++k) arr[k] = copy[order[k]];
+#pragma omp parallel for schedule(static) if (worth_threading(n))
+    for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(n); ++k) {
+      arr[static_cast<std::size_t>(k)] = copy[order[static_cast<std::size_t>(k)]];
+    }
   });
 }
 

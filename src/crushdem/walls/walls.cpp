@@ -6,6 +6,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "crushdem/core/deterministic.hpp"
 #include "crushdem/core/error.hpp"
 
 namespace crushdem {
@@ -217,21 +218,32 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
                          const std::vector<double>& z, const std::vector<double>& radius,
                          const Walls& walls, double skin) {
   const std::size_t N = x.size();
-  std::vector<std::uint32_t> wp;
-  std::vector<std::uint8_t> ww;
+  const int bodies = walls.size();
+  // Two passes (count, then fill) so that grains are visited in parallel and the entries come
+  // in grain order, then body order, on any thread count.
+  const auto near = [&](std::size_t i, int k) {
+    return walls.surface(k, {x[i], y[i], z[i]}).dist - radius[i] < skin;
+  };
   offsets.assign(N + 1, 0);
-  for (std::size_t i = 0; i < N; ++i) {
-    for (int k = 0; k < walls.size(); ++k) {
-      if (walls.surface(k, {x[i], y[i], z[i]}).dist - radius[i] < skin) {
-        wp.push_back(static_cast<std::uint32_t>(i));
-        ww.push_back(static_cast<std::uint8_t>(k));
-      }
-    }
-    offsets[i + 1] = static_cast<std::uint32_t>(wp.size());
+#pragma omp parallel for schedule(static) if (worth_threading(N))
+  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    std::uint32_t n = 0;
+    for (int k = 0; k < bodies; ++k) n += near(i, k) ? 1 : 0;
+    offsets[i + 1] = n;
   }
-  resize(wp.size());
-  particle = std::move(wp);
-  wall = std::move(ww);
+  for (std::size_t i = 0; i < N; ++i) offsets[i + 1] += offsets[i];
+  resize(offsets[N]);
+#pragma omp parallel for schedule(static) if (worth_threading(N))
+  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
+    std::uint32_t w = offsets[i];
+    for (int k = 0; k < bodies; ++k) {
+      if (!near(i, k)) continue;
+      particle[w] = static_cast<std::uint32_t>(i);
+      wall[w++] = static_cast<std::uint8_t>(k);
+    }
+  }
 }
 
 void Walls::state(StateArchive& a) {
