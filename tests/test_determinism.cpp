@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "crushdem/core/deterministic.hpp"
 #include "crushdem/io/config.hpp"
@@ -113,6 +116,42 @@ TEST(Determinism, OneAndTwoThreadsWriteIdenticalFilesWithRollingResistance) {
   EXPECT_GE(compare_thread_counts(config, base), 7u);
   EXPECT_NE(slurp(base / "t1" / "config.toml").find("rolling_friction = 0.3"), std::string::npos);
 #endif
+}
+
+// The sort behind the list's spatial order and scatter columns: std::stable_sort's order on any
+// team size, with many equal keys (the order among them is the input's) and block counts that
+// leave a block without a partner in a merge round.
+TEST(Determinism, ParallelStableSortEqualsStableSortOnAnyTeam) {
+  const std::size_t saved_threshold = threading_threshold();
+  threading_threshold() = 0;
+#ifdef CRUSHDEM_HAVE_OPENMP
+  const int saved_threads = omp_get_max_threads();
+#endif
+  std::vector<std::pair<int, int>> input;
+  std::uint64_t state = 12345;
+  for (int k = 0; k < 10007; ++k) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    input.emplace_back(static_cast<int>((state >> 33) % 97), k);  // key, then input position
+  }
+  const auto by_key = [](const std::pair<int, int>& a, const std::pair<int, int>& b) {
+    return a.first < b.first;
+  };
+  for (const int threads : {1, 2, 3, 5, 8}) {
+#ifdef CRUSHDEM_HAVE_OPENMP
+    omp_set_num_threads(threads);
+#endif
+    for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{7}, input.size()}) {
+      std::vector<std::pair<int, int>> v(input.begin(), input.begin() + static_cast<long>(n));
+      std::vector<std::pair<int, int>> want = v;
+      std::stable_sort(want.begin(), want.end(), by_key);
+      parallel_stable_sort(v, by_key);
+      EXPECT_EQ(v, want) << threads << " threads, " << n << " items";
+    }
+  }
+#ifdef CRUSHDEM_HAVE_OPENMP
+  omp_set_num_threads(saved_threads);
+#endif
+  threading_threshold() = saved_threshold;
 }
 
 }  // namespace

@@ -1,9 +1,10 @@
-// Reductions whose result does not depend on the number of threads.
+// Reductions and sorts whose result does not depend on the number of threads.
 // Results must be bit-identical on 1 and 2 threads (a last-bit difference changes which grain
 // breaks first), so sums over particles are taken in fixed-size blocks whose partial sums are
 // added in block order, never in thread order.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <vector>
 
@@ -93,6 +94,41 @@ double parallel_max(std::size_t n, double init, F&& f) {
     if (v > m) m = v;
   }
   return m;
+}
+
+/// Sorts v as std::stable_sort(v, less) does, to the same order (a stable sort's is unique):
+/// one block per thread sorted at once, then the blocks merged pairwise (std::merge keeps the
+/// left block's equal elements first).
+template <class T, class Less>
+void parallel_stable_sort(std::vector<T>& v, Less less) {
+  const std::size_t n = v.size();
+  const auto parts = worth_threading(n) ? static_cast<std::size_t>(max_team_size()) : 1;
+  if (parts < 2) {
+    std::stable_sort(v.begin(), v.end(), less);
+    return;
+  }
+  std::vector<std::size_t> bound(parts + 1);
+  for (std::size_t k = 0; k <= parts; ++k) bound[k] = n * k / parts;
+  const auto at = [&](std::vector<T>& a, std::size_t k) {
+    return a.begin() + static_cast<std::ptrdiff_t>(bound[std::min(k, parts)]);
+  };
+#pragma omp parallel for schedule(static, 1)
+  for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(parts); ++k) {
+    const auto b = static_cast<std::size_t>(k);
+    std::stable_sort(at(v, b), at(v, b + 1), less);
+  }
+  std::vector<T> out(n);
+  for (std::size_t width = 1; width < parts; width *= 2) {
+    const std::size_t pairs = (parts + 2 * width - 1) / (2 * width);
+#pragma omp parallel for schedule(static, 1)
+    for (std::ptrdiff_t q = 0; q < static_cast<std::ptrdiff_t>(pairs); ++q) {
+      const std::size_t k = static_cast<std::size_t>(q) * 2 * width;
+      // A last block without a partner is copied (merged with an empty range).
+      std::merge(at(v, k), at(v, k + width), at(v, k + width), at(v, k + 2 * width), at(out, k),
+                 less);
+    }
+    v.swap(out);
+  }
 }
 
 }  // namespace crushdem

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -229,7 +230,7 @@ void NeighborList::build_columns(const ParticleStore& p, const double lo[3], dou
     const std::uint64_t color = (cz % 3) * 3 + (cy % 3);
     key[i] = {(color << 56) | (cz << 28) | cy, static_cast<Index>(i)};
   }
-  std::sort(key.begin(), key.end());  // by colour, cz, cy, then particle index
+  parallel_stable_sort(key, std::less<>());  // by colour, cz, cy, then particle index
   column_offsets.assign(1, 0);
   color_offsets.assign(kColors + 1, 0);
   column_members.resize(N);
@@ -279,8 +280,7 @@ std::vector<std::size_t> NeighborList::spatial_order(const ParticleStore& p, dou
     }
     key[i] = (cc[2] * n[1] + cc[1]) * n[0] + cc[0];
   }
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
+  parallel_stable_sort(order, [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
   return order;
 }
 
