@@ -216,11 +216,13 @@ def _check_main_origin(main_dir: str, branch: Optional[str]) -> None:
 
 
 def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
-         log: Callable[[str], None] = print, branch: Optional[str] = None) -> Dict[str, Any]:
+         log: Callable[[str], None] = print, branch: Optional[str] = None,
+         keep_columns: bool = False) -> Dict[str, Any]:
     """Runs (or resumes) every run of the pile experiment of ``config_path`` into ``out`` and
     writes its tables and figures; returns {"capacity": rows, "fits": {test: fit}}. With
     ``branch`` (RUN[:STAGE]) DIR/main starts from that run's state (``crushdem-sand run
-    --from``) instead of its own sample."""
+    --from``) instead of its own sample. ``keep_columns``: interrupted runs started by a
+    crushdem that wrote fewer columns are resumed keeping each file's own."""
     from .sweep import run_variant
 
     with open(config_path, "rb") as f:
@@ -243,7 +245,8 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
     _check_main_origin(main_dir, branch)
     log(f"main: installation, {len(p['ages'])} age stages and load test "
         f"'{p['test_names'][0]}' in {main_dir}" + (f", branched from {branch}" if branch else ""))
-    r = run_variant(main_cfg, main_dir, threads, branch=branch, backend=backend)
+    r = run_variant(main_cfg, main_dir, threads, branch=branch, backend=backend,
+                    keep_columns=keep_columns)
     log("main: " + ("finished before" if r.get("skipped") else f"done in {r['wall_s']:.1f} s"))
     for name, stages, from_stage, _, test in p["branches"]:
         cfg_path = os.path.join(out, "configs", name + ".toml")
@@ -251,7 +254,7 @@ def pile(config_path: str, out: str, threads: int = 1, backend: str = "cpu",
         run_dir = os.path.join(out, name)
         log(f"{name}: load test '{test}' from {main_dir}:{from_stage}")
         r = run_variant(cfg_path, run_dir, threads, branch=f"{main_dir}:{from_stage}",
-                        backend=backend)
+                        backend=backend, keep_columns=keep_columns)
         log(f"{name}: " + ("finished before" if r.get("skipped") else
                            f"done in {r['wall_s']:.1f} s"))
     return write_results(out, p, log)
@@ -313,7 +316,8 @@ def _raise_stop(signum, _frame):
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``crushdem-sand pile CONFIG --out DIR [--from RUN[:STAGE]] [--threads N] [--backend B]``."""
+    """``crushdem-sand pile CONFIG --out DIR [--from RUN[:STAGE]] [--threads N] [--backend B]
+    [--keep-columns]``."""
     parser = CommandParser("pile", __doc__)
     parser.add_argument("config", metavar="CONFIG",
                         help="the pile's run configuration: installation, age stages, a load test")
@@ -326,6 +330,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                              "STAGE (index or name; without it, the first stage CONFIG changes): "
                              "a variant of an installed pile without installing it again")
     parser.add_backend("what advances the runs: cpu (default), cuda or emulated")
+    parser.add_argument("--keep-columns", action="store_true",
+                        help="resume interrupted runs started by a crushdem that wrote fewer "
+                             "columns, each file keeping its own (crushdem-sand resume "
+                             "--keep-columns)")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
@@ -333,7 +341,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     signal.signal(signal.SIGTERM, _raise_stop)
     try:
-        pile(args.config, args.out, args.threads, args.backend, log, branch=args.branch)
+        pile(args.config, args.out, args.threads, args.backend, log, branch=args.branch,
+             keep_columns=args.keep_columns)
     except _Stop as e:
         return 128 + int(e.args[0])
     except KeyboardInterrupt:

@@ -454,21 +454,23 @@ def _run_command(cmd: Sequence[str]) -> Tuple[int, str, str]:
 
 def run_variant(config_path: str, run_dir: str, threads: int,
                 branch: Optional[str] = None, backend: str = "cpu",
-                experiment: str = "run") -> Dict[str, Any]:
+                experiment: str = "run", keep_columns: bool = False) -> Dict[str, Any]:
     """Runs (or resumes) one variant with the crushdem command on ``backend``, branching from
     ``branch`` (DIR[:STAGE]) when given: ``crushdem-sand run`` (``experiment`` "run"), or
     ``crushdem-sand pile`` ("pile", which keeps its finished runs and resumes the others when
-    called again); returns {"resumed", "wall_s"}. Raises RuntimeError with the end of the
-    command's error output when it fails."""
+    called again); returns {"resumed", "wall_s"}. ``keep_columns``: a resumed run started by a
+    crushdem that wrote fewer columns keeps each file's own (``resume --keep-columns``). Raises
+    RuntimeError with the end of the command's error output when it fails."""
     if finished(run_dir, experiment):
         return {"resumed": False, "skipped": True}
     crushdem = [sys.executable, "-m", "crushdem_sand"]
     resumed = os.path.isdir(run_dir) and bool(os.listdir(run_dir))
     if experiment == "pile":
         cmd = crushdem + ["pile", config_path, "--out", run_dir, "--threads", str(threads)] + (
-            ["--from", branch] if branch else [])
+            ["--from", branch] if branch else []) + (["--keep-columns"] if keep_columns else [])
     elif resumed:
-        cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"]
+        cmd = crushdem + ["resume", run_dir, "--threads", str(threads), "--quiet"] + (
+            ["--keep-columns"] if keep_columns else [])
     else:
         cmd = crushdem + ["run", config_path, "--out", run_dir, "--threads", str(threads),
                           "--quiet"] + (["--from", branch] if branch else [])
@@ -501,9 +503,11 @@ def _raise_stop(signum, _frame):
 
 def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: int = 1,
           scheduler: Optional[str] = None, progress: Optional[bool] = None,
-          log: Callable[[str], None] = print, backend: str = "cpu") -> pd.DataFrame:
+          log: Callable[[str], None] = print, backend: str = "cpu",
+          keep_columns: bool = False) -> pd.DataFrame:
     """Runs (or completes) the sweep of ``path`` into ``out``, every run on ``backend``
-    ("cpu", "cuda" or "emulated"); returns the results DataFrame."""
+    ("cpu", "cuda" or "emulated"); returns the results DataFrame. ``keep_columns``: interrupted
+    runs started by a crushdem that wrote fewer columns are resumed keeping each file's own."""
     from . import _core
 
     if threads_per_run < 1:
@@ -546,7 +550,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
         f"{len(todo)} to run, {len(errors)} refused")
     if todo:
         _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log, sw["from"],
-                   backend, sw["experiment"])
+                   backend, sw["experiment"], keep_columns)
     if not available("pyarrow"):
         log(message("pyarrow", "results.parquet") + " (results.csv is written)")
     df = results_table(out, listed, sw["keys"], errors, sw["experiment"])
@@ -558,7 +562,7 @@ def sweep(path: str, out: str, workers: Optional[int] = None, threads_per_run: i
 
 
 def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
-               branch=None, backend="cpu", experiment="run") -> None:
+               branch=None, backend="cpu", experiment="run", keep_columns=False) -> None:
     distributed = require("distributed", "crushdem-sand sweep")
     Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
@@ -581,7 +585,7 @@ def _run_tasks(todo, errors, workers, threads_per_run, scheduler, progress, log,
             def submit(task):
                 name, cfg, run_dir = task
                 return client.submit(run_variant, cfg, run_dir, threads_per_run, branch, backend,
-                                     experiment, key=name, pure=False), name
+                                     experiment, keep_columns, key=name, pure=False), name
 
             _follow(client, list(todo), submit, errors, progress, log)
         finally:
@@ -709,10 +713,14 @@ def cluster_parser(command: str, details: Optional[str], file: str,
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """``crushdem-sand sweep SWEEP.toml --out DIR [--workers N] [--threads-per-run T]
-    [--scheduler ADDRESS]``."""
+    [--scheduler ADDRESS] [--keep-columns]``."""
     parser = cluster_parser("sweep", __doc__, "sweep", "SWEEP.toml")
     parser.add_backend("what advances every run: cpu (default), cuda (a GPU, in a build with "
                        "CUDA; one worker per GPU) or emulated")
+    parser.add_argument("--keep-columns", action="store_true",
+                        help="resume interrupted runs started by a crushdem that wrote fewer "
+                             "columns, each file keeping its own (crushdem-sand resume "
+                             "--keep-columns)")
     args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
 
     def log(msg: str) -> None:
@@ -720,7 +728,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     try:
         df = sweep(args.sweep, args.out, args.workers, args.threads_per_run, args.scheduler,
-                   log=log, backend=args.backend)
+                   log=log, backend=args.backend, keep_columns=args.keep_columns)
     except _Stop as e:
         return 128 + int(e.args[0])
     except KeyboardInterrupt:

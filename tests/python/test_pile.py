@@ -284,3 +284,25 @@ def test_the_breakage_map_outlines_the_pile_where_its_degree_of_freedom_puts_it(
     assert write(cone.replace("[0.0, 0.0, 0.05]", "[1e-3, 0.0, 0.05]")) is None
     assert write(cone + "\naxis = [1.0, 0.0, 0.0]") is None
     assert write(cone, stage_body="other") is None
+
+
+def test_the_pile_command_passes_keep_columns_to_every_run(tmp_path, monkeypatch):
+    """`crushdem-sand pile ... --keep-columns`: DIR/main and each branch are run (and, when
+    interrupted, resumed) with keep_columns; without the option, none is."""
+    from crushdem_sand import sweep
+
+    calls = []
+
+    def fake_run_variant(cfg, run_dir, threads, branch=None, backend="cpu", experiment="run",
+                         keep_columns=False):
+        calls.append((os.path.basename(run_dir), keep_columns))
+        return {"skipped": True}
+
+    monkeypatch.setattr(sweep, "run_variant", fake_run_variant)
+    monkeypatch.setattr(pile, "write_results", lambda out, p, log: {})
+    config = os.path.join(os.path.dirname(__file__), "..", "..", "examples", "pile_small.toml")
+    for flag in (["--keep-columns"], []):
+        calls.clear()
+        assert pile.main([config, "--out", str(tmp_path / "out"), *flag]) == 0
+        assert len(calls) >= 2 and calls[0][0] == "main", calls
+        assert all(keep == bool(flag) for _, keep in calls), calls

@@ -573,3 +573,21 @@ def test_a_stopped_sweep_signals_a_pile_experiment_and_not_its_run(monkeypatch):
     assert pile.signals == [signal.SIGTERM] and alone.signals == [signal.SIGTERM]
     assert piles_run.signals == [] and worker.signals == []
     assert waited == [pile, alone] and said == ["stopping: 2 run(s) saving their checkpoints"]
+
+
+@pytest.mark.parametrize("experiment, keep", [("run", True), ("run", False), ("pile", True),
+                                              ("pile", False)])
+def test_a_resumed_variant_passes_keep_columns_on(tmp_path, monkeypatch, experiment, keep):
+    """run_variant: an interrupted run resumed with keep_columns goes on with `resume
+    --keep-columns` (a pile experiment with `pile ... --keep-columns`, which passes it to its
+    own resumes); without it neither command carries the option."""
+    run_dir = tmp_path / "v"
+    run_dir.mkdir()
+    (run_dir / "checkpoint.bin").write_bytes(b"")
+    seen = []
+    monkeypatch.setattr(sweep, "_run_command", lambda cmd: (seen.append(cmd), (0, "", ""))[1])
+    r = sweep.run_variant("cfg.toml", str(run_dir), 1, experiment=experiment, keep_columns=keep)
+    assert r["resumed"] and len(seen) == 1
+    cmd = seen[0]
+    assert cmd[3] == ("resume" if experiment == "run" else "pile"), cmd
+    assert ("--keep-columns" in cmd) == keep, cmd
