@@ -218,18 +218,22 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
                          const std::vector<double>& z, const std::vector<double>& radius,
                          const Walls& walls, double skin) {
   const std::size_t N = x.size();
+  static_assert(kMaxBodies <= 16, "a grain's bodies are one bit each of a 16-bit mask");
   const int bodies = walls.size();
-  // Two passes (count, then fill) so that grains are visited in parallel and the entries come
-  // in grain order, then body order, on any thread count.
-  const auto near = [&](std::size_t i, int k) {
-    return walls.surface(k, {x[i], y[i], z[i]}).dist - radius[i] < skin;
-  };
+  // Two passes (which bodies each grain is near, then the entries) so that grains are visited
+  // in parallel and the entries come in grain order, then body order, on any thread count.
+  std::vector<std::uint16_t> near(N, 0);
   offsets.assign(N + 1, 0);
 #pragma omp parallel for schedule(static) if (worth_threading(N))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(N); ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     std::uint32_t n = 0;
-    for (int k = 0; k < bodies; ++k) n += near(i, k) ? 1 : 0;
+    for (int k = 0; k < bodies; ++k) {
+      if (walls.surface(k, {x[i], y[i], z[i]}).dist - radius[i] < skin) {
+        near[i] = static_cast<std::uint16_t>(near[i] | (1u << k));
+        ++n;
+      }
+    }
     offsets[i + 1] = n;
   }
   for (std::size_t i = 0; i < N; ++i) offsets[i + 1] += offsets[i];
@@ -239,7 +243,7 @@ void WallContacts::build(const std::vector<double>& x, const std::vector<double>
     const auto i = static_cast<std::size_t>(ii);
     std::uint32_t w = offsets[i];
     for (int k = 0; k < bodies; ++k) {
-      if (!near(i, k)) continue;
+      if ((near[i] >> k & 1u) == 0) continue;
       particle[w] = static_cast<std::uint32_t>(i);
       wall[w++] = static_cast<std::uint8_t>(k);
     }
